@@ -1,0 +1,213 @@
+//! Analytical frequency response functions.
+//!
+//! Conventions: `omega_rad_s` in rad/s; receptance in m/N (or m per m/s^2 of ground
+//! acceleration), mobility `Y = j omega H` (Eq. 11), accelerance `A = -omega^2 H`
+//! (Eq. 12). Ground-excitation FRFs are of the *relative* response (floor minus ground),
+//! paper Eq. (14). Long vectors (Eqs. 18-19) are ordered block by block (one block per
+//! test: one frequency grid), then pair by pair, then frequency by frequency.
+//!
+//! [`ModalFrf`] is the fast modal sum (Eqs. 7, 10, 15, 16) used in every inner loop;
+//! [`direct`] is the direct inverse of Eq. (1), the oracle, and the forward model for
+//! non-proportional viscous damping.
+
+pub mod direct;
+
+use crate::error::{Error, Result};
+use crate::modal::Modes;
+use num_complex::Complex64;
+
+/// Which response quantity an FRF relates to the input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrfKind {
+    /// Displacement per input, `H` (Eq. 1).
+    Receptance,
+    /// Velocity per input, `Y = j omega H` (Eq. 11).
+    Mobility,
+    /// Acceleration per input, `A = -omega^2 H` (Eq. 12).
+    Accelerance,
+}
+
+impl FrfKind {
+    /// Power p of `(j omega)^p` that turns receptance into this kind.
+    pub fn power(self) -> i32 {
+        match self {
+            FrfKind::Receptance => 0,
+            FrfKind::Mobility => 1,
+            FrfKind::Accelerance => 2,
+        }
+    }
+
+    /// The complex factor `(j omega)^p`.
+    #[inline]
+    pub fn factor(self, omega_rad_s: f64) -> Complex64 {
+        match self {
+            FrfKind::Receptance => Complex64::new(1.0, 0.0),
+            FrfKind::Mobility => Complex64::new(0.0, omega_rad_s),
+            FrfKind::Accelerance => Complex64::new(-omega_rad_s * omega_rad_s, 0.0),
+        }
+    }
+}
+
+/// Where the input acts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Excitation {
+    /// A force at one DOF (0-based), Eqs. (7), (10).
+    Dof(usize),
+    /// Ground acceleration, Eqs. (15), (16); the response is relative to the ground.
+    Ground,
+}
+
+/// One response / input pair of an FRF.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct FrfPair {
+    /// Response DOF (0-based).
+    pub response: usize,
+    pub excitation: Excitation,
+    pub kind: FrfKind,
+}
+
+/// A frequency grid and the pairs evaluated on it (typically: one test).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrfBlock {
+    pub omega_rad_s: Vec<f64>,
+    pub pairs: Vec<FrfPair>,
+}
+
+/// Modal-sum coefficient of mode `i` for a pair: `phi_r,i phi_e,i` (Eqs. 7, 10) or
+/// `-phi_r,i Gamma_i` (Eqs. 15, 16).
+#[inline]
+pub fn modal_coefficient(modes: &Modes, pair: &FrfPair, i: usize) -> f64 {
+    match pair.excitation {
+        Excitation::Dof(e) => modes.phi[(pair.response, i)] * modes.phi[(e, i)],
+        Excitation::Ground => -modes.phi[(pair.response, i)] * modes.participation[i],
+    }
+}
+
+/// One FRF value by modal superposition, for modal damping coefficients
+/// `modal_c[i] = 2 xi_i omega_i` (see [`crate::model::Damping::modal_coefficients`]):
+/// `H = sum_i coef_i / (omega_i^2 - omega^2 + j c_i omega)` times `(j omega)^p`.
+pub fn modal_frf(modes: &Modes, modal_c: &[f64], pair: &FrfPair, omega_rad_s: f64) -> Complex64 {
+    let mut h = Complex64::new(0.0, 0.0);
+    for (i, (&wn, &c)) in modes.omega_rad_s.iter().zip(modal_c).enumerate() {
+        let den = Complex64::new(wn * wn - omega_rad_s * omega_rad_s, c * omega_rad_s);
+        h += modal_coefficient(modes, pair, i) / den;
+    }
+    h * pair.kind.factor(omega_rad_s)
+}
+
+/// Fast modal-sum evaluator for a fixed set of blocks (the long vectors of Eqs. 18-19).
+/// Holds its scratch buffers, so evaluation does not allocate.
+#[derive(Debug, Clone)]
+pub struct ModalFrf {
+    blocks: Vec<FrfBlock>,
+    len: usize,
+    /// `1 / (omega_i^2 - omega_k^2 + j c_i omega_k)`, frequency-major.
+    poles: Vec<Complex64>,
+    coef: Vec<f64>,
+}
+
+impl ModalFrf {
+    /// An evaluator for `blocks`. Pairs must refer to DOFs of the model that will be
+    /// evaluated (checked at evaluation).
+    pub fn new(blocks: Vec<FrfBlock>) -> Self {
+        let len = blocks.iter().map(|b| b.omega_rad_s.len() * b.pairs.len()).sum();
+        ModalFrf { blocks, len, poles: Vec::new(), coef: Vec::new() }
+    }
+
+    /// The blocks this evaluator was built for.
+    pub fn blocks(&self) -> &[FrfBlock] {
+        &self.blocks
+    }
+
+    /// Length of the long vector.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when there is nothing to evaluate.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    fn check(&self, modes: &Modes, modal_c: &[f64], out_len: usize) -> Result<()> {
+        if out_len != self.len {
+            return Err(Error::Usage(format!("output has {out_len} entries, expected {}", self.len)));
+        }
+        if modal_c.len() != modes.n_modes() {
+            return Err(Error::Usage(format!(
+                "{} damping coefficients for {} modes",
+                modal_c.len(),
+                modes.n_modes()
+            )));
+        }
+        let n = modes.phi.nrows();
+        for b in &self.blocks {
+            for p in &b.pairs {
+                let e_ok = match p.excitation {
+                    Excitation::Dof(e) => e < n,
+                    Excitation::Ground => true,
+                };
+                if p.response >= n || !e_ok {
+                    return Err(Error::Usage(format!("FRF pair {p:?} outside a {n}-DOF model")));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Visits every block with its pole table filled, calling `emit(block, pair, k, h)`
+    /// with the receptance-type modal sum (before the `(j omega)^p` factor).
+    #[inline]
+    fn for_each(&mut self, modes: &Modes, modal_c: &[f64], mut emit: impl FnMut(usize, &FrfPair, usize, f64, Complex64)) {
+        let m = modes.n_modes();
+        let mut offset = 0;
+        for block in &self.blocks {
+            let nw = block.omega_rad_s.len();
+            self.poles.clear();
+            for &w in &block.omega_rad_s {
+                for (&wn, &c) in modes.omega_rad_s.iter().zip(modal_c) {
+                    let re = wn * wn - w * w;
+                    let im = c * w;
+                    let inv = 1.0 / (re * re + im * im);
+                    self.poles.push(Complex64::new(re * inv, -im * inv));
+                }
+            }
+            for pair in &block.pairs {
+                self.coef.clear();
+                self.coef.extend((0..m).map(|i| modal_coefficient(modes, pair, i)));
+                for (k, &w) in block.omega_rad_s.iter().enumerate() {
+                    let poles = &self.poles[k * m..(k + 1) * m];
+                    let mut h = Complex64::new(0.0, 0.0);
+                    for (p, &c) in poles.iter().zip(&self.coef) {
+                        h.re += c * p.re;
+                        h.im += c * p.im;
+                    }
+                    emit(offset, pair, k, w, h);
+                }
+                offset += nw;
+            }
+        }
+    }
+
+    /// Complex FRFs into `out` (length [`Self::len`]).
+    pub fn complex(&mut self, modes: &Modes, modal_c: &[f64], out: &mut [Complex64]) -> Result<()> {
+        self.check(modes, modal_c, out.len())?;
+        self.for_each(modes, modal_c, |offset, pair, k, w, h| {
+            out[offset + k] = h * pair.kind.factor(w);
+        });
+        Ok(())
+    }
+
+    /// FRF magnitudes (Eq. 17) into `out` (length [`Self::len`]).
+    pub fn magnitudes(&mut self, modes: &Modes, modal_c: &[f64], out: &mut [f64]) -> Result<()> {
+        self.check(modes, modal_c, out.len())?;
+        self.for_each(modes, modal_c, |offset, pair, k, w, h| {
+            out[offset + k] = h.norm() * w.powi(pair.kind.power());
+        });
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;

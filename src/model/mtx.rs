@@ -1,0 +1,211 @@
+//! General models from files: Matrix Market (`.mtx`) matrices with a TOML manifest, so a
+//! model exported from any FE package can be updated.
+//!
+//! ```toml
+//! # model.toml
+//! k0 = "K0.mtx"
+//! m0 = "M0.mtx"
+//! ground_influence = [1.0, 1.0, 1.0]   # optional; ones by default
+//! [[alpha]]
+//! name = "k1"
+//! unit = "N/m"                          # optional
+//! matrix = "K1.mtx"
+//! [[beta]]
+//! name = "m1"
+//! matrix = "M1.mtx"
+//! ```
+//! Paths are relative to the manifest. Supported: `matrix coordinate real|integer
+//! general|symmetric` and `matrix array real|integer general|symmetric`.
+
+use super::{Parameter, StructuralModel};
+use crate::error::{Error, Result};
+use nalgebra::{DMatrix, DVector};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// The TOML manifest of a general model.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelManifest {
+    pub k0: PathBuf,
+    pub m0: PathBuf,
+    #[serde(default)]
+    pub ground_influence: Option<Vec<f64>>,
+    #[serde(default)]
+    pub alpha: Vec<InfluenceEntry>,
+    #[serde(default)]
+    pub beta: Vec<InfluenceEntry>,
+}
+
+/// One influence matrix of the manifest.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InfluenceEntry {
+    pub name: String,
+    #[serde(default)]
+    pub unit: Option<String>,
+    pub matrix: PathBuf,
+}
+
+impl ModelManifest {
+    /// Reads a manifest and every matrix it names, and validates the model.
+    pub fn load(path: &Path) -> Result<StructuralModel> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let manifest: ModelManifest = toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let read = |p: &Path| read_matrix_market(&dir.join(p));
+        let k0 = read(&manifest.k0)?;
+        let m0 = read(&manifest.m0)?;
+        let load_list = |list: &[InfluenceEntry], unit: &str| -> Result<Vec<(Parameter, DMatrix<f64>)>> {
+            list.iter()
+                .map(|e| {
+                    let p = Parameter {
+                        name: e.name.clone(),
+                        unit: e.unit.clone().unwrap_or_else(|| unit.to_string()),
+                        nominal: None,
+                    };
+                    Ok((p, read(&e.matrix)?))
+                })
+                .collect()
+        };
+        let ka = load_list(&manifest.alpha, "-")?;
+        let mb = load_list(&manifest.beta, "-")?;
+        StructuralModel::from_matrices(k0, m0, ka, mb, manifest.ground_influence.map(DVector::from_vec))
+            .map_err(|e| Error::invalid(path, e.to_string()))
+    }
+}
+
+/// Reads a real dense matrix from a Matrix Market file, naming file and line on error.
+pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let cell = |line: usize, what: String| Error::Cell { path: path.to_path_buf(), line, column: 1, what };
+    let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l));
+    let (_, header) = lines.next().ok_or_else(|| Error::invalid(path, "empty file"))?;
+    let h: Vec<String> = header.split_whitespace().map(|s| s.to_ascii_lowercase()).collect();
+    if h.len() != 5 || h[0] != "%%matrixmarket" || h[1] != "matrix" {
+        return Err(cell(1, format!("expected '%%MatrixMarket matrix <format> <field> <symmetry>', got '{header}'")));
+    }
+    let coordinate = match h[2].as_str() {
+        "coordinate" => true,
+        "array" => false,
+        f => return Err(cell(1, format!("format '{f}' not supported (use coordinate or array)"))),
+    };
+    if h[3] != "real" && h[3] != "integer" && h[3] != "double" {
+        return Err(cell(1, format!("field '{}' not supported (use real)", h[3])));
+    }
+    let symmetric = match h[4].as_str() {
+        "general" => false,
+        "symmetric" => true,
+        s => return Err(cell(1, format!("symmetry '{s}' not supported (use general or symmetric)"))),
+    };
+    let mut data = lines.filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('%'));
+    let (size_line, size) = data.next().ok_or_else(|| Error::invalid(path, "missing size line"))?;
+    let parse_usize = |line: usize, s: &str| -> Result<usize> {
+        s.parse::<usize>().map_err(|_| cell(line, format!("'{s}' is not a non-negative integer")))
+    };
+    let parse_f64 = |line: usize, s: &str| -> Result<f64> {
+        let v = s.parse::<f64>().map_err(|_| cell(line, format!("'{s}' is not a number")))?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(cell(line, format!("'{s}' is not finite")))
+        }
+    };
+    let sizes: Vec<&str> = size.split_whitespace().collect();
+    let expect = if coordinate { 3 } else { 2 };
+    if sizes.len() != expect {
+        return Err(cell(size_line, format!("size line needs {expect} integers, got '{size}'")));
+    }
+    let rows = parse_usize(size_line, sizes[0])?;
+    let cols = parse_usize(size_line, sizes[1])?;
+    let mut m = DMatrix::zeros(rows, cols);
+    if coordinate {
+        let nnz = parse_usize(size_line, sizes[2])?;
+        let mut count = 0;
+        for (line, l) in data {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            if f.len() != 3 {
+                return Err(cell(line, format!("expected 'row col value', got '{l}'")));
+            }
+            let (i, j) = (parse_usize(line, f[0])?, parse_usize(line, f[1])?);
+            if i == 0 || j == 0 || i > rows || j > cols {
+                return Err(cell(line, format!("index ({i},{j}) outside {rows}x{cols} (indices are 1-based)")));
+            }
+            let v = parse_f64(line, f[2])?;
+            m[(i - 1, j - 1)] += v;
+            if symmetric && i != j {
+                m[(j - 1, i - 1)] += v;
+            }
+            count += 1;
+        }
+        if count != nnz {
+            return Err(Error::invalid(path, format!("size line announces {nnz} entries, file has {count}")));
+        }
+    } else {
+        // Column-major; for symmetric, the lower triangle column by column.
+        let mut values = Vec::new();
+        for (line, l) in data {
+            for tok in l.split_whitespace() {
+                values.push(parse_f64(line, tok)?);
+            }
+        }
+        let expected = if symmetric { rows * (rows + 1) / 2 } else { rows * cols };
+        if values.len() != expected {
+            return Err(Error::invalid(path, format!("expected {expected} values, file has {}", values.len())));
+        }
+        let mut it = values.into_iter();
+        for j in 0..cols {
+            let start = if symmetric { j } else { 0 };
+            for i in start..rows {
+                let v = it.next().unwrap_or(0.0);
+                m[(i, j)] = v;
+                if symmetric {
+                    m[(j, i)] = v;
+                }
+            }
+        }
+    }
+    Ok(m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn manifest_model_equals_shear_frame() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        write(d, "K0.mtx", "%%MatrixMarket matrix coordinate real symmetric\n2 2 3\n1 1 30\n2 1 -20\n2 2 20\n");
+        write(d, "M0.mtx", "%%MatrixMarket matrix array real general\n% comment\n2 2\n1\n0\n0\n2\n");
+        write(d, "K1.mtx", "%%MatrixMarket matrix coordinate real general\n2 2 1\n1 1 10\n");
+        write(d, "K2.mtx", "%%MatrixMarket matrix coordinate real symmetric\n2 2 3\n1 1 20\n2 1 -20\n2 2 20\n");
+        let man = write(
+            d,
+            "model.toml",
+            "k0 = \"K0.mtx\"\nm0 = \"M0.mtx\"\n[[alpha]]\nname = \"k1\"\nmatrix = \"K1.mtx\"\n[[alpha]]\nname = \"k2\"\nmatrix = \"K2.mtx\"\n",
+        );
+        let model = ModelManifest::load(&man).unwrap();
+        let sf = StructuralModel::shear_frame(&[1.0, 2.0], &[10.0, 20.0]).unwrap();
+        let a = [0.3, -0.2];
+        assert!((model.stiffness(&a) - sf.stiffness(&a)).amax() < 1e-12);
+        assert!((model.mass(&[]) - sf.mass(&[0.0, 0.0])).amax() < 1e-12);
+    }
+
+    #[test]
+    fn bad_matrix_market_names_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = write(dir.path(), "K.mtx", "%%MatrixMarket matrix coordinate real general\n2 2 1\n3 1 1.0\n");
+        let e = read_matrix_market(&p).unwrap_err().to_string();
+        assert!(e.contains("K.mtx:3:") && e.contains("outside"), "{e}");
+        let p = write(dir.path(), "K2.mtx", "%%MatrixMarket matrix coordinate real general\n2 2 1\n1 1 abc\n");
+        let e = read_matrix_market(&p).unwrap_err().to_string();
+        assert!(e.contains("K2.mtx:3:") && e.contains("not a number"), "{e}");
+    }
+}
