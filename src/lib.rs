@@ -13,10 +13,29 @@
 //! - Ground-excitation FRFs relate the response *relative* to the ground to the ground
 //!   acceleration (Eq. 14).
 //! - Randomness comes only from `rand_chacha::ChaCha8Rng` seeded by the caller.
+//!
+//! ## Modules
+//! - [`model`]: K(alpha), M(beta) (Eqs. 20-21), damping models (Eqs. 2, 8-9).
+//! - [`modal`]: generalised eigenproblem, mass-normalised modes, MAC.
+//! - [`frf`]: modal-sum FRFs (Eqs. 7, 10-12, 15-17) and the direct-solve oracle (Eq. 1).
+//! - [`io`]: campaign reader/writer, atomic outputs.
+//! - [`signal`]: FRF estimation from recordings (H1, H2, coherence, bands).
+//! - [`simulate`]: synthetic campaigns with known truth.
+//! - [`update`]: bounded multistart least squares (Eqs. 22-24), FDAC, RSD.
+//! - [`mcmc`]: affine-invariant ensemble sampler and diagnostics.
+//! - [`plot`]: figures (PNG and SVG) from results.
+//! - [`discrepancy`]: locating and explaining missing physics.
 
+pub mod discrepancy;
 pub mod error;
 pub mod frf;
+pub mod io;
+pub mod mcmc;
 pub mod modal;
 pub mod model;
+pub mod plot;
+pub mod signal;
+pub mod simulate;
+pub mod update;
 
 pub use error::{Error, Result};
