@@ -1,3 +1,42 @@
-fn main() {
-    println!("frfbayes: under construction");
+//! The `frfbayes` command line: parses arguments and calls the library.
+
+mod cli;
+
+use clap::{Parser, Subcommand};
+
+/// FRF-based model updating with Bayesian uncertainty and missing-physics diagnosis.
+#[derive(Debug, Parser)]
+#[command(name = "frfbayes", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Read and validate a campaign, and summarise it.
+    Check(cli::check::Args),
+    /// Estimate FRFs (H1, coherence, half-power bands) from a campaign's recordings.
+    Frf(cli::frf::Args),
+    /// Print the nominal natural frequencies and mode shapes of a campaign's model.
+    Modes(cli::modes::Args),
+    /// Simulate a campaign with known truth from a model file.
+    Simulate(cli::simulate::Args),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Check(a) => cli::check::run(a),
+        Command::Frf(a) => cli::frf::run(a),
+        Command::Modes(a) => cli::modes::run(a),
+        Command::Simulate(a) => cli::simulate::run(a),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
 }

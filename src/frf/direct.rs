@@ -8,9 +8,17 @@ use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 
-fn dynamic_stiffness(m: &DMatrix<f64>, k: &DMatrix<f64>, c: &DMatrix<f64>, omega_rad_s: f64) -> DMatrix<Complex64> {
+fn dynamic_stiffness(
+    m: &DMatrix<f64>,
+    k: &DMatrix<f64>,
+    c: &DMatrix<f64>,
+    omega_rad_s: f64,
+) -> DMatrix<Complex64> {
     DMatrix::from_fn(k.nrows(), k.ncols(), |i, j| {
-        Complex64::new(k[(i, j)] - omega_rad_s * omega_rad_s * m[(i, j)], omega_rad_s * c[(i, j)])
+        Complex64::new(
+            k[(i, j)] - omega_rad_s * omega_rad_s * m[(i, j)],
+            omega_rad_s * c[(i, j)],
+        )
     })
 }
 
@@ -23,7 +31,9 @@ pub fn receptance_matrix(
 ) -> Result<DMatrix<Complex64>> {
     dynamic_stiffness(m, k, c, omega_rad_s)
         .try_inverse()
-        .ok_or_else(|| Error::Numerical(format!("dynamic stiffness singular at {omega_rad_s} rad/s")))
+        .ok_or_else(|| {
+            Error::Numerical(format!("dynamic stiffness singular at {omega_rad_s} rad/s"))
+        })
 }
 
 /// Relative-displacement receptance to ground acceleration at one frequency, Eq. (14):
@@ -39,7 +49,9 @@ pub fn ground_receptance(
     dynamic_stiffness(m, k, c, omega_rad_s)
         .lu()
         .solve(&rhs)
-        .ok_or_else(|| Error::Numerical(format!("dynamic stiffness singular at {omega_rad_s} rad/s")))
+        .ok_or_else(|| {
+            Error::Numerical(format!("dynamic stiffness singular at {omega_rad_s} rad/s"))
+        })
 }
 
 /// Complex FRFs of `blocks` by direct solves, in the long-vector order of

@@ -111,8 +111,16 @@ impl ModalFrf {
     /// An evaluator for `blocks`. Pairs must refer to DOFs of the model that will be
     /// evaluated (checked at evaluation).
     pub fn new(blocks: Vec<FrfBlock>) -> Self {
-        let len = blocks.iter().map(|b| b.omega_rad_s.len() * b.pairs.len()).sum();
-        ModalFrf { blocks, len, poles: Vec::new(), coef: Vec::new() }
+        let len = blocks
+            .iter()
+            .map(|b| b.omega_rad_s.len() * b.pairs.len())
+            .sum();
+        ModalFrf {
+            blocks,
+            len,
+            poles: Vec::new(),
+            coef: Vec::new(),
+        }
     }
 
     /// The blocks this evaluator was built for.
@@ -132,7 +140,10 @@ impl ModalFrf {
 
     fn check(&self, modes: &Modes, modal_c: &[f64], out_len: usize) -> Result<()> {
         if out_len != self.len {
-            return Err(Error::Usage(format!("output has {out_len} entries, expected {}", self.len)));
+            return Err(Error::Usage(format!(
+                "output has {out_len} entries, expected {}",
+                self.len
+            )));
         }
         if modal_c.len() != modes.n_modes() {
             return Err(Error::Usage(format!(
@@ -149,7 +160,9 @@ impl ModalFrf {
                     Excitation::Ground => true,
                 };
                 if p.response >= n || !e_ok {
-                    return Err(Error::Usage(format!("FRF pair {p:?} outside a {n}-DOF model")));
+                    return Err(Error::Usage(format!(
+                        "FRF pair {p:?} outside a {n}-DOF model"
+                    )));
                 }
             }
         }
@@ -159,7 +172,12 @@ impl ModalFrf {
     /// Visits every block with its pole table filled, calling `emit(block, pair, k, h)`
     /// with the receptance-type modal sum (before the `(j omega)^p` factor).
     #[inline]
-    fn for_each(&mut self, modes: &Modes, modal_c: &[f64], mut emit: impl FnMut(usize, &FrfPair, usize, f64, Complex64)) {
+    fn for_each(
+        &mut self,
+        modes: &Modes,
+        modal_c: &[f64],
+        mut emit: impl FnMut(usize, &FrfPair, usize, f64, Complex64),
+    ) {
         let m = modes.n_modes();
         let mut offset = 0;
         for block in &self.blocks {
@@ -175,7 +193,8 @@ impl ModalFrf {
             }
             for pair in &block.pairs {
                 self.coef.clear();
-                self.coef.extend((0..m).map(|i| modal_coefficient(modes, pair, i)));
+                self.coef
+                    .extend((0..m).map(|i| modal_coefficient(modes, pair, i)));
                 for (k, &w) in block.omega_rad_s.iter().enumerate() {
                     let poles = &self.poles[k * m..(k + 1) * m];
                     let mut h = Complex64::new(0.0, 0.0);

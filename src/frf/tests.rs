@@ -2,7 +2,9 @@
 //! Eq. (1) and Eq. (14), for random well-conditioned models.
 
 use super::*;
-use crate::model::{caughey_coefficients, caughey_damping_matrix, rayleigh_damping_matrix, Damping, StructuralModel};
+use crate::model::{
+    caughey_coefficients, caughey_damping_matrix, rayleigh_damping_matrix, Damping, StructuralModel,
+};
 use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -21,24 +23,43 @@ fn all_pairs(n: usize) -> Vec<FrfPair> {
     for kind in [FrfKind::Receptance, FrfKind::Mobility, FrfKind::Accelerance] {
         for r in 0..n {
             for e in 0..n {
-                pairs.push(FrfPair { response: r, excitation: Excitation::Dof(e), kind });
+                pairs.push(FrfPair {
+                    response: r,
+                    excitation: Excitation::Dof(e),
+                    kind,
+                });
             }
-            pairs.push(FrfPair { response: r, excitation: Excitation::Ground, kind });
+            pairs.push(FrfPair {
+                response: r,
+                excitation: Excitation::Ground,
+                kind,
+            });
         }
     }
     pairs
 }
 
-fn check_against_direct(model: &StructuralModel, alpha: &[f64], beta: &[f64], damping: &Damping, c: &DMatrix<f64>) {
+fn check_against_direct(
+    model: &StructuralModel,
+    alpha: &[f64],
+    beta: &[f64],
+    damping: &Damping,
+    c: &DMatrix<f64>,
+) {
     let (k, m) = (model.stiffness(alpha), model.mass(beta));
     let modes = Modes::solve(&k, &m, model.ground_influence(), None).unwrap();
     let mut modal_c = vec![0.0; modes.n_modes()];
-    damping.modal_coefficients(&modes.omega_rad_s, &mut modal_c).unwrap();
+    damping
+        .modal_coefficients(&modes.omega_rad_s, &mut modal_c)
+        .unwrap();
     let wmax = modes.omega_rad_s.last().unwrap() * 1.5;
     // Include the natural frequencies themselves, where the sums are most sensitive.
     let mut omega: Vec<f64> = (1..200).map(|i| wmax * i as f64 / 200.0).collect();
     omega.extend(&modes.omega_rad_s);
-    let blocks = vec![FrfBlock { omega_rad_s: omega, pairs: all_pairs(model.n_dof()) }];
+    let blocks = vec![FrfBlock {
+        omega_rad_s: omega,
+        pairs: all_pairs(model.n_dof()),
+    }];
     let direct = direct::block_frfs(&m, &k, c, model.ground_influence(), &blocks).unwrap();
     let mut fast = ModalFrf::new(blocks.clone());
     let mut h = vec![Complex64::new(0.0, 0.0); fast.len()];
@@ -51,7 +72,10 @@ fn check_against_direct(model: &StructuralModel, alpha: &[f64], beta: &[f64], da
             for &w in &b.omega_rad_s {
                 let (a, d) = (h[idx], direct[idx]);
                 let rel = (a - d).norm() / d.norm();
-                assert!(rel < ORACLE_RTOL, "pair {p:?} at {w} rad/s: modal {a} vs direct {d} (rel {rel:e})");
+                assert!(
+                    rel < ORACLE_RTOL,
+                    "pair {p:?} at {w} rad/s: modal {a} vs direct {d} (rel {rel:e})"
+                );
                 assert!((mag[idx] - d.norm()).abs() <= ORACLE_RTOL * d.norm());
                 let single = modal_frf(&modes, &modal_c, p, w);
                 assert!((single - d).norm() <= ORACLE_RTOL * d.norm());
@@ -71,7 +95,16 @@ fn rayleigh_modal_sum_equals_direct_inverse() {
             let beta: Vec<f64> = (0..n).map(|_| rng.random_range(-0.3..0.3)).collect();
             let (a0, a1) = (rng.random_range(0.01..0.5), rng.random_range(1e-6..1e-3));
             let c = rayleigh_damping_matrix(&model.mass(&beta), &model.stiffness(&alpha), a0, a1);
-            check_against_direct(&model, &alpha, &beta, &Damping::Rayleigh { a0_per_s: a0, a1_s: a1 }, &c);
+            check_against_direct(
+                &model,
+                &alpha,
+                &beta,
+                &Damping::Rayleigh {
+                    a0_per_s: a0,
+                    a1_s: a1,
+                },
+                &c,
+            );
         }
     }
 }
@@ -103,20 +136,35 @@ fn general_model_with_full_matrices() {
     let k0 = &a * a.transpose() + DMatrix::identity(n, n) * 2.0;
     let b = DMatrix::from_fn(n, n, |_, _| rng.random_range(-0.3..0.3));
     let m0 = &b * b.transpose() + DMatrix::identity(n, n);
-    let model = StructuralModel::from_matrices(k0.clone(), m0.clone(), vec![], vec![], None).unwrap();
+    let model =
+        StructuralModel::from_matrices(k0.clone(), m0.clone(), vec![], vec![], None).unwrap();
     let c = rayleigh_damping_matrix(&m0, &k0, 0.05, 0.002);
-    check_against_direct(&model, &[], &[], &Damping::Rayleigh { a0_per_s: 0.05, a1_s: 0.002 }, &c);
+    check_against_direct(
+        &model,
+        &[],
+        &[],
+        &Damping::Rayleigh {
+            a0_per_s: 0.05,
+            a1_s: 0.002,
+        },
+        &c,
+    );
 }
 
 #[test]
 fn truncation_keeps_leading_modes() {
-    let model = StructuralModel::shear_frame(&[4.64; 4], &[1019.0, 1217.0, 1420.0, 2473.0]).unwrap();
+    let model =
+        StructuralModel::shear_frame(&[4.64; 4], &[1019.0, 1217.0, 1420.0, 2473.0]).unwrap();
     let (k, m) = (model.stiffness(&[0.0; 4]), model.mass(&[0.0; 4]));
     let all = Modes::solve(&k, &m, model.ground_influence(), None).unwrap();
     let two = Modes::solve(&k, &m, model.ground_influence(), Some(2)).unwrap();
     assert_eq!(&all.omega_rad_s[..2], &two.omega_rad_s[..]);
     // Near mode 1, the truncated sum is close to the full one (other modes are far).
-    let p = FrfPair { response: 3, excitation: Excitation::Dof(0), kind: FrfKind::Receptance };
+    let p = FrfPair {
+        response: 3,
+        excitation: Excitation::Dof(0),
+        kind: FrfKind::Receptance,
+    };
     let w = all.omega_rad_s[0];
     let c = [0.04 * w, 0.04 * all.omega_rad_s[1]];
     let full_c: Vec<f64> = all.omega_rad_s.iter().map(|w| 0.04 * w).collect();

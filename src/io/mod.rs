@@ -1,6 +1,12 @@
 //! Reading and writing: recorded test campaigns (`../shared/spec/recording-format.md`),
 //! atomic output files, and result tables.
 
+pub mod atomic;
+mod campaign;
 mod types;
+mod writer;
 
+pub use atomic::{write_atomic, write_atomic_with, StagedDir};
+pub use campaign::{read_campaign, read_nominal};
 pub use types::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
+pub use writer::write_campaign;

@@ -63,7 +63,11 @@ impl Modes {
         }
         let m_iota = m * ground_influence;
         let participation = (0..n_modes).map(|i| phi.column(i).dot(&m_iota)).collect();
-        Ok(Modes { omega_rad_s, phi, participation })
+        Ok(Modes {
+            omega_rad_s,
+            phi,
+            participation,
+        })
     }
 
     /// Number of retained modes.
@@ -73,7 +77,10 @@ impl Modes {
 
     /// Natural frequencies in Hz.
     pub fn freq_hz(&self) -> Vec<f64> {
-        self.omega_rad_s.iter().map(|w| w / (2.0 * std::f64::consts::PI)).collect()
+        self.omega_rad_s
+            .iter()
+            .map(|w| w / (2.0 * std::f64::consts::PI))
+            .collect()
     }
 }
 
@@ -113,8 +120,20 @@ mod tests {
         assert!((ptmp - DMatrix::identity(2, 2)).amax() < 1e-12);
         let ptkp = modes.phi.transpose() * &k * &modes.phi;
         assert!((ptkp - DMatrix::from_diagonal(&DVector::from_vec(w2))).amax() < 1e-12);
-        assert!((mac(modes.phi.column(0).as_slice(), modes.phi.column(0).as_slice()) - 1.0).abs() < 1e-14);
-        assert!(mac(modes.phi.column(0).as_slice(), modes.phi.column(1).as_slice()) < 1.0);
+        assert!(
+            (mac(
+                modes.phi.column(0).as_slice(),
+                modes.phi.column(0).as_slice()
+            ) - 1.0)
+                .abs()
+                < 1e-14
+        );
+        assert!(
+            mac(
+                modes.phi.column(0).as_slice(),
+                modes.phi.column(1).as_slice()
+            ) < 1.0
+        );
         let trunc = Modes::solve(&k, &m, model.ground_influence(), Some(1)).unwrap();
         assert_eq!(trunc.n_modes(), 1);
         assert_eq!(trunc.phi.ncols(), 1);

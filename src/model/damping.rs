@@ -49,7 +49,10 @@ impl Damping {
     pub fn damping_ratios(&self, omega_rad_s: &[f64]) -> Result<Vec<f64>> {
         let mut c = vec![0.0; omega_rad_s.len()];
         self.modal_coefficients(omega_rad_s, &mut c)?;
-        Ok(c.iter().zip(omega_rad_s).map(|(c, w)| c / (2.0 * w)).collect())
+        Ok(c.iter()
+            .zip(omega_rad_s)
+            .map(|(c, w)| c / (2.0 * w))
+            .collect())
     }
 
     /// Number of damping variables (2 for Rayleigh, one per mode for Caughey).
@@ -62,7 +65,12 @@ impl Damping {
 }
 
 /// `C = a0 M + a1 K`, paper Eq. (2).
-pub fn rayleigh_damping_matrix(m: &DMatrix<f64>, k: &DMatrix<f64>, a0_per_s: f64, a1_s: f64) -> DMatrix<f64> {
+pub fn rayleigh_damping_matrix(
+    m: &DMatrix<f64>,
+    k: &DMatrix<f64>,
+    a0_per_s: f64,
+    a1_s: f64,
+) -> DMatrix<f64> {
     m * a0_per_s + k * a1_s
 }
 
@@ -71,19 +79,25 @@ pub fn rayleigh_damping_matrix(m: &DMatrix<f64>, k: &DMatrix<f64>, a0_per_s: f64
 pub fn caughey_coefficients(omega_rad_s: &[f64], xi: &[f64]) -> Result<Vec<f64>> {
     let n = omega_rad_s.len();
     if xi.len() != n {
-        return Err(Error::Usage(format!("{} damping ratios for {n} frequencies", xi.len())));
+        return Err(Error::Usage(format!(
+            "{} damping ratios for {n} frequencies",
+            xi.len()
+        )));
     }
     let v = DMatrix::from_fn(n, n, |i, l| 0.5 * omega_rad_s[i].powi(2 * l as i32 - 1));
     let rhs = DVector::from_column_slice(xi);
-    let a = v
-        .lu()
-        .solve(&rhs)
-        .ok_or_else(|| Error::Numerical("Caughey system is singular (repeated frequencies?)".into()))?;
+    let a = v.lu().solve(&rhs).ok_or_else(|| {
+        Error::Numerical("Caughey system is singular (repeated frequencies?)".into())
+    })?;
     Ok(a.iter().copied().collect())
 }
 
 /// `C = M sum_l a_l (M^-1 K)^l`, paper Eq. (8).
-pub fn caughey_damping_matrix(m: &DMatrix<f64>, k: &DMatrix<f64>, a: &[f64]) -> Result<DMatrix<f64>> {
+pub fn caughey_damping_matrix(
+    m: &DMatrix<f64>,
+    k: &DMatrix<f64>,
+    a: &[f64],
+) -> Result<DMatrix<f64>> {
     let m_inv_k = m
         .clone()
         .lu()

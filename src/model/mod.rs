@@ -61,12 +61,18 @@ impl StructuralModel {
         }
         for (i, &m) in floor_mass_kg.iter().enumerate() {
             if !(m.is_finite() && m > 0.0) {
-                return Err(Error::Model(format!("floor {} mass must be positive, got {m}", i + 1)));
+                return Err(Error::Model(format!(
+                    "floor {} mass must be positive, got {m}",
+                    i + 1
+                )));
             }
         }
         for (i, &k) in story_stiffness_n_per_m.iter().enumerate() {
             if !(k.is_finite() && k > 0.0) {
-                return Err(Error::Model(format!("story {} stiffness must be positive, got {k}", i + 1)));
+                return Err(Error::Model(format!(
+                    "story {} stiffness must be positive, got {k}",
+                    i + 1
+                )));
             }
         }
         let k_influence: Vec<_> = story_stiffness_n_per_m
@@ -88,12 +94,20 @@ impl StructuralModel {
         let alpha = story_stiffness_n_per_m
             .iter()
             .enumerate()
-            .map(|(r, &k)| Parameter { name: format!("k{}", r + 1), unit: "N/m".into(), nominal: Some(k) })
+            .map(|(r, &k)| Parameter {
+                name: format!("k{}", r + 1),
+                unit: "N/m".into(),
+                nominal: Some(k),
+            })
             .collect();
         let beta = floor_mass_kg
             .iter()
             .enumerate()
-            .map(|(r, &m)| Parameter { name: format!("m{}", r + 1), unit: "kg".into(), nominal: Some(m) })
+            .map(|(r, &m)| Parameter {
+                name: format!("m{}", r + 1),
+                unit: "kg".into(),
+                nominal: Some(m),
+            })
             .collect();
         Ok(StructuralModel {
             k0,
@@ -118,7 +132,11 @@ impl StructuralModel {
         let n = k0.nrows();
         let check_shape = |what: &str, m: &DMatrix<f64>| {
             if m.nrows() != n || m.ncols() != n {
-                Err(Error::Model(format!("{what} is {}x{}, expected {n}x{n} like K0", m.nrows(), m.ncols())))
+                Err(Error::Model(format!(
+                    "{what} is {}x{}, expected {n}x{n} like K0",
+                    m.nrows(),
+                    m.ncols()
+                )))
             } else {
                 Ok(())
             }
@@ -138,7 +156,15 @@ impl StructuralModel {
         }
         let (alpha, k_influence) = k_influence.into_iter().unzip();
         let (beta, m_influence) = m_influence.into_iter().unzip();
-        let model = StructuralModel { k0, m0, k_influence, m_influence, alpha, beta, ground_influence };
+        let model = StructuralModel {
+            k0,
+            m0,
+            k_influence,
+            m_influence,
+            alpha,
+            beta,
+            ground_influence,
+        };
         model.validate(&model.alpha_zero(), &model.beta_zero())?;
         Ok(model)
     }
@@ -223,9 +249,16 @@ impl StructuralModel {
 
     /// Physical values of the shear-frame variables: story stiffnesses `k_r0 (1 + alpha_r)`
     /// then floor masses `m_r0 (1 + beta_r)`; `None` for variables without a nominal value.
-    pub fn physical_values(&self, alpha: &[f64], beta: &[f64]) -> (Vec<Option<f64>>, Vec<Option<f64>>) {
+    pub fn physical_values(
+        &self,
+        alpha: &[f64],
+        beta: &[f64],
+    ) -> (Vec<Option<f64>>, Vec<Option<f64>>) {
         let f = |ps: &[Parameter], x: &[f64]| -> Vec<Option<f64>> {
-            ps.iter().zip(x).map(|(p, &v)| p.nominal.map(|n| n * (1.0 + v))).collect()
+            ps.iter()
+                .zip(x)
+                .map(|(p, &v)| p.nominal.map(|n| n * (1.0 + v)))
+                .collect()
         };
         (f(&self.alpha, alpha), f(&self.beta, beta))
     }
@@ -275,9 +308,15 @@ mod tests {
     fn shear_frame_matrices() {
         let m = StructuralModel::shear_frame(&[1.0, 2.0], &[10.0, 20.0]).unwrap();
         let k = m.stiffness(&[0.0, 0.0]);
-        assert_eq!(k, DMatrix::from_row_slice(2, 2, &[30.0, -20.0, -20.0, 20.0]));
+        assert_eq!(
+            k,
+            DMatrix::from_row_slice(2, 2, &[30.0, -20.0, -20.0, 20.0])
+        );
         let k = m.stiffness(&[1.0, 0.5]);
-        assert_eq!(k, DMatrix::from_row_slice(2, 2, &[50.0, -30.0, -30.0, 30.0]));
+        assert_eq!(
+            k,
+            DMatrix::from_row_slice(2, 2, &[50.0, -30.0, -30.0, 30.0])
+        );
         let mm = m.mass(&[0.5, 0.0]);
         assert_eq!(mm, DMatrix::from_row_slice(2, 2, &[1.5, 0.0, 0.0, 2.0]));
         let (k, ms) = m.physical_values(&[0.1, 0.0], &[0.0, -0.5]);

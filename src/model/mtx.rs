@@ -51,60 +51,99 @@ impl ModelManifest {
     /// Reads a manifest and every matrix it names, and validates the model.
     pub fn load(path: &Path) -> Result<StructuralModel> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let manifest: ModelManifest = toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))?;
+        let manifest: ModelManifest =
+            toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         let read = |p: &Path| read_matrix_market(&dir.join(p));
         let k0 = read(&manifest.k0)?;
         let m0 = read(&manifest.m0)?;
-        let load_list = |list: &[InfluenceEntry], unit: &str| -> Result<Vec<(Parameter, DMatrix<f64>)>> {
-            list.iter()
-                .map(|e| {
-                    let p = Parameter {
-                        name: e.name.clone(),
-                        unit: e.unit.clone().unwrap_or_else(|| unit.to_string()),
-                        nominal: None,
-                    };
-                    Ok((p, read(&e.matrix)?))
-                })
-                .collect()
-        };
+        let load_list =
+            |list: &[InfluenceEntry], unit: &str| -> Result<Vec<(Parameter, DMatrix<f64>)>> {
+                list.iter()
+                    .map(|e| {
+                        let p = Parameter {
+                            name: e.name.clone(),
+                            unit: e.unit.clone().unwrap_or_else(|| unit.to_string()),
+                            nominal: None,
+                        };
+                        Ok((p, read(&e.matrix)?))
+                    })
+                    .collect()
+            };
         let ka = load_list(&manifest.alpha, "-")?;
         let mb = load_list(&manifest.beta, "-")?;
-        StructuralModel::from_matrices(k0, m0, ka, mb, manifest.ground_influence.map(DVector::from_vec))
-            .map_err(|e| Error::invalid(path, e.to_string()))
+        StructuralModel::from_matrices(
+            k0,
+            m0,
+            ka,
+            mb,
+            manifest.ground_influence.map(DVector::from_vec),
+        )
+        .map_err(|e| Error::invalid(path, e.to_string()))
     }
 }
 
 /// Reads a real dense matrix from a Matrix Market file, naming file and line on error.
 pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let cell = |line: usize, what: String| Error::Cell { path: path.to_path_buf(), line, column: 1, what };
+    let cell = |line: usize, what: String| Error::Cell {
+        path: path.to_path_buf(),
+        line,
+        column: 1,
+        what,
+    };
     let mut lines = text.lines().enumerate().map(|(i, l)| (i + 1, l));
-    let (_, header) = lines.next().ok_or_else(|| Error::invalid(path, "empty file"))?;
-    let h: Vec<String> = header.split_whitespace().map(|s| s.to_ascii_lowercase()).collect();
+    let (_, header) = lines
+        .next()
+        .ok_or_else(|| Error::invalid(path, "empty file"))?;
+    let h: Vec<String> = header
+        .split_whitespace()
+        .map(|s| s.to_ascii_lowercase())
+        .collect();
     if h.len() != 5 || h[0] != "%%matrixmarket" || h[1] != "matrix" {
-        return Err(cell(1, format!("expected '%%MatrixMarket matrix <format> <field> <symmetry>', got '{header}'")));
+        return Err(cell(
+            1,
+            format!("expected '%%MatrixMarket matrix <format> <field> <symmetry>', got '{header}'"),
+        ));
     }
     let coordinate = match h[2].as_str() {
         "coordinate" => true,
         "array" => false,
-        f => return Err(cell(1, format!("format '{f}' not supported (use coordinate or array)"))),
+        f => {
+            return Err(cell(
+                1,
+                format!("format '{f}' not supported (use coordinate or array)"),
+            ))
+        }
     };
     if h[3] != "real" && h[3] != "integer" && h[3] != "double" {
-        return Err(cell(1, format!("field '{}' not supported (use real)", h[3])));
+        return Err(cell(
+            1,
+            format!("field '{}' not supported (use real)", h[3]),
+        ));
     }
     let symmetric = match h[4].as_str() {
         "general" => false,
         "symmetric" => true,
-        s => return Err(cell(1, format!("symmetry '{s}' not supported (use general or symmetric)"))),
+        s => {
+            return Err(cell(
+                1,
+                format!("symmetry '{s}' not supported (use general or symmetric)"),
+            ))
+        }
     };
     let mut data = lines.filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('%'));
-    let (size_line, size) = data.next().ok_or_else(|| Error::invalid(path, "missing size line"))?;
+    let (size_line, size) = data
+        .next()
+        .ok_or_else(|| Error::invalid(path, "missing size line"))?;
     let parse_usize = |line: usize, s: &str| -> Result<usize> {
-        s.parse::<usize>().map_err(|_| cell(line, format!("'{s}' is not a non-negative integer")))
+        s.parse::<usize>()
+            .map_err(|_| cell(line, format!("'{s}' is not a non-negative integer")))
     };
     let parse_f64 = |line: usize, s: &str| -> Result<f64> {
-        let v = s.parse::<f64>().map_err(|_| cell(line, format!("'{s}' is not a number")))?;
+        let v = s
+            .parse::<f64>()
+            .map_err(|_| cell(line, format!("'{s}' is not a number")))?;
         if v.is_finite() {
             Ok(v)
         } else {
@@ -114,7 +153,10 @@ pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
     let sizes: Vec<&str> = size.split_whitespace().collect();
     let expect = if coordinate { 3 } else { 2 };
     if sizes.len() != expect {
-        return Err(cell(size_line, format!("size line needs {expect} integers, got '{size}'")));
+        return Err(cell(
+            size_line,
+            format!("size line needs {expect} integers, got '{size}'"),
+        ));
     }
     let rows = parse_usize(size_line, sizes[0])?;
     let cols = parse_usize(size_line, sizes[1])?;
@@ -129,7 +171,10 @@ pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
             }
             let (i, j) = (parse_usize(line, f[0])?, parse_usize(line, f[1])?);
             if i == 0 || j == 0 || i > rows || j > cols {
-                return Err(cell(line, format!("index ({i},{j}) outside {rows}x{cols} (indices are 1-based)")));
+                return Err(cell(
+                    line,
+                    format!("index ({i},{j}) outside {rows}x{cols} (indices are 1-based)"),
+                ));
             }
             let v = parse_f64(line, f[2])?;
             m[(i - 1, j - 1)] += v;
@@ -139,7 +184,10 @@ pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
             count += 1;
         }
         if count != nnz {
-            return Err(Error::invalid(path, format!("size line announces {nnz} entries, file has {count}")));
+            return Err(Error::invalid(
+                path,
+                format!("size line announces {nnz} entries, file has {count}"),
+            ));
         }
     } else {
         // Column-major; for symmetric, the lower triangle column by column.
@@ -149,9 +197,16 @@ pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
                 values.push(parse_f64(line, tok)?);
             }
         }
-        let expected = if symmetric { rows * (rows + 1) / 2 } else { rows * cols };
+        let expected = if symmetric {
+            rows * (rows + 1) / 2
+        } else {
+            rows * cols
+        };
         if values.len() != expected {
-            return Err(Error::invalid(path, format!("expected {expected} values, file has {}", values.len())));
+            return Err(Error::invalid(
+                path,
+                format!("expected {expected} values, file has {}", values.len()),
+            ));
         }
         let mut it = values.into_iter();
         for j in 0..cols {
@@ -182,10 +237,26 @@ mod tests {
     fn manifest_model_equals_shear_frame() {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
-        write(d, "K0.mtx", "%%MatrixMarket matrix coordinate real symmetric\n2 2 3\n1 1 30\n2 1 -20\n2 2 20\n");
-        write(d, "M0.mtx", "%%MatrixMarket matrix array real general\n% comment\n2 2\n1\n0\n0\n2\n");
-        write(d, "K1.mtx", "%%MatrixMarket matrix coordinate real general\n2 2 1\n1 1 10\n");
-        write(d, "K2.mtx", "%%MatrixMarket matrix coordinate real symmetric\n2 2 3\n1 1 20\n2 1 -20\n2 2 20\n");
+        write(
+            d,
+            "K0.mtx",
+            "%%MatrixMarket matrix coordinate real symmetric\n2 2 3\n1 1 30\n2 1 -20\n2 2 20\n",
+        );
+        write(
+            d,
+            "M0.mtx",
+            "%%MatrixMarket matrix array real general\n% comment\n2 2\n1\n0\n0\n2\n",
+        );
+        write(
+            d,
+            "K1.mtx",
+            "%%MatrixMarket matrix coordinate real general\n2 2 1\n1 1 10\n",
+        );
+        write(
+            d,
+            "K2.mtx",
+            "%%MatrixMarket matrix coordinate real symmetric\n2 2 3\n1 1 20\n2 1 -20\n2 2 20\n",
+        );
         let man = write(
             d,
             "model.toml",
@@ -201,10 +272,18 @@ mod tests {
     #[test]
     fn bad_matrix_market_names_line() {
         let dir = tempfile::tempdir().unwrap();
-        let p = write(dir.path(), "K.mtx", "%%MatrixMarket matrix coordinate real general\n2 2 1\n3 1 1.0\n");
+        let p = write(
+            dir.path(),
+            "K.mtx",
+            "%%MatrixMarket matrix coordinate real general\n2 2 1\n3 1 1.0\n",
+        );
         let e = read_matrix_market(&p).unwrap_err().to_string();
         assert!(e.contains("K.mtx:3:") && e.contains("outside"), "{e}");
-        let p = write(dir.path(), "K2.mtx", "%%MatrixMarket matrix coordinate real general\n2 2 1\n1 1 abc\n");
+        let p = write(
+            dir.path(),
+            "K2.mtx",
+            "%%MatrixMarket matrix coordinate real general\n2 2 1\n1 1 abc\n",
+        );
         let e = read_matrix_market(&p).unwrap_err().to_string();
         assert!(e.contains("K2.mtx:3:") && e.contains("not a number"), "{e}");
     }

@@ -1,0 +1,7 @@
+//! Command implementations; each file parses nothing itself beyond its clap `Args` and
+//! calls the library.
+
+pub mod check;
+pub mod frf;
+pub mod modes;
+pub mod simulate;
