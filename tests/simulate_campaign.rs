@@ -29,6 +29,8 @@ fn small_model(noise: NoiseSpec) -> SimModel {
             stopband_attenuation_db: 100.0,
         },
         noise,
+        effects: vec![],
+        sensor_effects: vec![],
         tests: vec![
             TestSpec::ShakeTable {
                 name: "b-shake".into(),
@@ -72,10 +74,7 @@ fn noise() -> NoiseSpec {
 }
 
 fn run(model: SimModel, seed: u64) -> Campaign {
-    Simulator::new(model, &[])
-        .unwrap()
-        .run(seed, &|_| {})
-        .unwrap()
+    Simulator::new(model).unwrap().run(seed, &|_| {}).unwrap()
 }
 
 fn assert_same(a: &Campaign, b: &Campaign) {
@@ -201,7 +200,7 @@ fn different_seeds_differ_by_noise_of_the_stated_level() {
 #[test]
 fn written_campaign_holds_the_simulated_samples() {
     let model = small_model(noise());
-    let sim = Simulator::new(model, &[]).unwrap();
+    let sim = Simulator::new(model).unwrap();
     let c = sim.run(5, &|_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let root = frfbayes::io::write_campaign(&c, &dir.path().join("camp")).unwrap();
@@ -279,7 +278,7 @@ fn shipped_models_parse_and_the_noise_free_variant_differs_only_in_noise() {
     t.title = clean.title.clone();
     assert_eq!(t, clean);
     // The template campaign's layout: 4 hammer tests of 120 s and a 130 s chirp.
-    let sim = Simulator::new(truth, &[]).unwrap();
+    let sim = Simulator::new(truth).unwrap();
     let n: Vec<usize> = sim
         .model()
         .tests

@@ -291,6 +291,8 @@ fn pipeline_model() -> SimModel {
             stopband_attenuation_db: 100.0,
         },
         noise: NoiseSpec::default(),
+        effects: vec![],
+        sensor_effects: vec![],
         tests: vec![
             TestSpec::Hammer {
                 name: "hammer".into(),
@@ -336,7 +338,7 @@ fn spectrum(x: &[f64]) -> Vec<Complex64> {
 #[test]
 fn anti_aliased_campaign_frfs_equal_analytic_frfs() {
     let model = pipeline_model();
-    let sim = Simulator::new(model, &[]).unwrap();
+    let sim = Simulator::new(model).unwrap();
     let campaign = sim.run(1, &|_| {}).unwrap();
     let sys = sim.system();
     let modes = sys.modes().unwrap();

@@ -23,7 +23,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let model = SimModel::from_path(&args.model)?;
     let seed = resolve_seed(&model, args.seed, &args.model)?;
-    let sim = Simulator::new(model, &[])?;
+    let sim = Simulator::new(model)?;
     let bar = ProgressBar::new(sim.total_work());
     bar.set_style(
         ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% {elapsed}/{eta}")?

@@ -6,7 +6,7 @@ use super::config::{SimModel, TestSpec};
 use super::discrete::{Drive, Foh, Response, StateSpace};
 use super::excitation::{Chirp, Excitation, HalfSinePulses};
 use super::sensor::{noise_stream, run_chain, Decimate, GaussianNoise, SensorStage, Signal};
-use super::system::{LinearSystem, SystemEffect};
+use super::system::LinearSystem;
 use crate::error::{Error, Result};
 use crate::io::{write_atomic, Campaign, Channel, Quantity, Test, TestKind};
 use rayon::prelude::*;
@@ -30,12 +30,12 @@ pub struct Simulator {
 }
 
 impl Simulator {
-    /// Builds the true system (structure, damping, then `effects` in order) and the
-    /// anti-aliasing filter. The model is validated again (errors name `<model>`).
-    pub fn new(model: SimModel, effects: &[Box<dyn SystemEffect>]) -> Result<Self> {
+    /// Builds the true system (structure, damping, then the model's effects in order) and
+    /// the anti-aliasing filter. The model is validated again (errors name `<model>`).
+    pub fn new(model: SimModel) -> Result<Self> {
         model.validate(Path::new("<model>"))?;
-        let system =
-            LinearSystem::from_spec(&model.structure, &model.damping)?.with_effects(effects)?;
+        let system = LinearSystem::from_spec(&model.structure, &model.damping)?
+            .with_effects(&model.effects)?;
         let s = &model.sampling;
         let decimator = Decimator::kaiser(
             s.internal_rate_hz(),
@@ -71,12 +71,22 @@ impl Simulator {
         (test.duration_s() * self.model.sampling.output_rate_hz).round() as usize
     }
 
-    /// Internal samples simulated for `test`: the record plus half the filter length, so
-    /// that the filtered record is exact to its end.
+    /// Internal samples simulated for `test`: the record plus half the filter length plus
+    /// what the sensor effects read ahead, so that every record is exact to its end.
     pub fn n_internal_samples(&self, test: &TestSpec) -> usize {
+        let rate_hz = self.model.sampling.internal_rate_hz();
+        let lookahead = self
+            .model
+            .sensor_effects
+            .iter()
+            .filter(|e| e.tests().is_none_or(|t| t.iter().any(|t| t == test.name())))
+            .map(|e| e.lookahead_samples(rate_hz))
+            .max()
+            .unwrap_or(0);
         (self.n_output_samples(test) - 1) * self.model.sampling.oversampling
             + 1
             + self.decimator.half_len()
+            + lookahead
     }
 
     /// Units of work reported through `progress` by [`Self::run`]: per test, one per
@@ -130,8 +140,9 @@ impl Simulator {
 
     /// The channels of `test`, as in the real campaign: the input (`force` at the
     /// excited floor, or `ground_acc`), then `acc1..n` (absolute) and `disp1..n`
-    /// (relative to the base), each with its sensor chain: anti-aliasing and decimation,
-    /// then noise of its quantity's standard deviation (when positive).
+    /// (relative to the base), each with its sensor chain: the sensor effects that name
+    /// it (in model order), anti-aliasing and decimation, then noise of its quantity's
+    /// standard deviation (when positive).
     pub fn channels(&self, test: &TestSpec, seed: u64) -> Result<Vec<ChannelPlan>> {
         let n = self.system.n_floors();
         let mut plan: Vec<(Channel, Response)> = Vec::with_capacity(2 * n + 1);
@@ -179,7 +190,14 @@ impl Simulator {
                     Quantity::Acceleration => noise.acceleration_m_per_s2,
                     Quantity::Displacement => noise.displacement_m,
                 };
-                let mut stages = vec![decimate.clone()];
+                let mut stages: Vec<Arc<dyn SensorStage>> = self
+                    .model
+                    .sensor_effects
+                    .iter()
+                    .filter(|e| e.applies_to(test.name(), &channel.name))
+                    .map(|e| Arc::new(e.clone()) as Arc<dyn SensorStage>)
+                    .collect();
+                stages.push(decimate.clone());
                 if std > 0.0 {
                     stages.push(Arc::new(GaussianNoise {
                         std,
@@ -253,8 +271,9 @@ impl Simulator {
     }
 
     /// Writes `truth.json` into the campaign folder `root`: the model, the seed, and the
-    /// true modes (natural frequencies, damping ratios, mass-normalised shapes at the floor
-    /// DOFs) of the simulated system.
+    /// true modes of the simulated system (all its DOFs, extra ones included): natural
+    /// frequencies, damping ratios `(Phi^T C Phi)_ii / 2 omega_i` (exact only when
+    /// `proportional_damping` is true), mass-normalised shapes at the floor DOFs.
     pub fn write_truth(&self, root: &Path, seed: u64) -> Result<()> {
         let modes = self.system.modes()?;
         let xi = self.system.modal_damping_ratios()?;
@@ -267,11 +286,21 @@ impl Simulator {
                     .collect()
             })
             .collect();
+        let cm = modes.phi.transpose() * &self.system.damping_n_s_per_m * &modes.phi;
+        let off_diagonal = (0..cm.nrows())
+            .flat_map(|i| {
+                (0..cm.ncols())
+                    .filter(move |&j| j != i)
+                    .map(move |j| (i, j))
+            })
+            .fold(0.0_f64, |a, (i, j)| a.max(cm[(i, j)].abs()));
         let truth = serde_json::json!({
             "generator": format!("frfbayes {} simulate", env!("CARGO_PKG_VERSION")),
             "seed": seed,
+            "n_dof": self.system.n_dof(),
             "natural_frequencies_hz": modes.freq_hz(),
             "damping_ratios": xi,
+            "proportional_damping": off_diagonal <= 1e-9 * cm.amax(),
             "mode_shapes_at_floors": shapes,
             "model": self.model,
         });

@@ -1,6 +1,8 @@
 //! The simulation model file (TOML), its parsing and its validation. The format is
 //! documented with an example in the [module docs](super).
 
+use super::effects::EffectSpec;
+use super::sensor_effects::SensorEffect;
 use crate::error::{Error, Result};
 use crate::io::NominalModel;
 use serde::{Deserialize, Serialize};
@@ -31,6 +33,16 @@ pub struct SimModel {
     /// The tests, written in this order (the campaign sorts them by name).
     #[serde(rename = "test")]
     pub tests: Vec<TestSpec>,
+    /// Changes of the physics, applied in order to the built structure.
+    #[serde(default, rename = "effect", skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<EffectSpec>,
+    /// Instrument effects on named channels, applied in order before anti-aliasing.
+    #[serde(
+        default,
+        rename = "sensor_effect",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub sensor_effects: Vec<SensorEffect>,
 }
 
 /// The true structure.
@@ -367,6 +379,9 @@ impl SimModel {
                     chirp, ring_down_s, ..
                 } => {
                     let c = chirp;
+                    if !c.amplitude_m_per_s2.is_finite() {
+                        return bad(format!("test {name}: amplitude must be finite"));
+                    }
                     let nyquist_hz = 0.5 * s.output_rate_hz;
                     let finite = [
                         c.f0_hz,
@@ -400,8 +415,58 @@ impl SimModel {
                 }
             }
         }
+        for (i, e) in self.effects.iter().enumerate() {
+            e.check(n)
+                .or_else(|what| bad(format!("effect {}: {what}", i + 1)))?;
+        }
+        for (i, e) in self.sensor_effects.iter().enumerate() {
+            e.check()
+                .or_else(|what| bad(format!("sensor_effect {}: {what}", i + 1)))?;
+            if matches!(e, SensorEffect::TimeOffset(_)) && s.oversampling < 4 {
+                return bad(format!(
+                    "sensor_effect {}: a time offset needs sampling.oversampling >= 4 (band-limited interpolation)",
+                    i + 1
+                ));
+            }
+            if let Some(t) = e
+                .tests()
+                .into_iter()
+                .flatten()
+                .find(|t| !self.tests.iter().any(|u| u.name() == t.as_str()))
+            {
+                return bad(format!("sensor_effect {}: no test named {t:?}", i + 1));
+            }
+            for c in e.channels() {
+                let known = self
+                    .tests
+                    .iter()
+                    .filter(|t| {
+                        e.tests()
+                            .is_none_or(|names| names.iter().any(|n| n == t.name()))
+                    })
+                    .any(|t| channel_names(t, n).iter().any(|k| k == c));
+                if !known {
+                    return bad(format!(
+                        "sensor_effect {}: no channel {c:?} in its tests (channels are force or ground_acc, acc1..{n}, disp1..{n})",
+                        i + 1
+                    ));
+                }
+            }
+        }
         Ok(())
     }
+}
+
+/// Names of the channels a test records on a structure of `n_floors` floors: the input
+/// (`force` or `ground_acc`), then `acc1..n`, then `disp1..n`.
+pub fn channel_names(test: &TestSpec, n_floors: usize) -> Vec<String> {
+    let mut names = vec![match test {
+        TestSpec::Hammer { .. } => "force".to_string(),
+        TestSpec::ShakeTable { .. } => "ground_acc".to_string(),
+    }];
+    names.extend((1..=n_floors).map(|f| format!("acc{f}")));
+    names.extend((1..=n_floors).map(|f| format!("disp{f}")));
+    names
 }
 
 fn check_shear_frame(key: &str, m: &[f64], k: &[f64], path: &Path) -> Result<()> {

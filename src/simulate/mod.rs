@@ -88,6 +88,34 @@
 //! amplitude_m_per_s2 = 0.08
 //! ```
 //!
+//! Optional effects, applied in the order given:
+//!
+//! ```toml
+//! [[effect]]                               # physics (see the effects module)
+//! kind = "dashpot"                         # viscous damper, non-proportional C
+//! floors = [1, 3]                          # between floors 1 and 3 (0 = ground)
+//! coefficient_n_s_per_m = 20.0
+//!
+//! [[effect]]
+//! kind = "oscillator"                      # secondary mass on a spring: one extra DOF
+//! floor = 4
+//! mass_kg = 0.3
+//! stiffness_n_per_m = 120.0
+//! damping_ratio = 0.02                     # c = 2 zeta sqrt(k m)
+//!
+//! [[sensor_effect]]                        # instruments, before anti-aliasing
+//! kind = "low_pass"                        # H = w^2 / (s^2 + 2 zeta w s + w^2)
+//! channels = ["acc1", "acc2"]
+//! natural_frequency_hz = 60.0
+//! damping_ratio = 0.6
+//!
+//! [[sensor_effect]]
+//! kind = "time_offset"                     # the channel records y(t - offset_s)
+//! channels = ["disp3"]
+//! tests = ["shake-table-chirp"]            # optional; all tests when absent
+//! offset_s = 0.004                         # needs oversampling >= 4
+//! ```
+//!
 //! Unknown keys are errors (a misspelt key would otherwise silently fall back to a
 //! default). Every test records the input (`force` at the excited floor or
 //! `ground_acc`), `acc1..n` and `disp1..n`. Besides the campaign, `truth.json` in its
@@ -95,17 +123,22 @@
 //!
 //! # Adding an effect
 //!
-//! A change of physics is one more [`SystemEffect`] (in its own file), applied to the
-//! [`LinearSystem`] after the structure is built; a change of instrument is one more
-//! [`SensorStage`] in a channel's chain, before [`Decimate`] for effects at the internal
-//! rate (sensor dynamics, time offsets).
+//! A change of physics is one more [`SystemEffect`] in its own file under [`effects`]
+//! and a variant of [`EffectSpec`], applied to the [`LinearSystem`] after the structure
+//! is built (extra DOFs allowed). A change of instrument is one more [`SensorStage`] in
+//! its own file under [`sensor_effects`] and a variant of [`SensorEffect`]; it runs at
+//! the internal rate before [`Decimate`]. Not built yet: a flexible base and nonlinear
+//! springs (a cubic story spring needs a nonlinear integrator; the FOH step is exact
+//! only for linear systems).
 
 pub mod antialias;
 mod campaign;
 pub mod config;
 pub mod discrete;
+pub mod effects;
 pub mod excitation;
 pub mod sensor;
+pub mod sensor_effects;
 pub mod system;
 
 pub use campaign::{resolve_seed, ChannelPlan, Simulator};
@@ -114,5 +147,7 @@ pub use config::{
     StructureSpec, TestSpec,
 };
 pub use discrete::{Drive, Foh, OutputMap, Response, StateSpace};
+pub use effects::{Dashpot, EffectSpec, Oscillator};
 pub use sensor::{Decimate, GaussianNoise, SensorStage, Signal};
+pub use sensor_effects::{LowPass, SensorEffect, TimeOffset};
 pub use system::{LinearSystem, SystemEffect};

@@ -20,6 +20,12 @@ pub struct Signal {
 pub trait SensorStage: std::fmt::Debug + Send + Sync {
     /// Transforms `signal`; may change its rate and length.
     fn apply(&self, signal: Signal) -> Result<Signal>;
+
+    /// Samples this stage needs past the end of the record to be exact to its end (a
+    /// stage that reads ahead in time); the simulation runs that much longer.
+    fn lookahead_samples(&self, _rate_hz: f64) -> usize {
+        0
+    }
 }
 
 /// Anti-aliasing low-pass and decimation to `n_out` samples (see [`Decimator`]).

@@ -81,7 +81,7 @@ impl LinearSystem {
     }
 
     /// Applies effects in order.
-    pub fn with_effects(mut self, effects: &[Box<dyn SystemEffect>]) -> Result<Self> {
+    pub fn with_effects<E: SystemEffect>(mut self, effects: &[E]) -> Result<Self> {
         for e in effects {
             e.apply(&mut self)?;
             self.validate()?;
