@@ -3,3 +3,4 @@
 //! `experiments/paper_repro.toml` with its defaults.
 
 pub mod tables;
+pub mod runinfo;
