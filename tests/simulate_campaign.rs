@@ -262,6 +262,28 @@ fn written_campaign_holds_the_simulated_samples() {
     assert_eq!(&model, sim.model());
 }
 
+#[test]
+fn written_campaign_reads_back_identically() {
+    let model = small_model(noise());
+    let sim = Simulator::new(model).unwrap();
+    let c = sim.run(8, &|_| {}).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let root = frfbayes::io::write_campaign(&c, &dir.path().join("camp")).unwrap();
+    sim.write_truth(&root, 8).unwrap();
+    let r = frfbayes::io::read_campaign(&root).unwrap();
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+    assert_eq!(r.title, c.title);
+    assert_eq!(r.nominal, c.nominal);
+    assert_eq!(r.tests.len(), c.tests.len());
+    for (a, b) in r.tests.iter().zip(&c.tests) {
+        assert_eq!(a.name, b.name);
+        assert_eq!(a.kind, b.kind);
+        assert_eq!(a.sample_rate_hz, b.sample_rate_hz);
+        assert_eq!(a.channels, b.channels);
+    }
+    assert_same(&r, &c);
+}
+
 fn models_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/models")
 }
@@ -286,6 +308,43 @@ fn shipped_models_parse_and_the_noise_free_variant_differs_only_in_noise() {
         .map(|t| sim.n_output_samples(t))
         .collect();
     assert_eq!(n, [60000, 60000, 60000, 60000, 65000]);
+}
+
+#[test]
+fn truth_model_reproduces_the_layout_of_the_recorded_campaign() {
+    // The recorded campaign, bundled in the repository (identical to ../shared's copy).
+    let real =
+        frfbayes::io::read_campaign(&frfbayes::io::bundled::bundled_four_story().unwrap()).unwrap();
+    let model = SimModel::from_path(&models_dir().join("four-story-truth.toml")).unwrap();
+    let sim = Simulator::new(model).unwrap();
+    assert_eq!(real.nominal, sim.model().nominal_model());
+    let mut specs: Vec<&TestSpec> = sim.model().tests.iter().collect();
+    specs.sort_by_key(|t| t.name().to_string());
+    assert_eq!(specs.len(), real.tests.len());
+    for (spec, test) in specs.into_iter().zip(&real.tests) {
+        assert_eq!(spec.name(), test.name);
+        assert_eq!(
+            sim.n_output_samples(spec),
+            test.n_samples(),
+            "{}",
+            test.name
+        );
+        assert_eq!(sim.model().sampling.output_rate_hz, test.sample_rate_hz);
+        let channels: Vec<_> = sim
+            .channels(spec, 0)
+            .unwrap()
+            .into_iter()
+            .map(|c| c.channel)
+            .collect();
+        assert_eq!(channels, test.channels, "{}", test.name);
+        let kind = match spec {
+            TestSpec::Hammer { excited_floor, .. } => TestKind::Hammer {
+                excited_floor: *excited_floor,
+            },
+            TestSpec::ShakeTable { .. } => TestKind::ShakeTable,
+        };
+        assert_eq!(kind, test.kind);
+    }
 }
 
 #[test]
@@ -381,6 +440,9 @@ fn command_line_writes_a_campaign_and_reports_bad_input() {
         assert!(out.join("tests").join(t).join("data.csv").is_file());
     }
     assert!(out.join("truth.json").is_file());
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(run["seed"], 9);
     // A bad model: error names the file, nothing is written.
     std::fs::write(
         &model,

@@ -1,5 +1,6 @@
 //! `frfbayes simulate`: writes a campaign with known truth from a simulation model file.
 
+use frfbayes::experiment::runinfo::RunInfo;
 use frfbayes::simulate::{resolve_seed, SimModel, Simulator};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
@@ -19,10 +20,15 @@ pub struct Args {
     pub seed: Option<u64>,
 }
 
-/// Simulates the campaign and writes it with its `truth.json`.
+/// Simulates the campaign and writes it with its `truth.json` and `run.json`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let model = SimModel::from_path(&args.model)?;
     let seed = resolve_seed(&model, args.seed, &args.model)?;
+    let mut info = RunInfo::start(
+        seed,
+        serde_json::to_value(&model)?,
+        args.model.display().to_string(),
+    );
     let sim = Simulator::new(model)?;
     let bar = ProgressBar::new(sim.total_work());
     bar.set_style(
@@ -31,11 +37,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     bar.set_message("simulating");
     let start = Instant::now();
-    let campaign = sim.run(seed, &|n| bar.inc(n))?;
+    let campaign = info.time("simulate", || sim.run(seed, &|n| bar.inc(n)))?;
     let simulated_s = start.elapsed().as_secs_f64();
     bar.set_message("writing");
-    let root = frfbayes::io::write_campaign(&campaign, &args.out)?;
+    let root = info.time("write", || {
+        frfbayes::io::write_campaign(&campaign, &args.out)
+    })?;
     sim.write_truth(&root, seed)?;
+    info.write(&root)?;
     bar.finish_and_clear();
     let rows: usize = campaign.tests.iter().map(|t| t.n_samples()).sum();
     println!(

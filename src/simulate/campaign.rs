@@ -101,19 +101,19 @@ impl Simulator {
 
     /// Simulates every test (in parallel; the result does not depend on the thread count).
     pub fn run(&self, seed: u64, progress: &(dyn Fn(u64) + Sync)) -> Result<Campaign> {
-        let tests = self
+        let mut tests = self
             .model
             .tests
             .par_iter()
             .map(|t| self.simulate_test(t, seed, progress))
             .collect::<Result<Vec<_>>>()?;
-        let mut tests = tests;
         tests.sort_by(|a, b| a.name.cmp(&b.name));
         Ok(Campaign {
             root: Default::default(),
             title: self.model.title.clone(),
             nominal: self.model.nominal_model(),
             tests,
+            warnings: Vec::new(),
         })
     }
 
