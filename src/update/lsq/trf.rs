@@ -1,0 +1,632 @@
+//! Trust-region reflective least squares (Branch, Coleman & Li, SIAM J. Sci. Comput.
+//! 21(1), 1999), following scipy's `least_squares(method="trf", tr_solver="exact")`
+//! step for step: Coleman-Li scaling `v`, the trust-region subproblem in the scaled
+//! ("hat") variables solved exactly by SVD, and a choice between the (interior)
+//! trust-region step, its reflection off the first bound hit, and the scaled
+//! steepest-descent step. Iterates stay strictly inside the box.
+
+use super::linalg::{
+    evaluate_quadratic, householder_qr, intersect_trust_region, minimize_quadratic_1d, norm,
+    quadratic_1d, solve_trust_region, step_size_to_bound, svd_descending,
+};
+use super::{Active, Bounds, LeastSquaresProblem};
+use crate::error::{Error, Result};
+use nalgebra::DMatrix;
+
+/// Variable scaling of the trust region.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum XScale {
+    /// No scaling (scipy's `x_scale=1.0`): use when the variables are already of
+    /// comparable size.
+    #[default]
+    Unit,
+    /// Inverse Jacobian column norms, never decreasing (scipy's `x_scale="jac"`).
+    Jacobian,
+}
+
+/// Tolerances and budget, with scipy's defaults.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrfOptions {
+    /// Stop when the cost decreased by less than `ftol * cost` on a step with good
+    /// agreement (ratio > 1/4) between model and function. Default 1e-8.
+    pub ftol: f64,
+    /// Stop when `||step|| < xtol (xtol + ||x||)`. Default 1e-8.
+    pub xtol: f64,
+    /// Stop when the scaled gradient `||v * g||_inf < gtol` (absolute: scale the
+    /// residuals to order one). Default 1e-8.
+    pub gtol: f64,
+    /// Budget of residual evaluations; `None` means `100 n` (scipy's default).
+    pub max_evaluations: Option<usize>,
+    /// Variable scaling.
+    pub x_scale: XScale,
+}
+
+impl Default for TrfOptions {
+    fn default() -> Self {
+        TrfOptions {
+            ftol: 1e-8,
+            xtol: 1e-8,
+            gtol: 1e-8,
+            max_evaluations: None,
+            x_scale: XScale::Unit,
+        }
+    }
+}
+
+/// Why the solver stopped (scipy's `status` codes 1, 2, 3, 4, 0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Termination {
+    /// First-order optimality: scaled gradient below `gtol`.
+    Gtol,
+    /// Relative cost reduction below `ftol`.
+    Ftol,
+    /// Relative step below `xtol`.
+    Xtol,
+    /// Both `ftol` and `xtol`.
+    FtolAndXtol,
+    /// The evaluation budget ran out.
+    MaxEvaluations,
+}
+
+impl Termination {
+    /// True for the convergence tests (everything but the budget).
+    pub fn converged(self) -> bool {
+        self != Termination::MaxEvaluations
+    }
+}
+
+/// The result of one local solve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Solution {
+    /// The minimiser found.
+    pub x: Vec<f64>,
+    /// `0.5 ||r(x)||^2`.
+    pub cost: f64,
+    /// First-order optimality `||v * g||_inf` at `x`.
+    pub optimality: f64,
+    pub termination: Termination,
+    /// Bounds `x` ends on (relative tolerance `xtol`).
+    pub active: Vec<Active>,
+    pub n_evaluations: usize,
+    pub n_jacobians: usize,
+    pub n_iterations: usize,
+}
+
+/// Everything the solver carries between iterations. Buffers are allocated once in
+/// [`Trf::init`]; an iteration allocates only `n x n` matrices.
+#[derive(Debug, Clone)]
+pub struct TrfState {
+    /// Current iterate (strictly inside the box).
+    pub x: Vec<f64>,
+    /// Residuals at `x`.
+    pub f: Vec<f64>,
+    /// `0.5 ||f||^2`.
+    pub cost: f64,
+    /// Gradient `J^T f`.
+    pub g: Vec<f64>,
+    /// `||v * g||_inf`.
+    pub optimality: f64,
+    pub n_evaluations: usize,
+    pub n_jacobians: usize,
+    pub n_iterations: usize,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    max_evaluations: usize,
+    status: Option<Termination>,
+    delta: f64,
+    lm: f64,
+    jac: DMatrix<f64>,
+    r: DMatrix<f64>,
+    qtf: Vec<f64>,
+    f_work: Vec<f64>,
+    f_new: Vec<f64>,
+    scale: Vec<f64>,
+    scale_inv: Vec<f64>,
+    s: Scratch,
+}
+
+/// n-sized scratch vectors.
+#[derive(Debug, Clone)]
+struct Scratch {
+    v: Vec<f64>,
+    dv: Vec<f64>,
+    d: Vec<f64>,
+    diag_h: Vec<f64>,
+    g_h: Vec<f64>,
+    uf: Vec<f64>,
+    p: Vec<f64>,
+    p_h: Vec<f64>,
+    step: Vec<f64>,
+    step_h: Vec<f64>,
+    r: Vec<f64>,
+    r_h: Vec<f64>,
+    ag: Vec<f64>,
+    ag_h: Vec<f64>,
+    x_trial: Vec<f64>,
+    w1: Vec<f64>,
+    w2: Vec<f64>,
+    hits: Vec<i8>,
+}
+
+impl Scratch {
+    fn new(n: usize) -> Self {
+        let z = || vec![0.0; n];
+        Scratch {
+            v: z(),
+            dv: z(),
+            d: z(),
+            diag_h: z(),
+            g_h: z(),
+            uf: z(),
+            p: z(),
+            p_h: z(),
+            step: z(),
+            step_h: z(),
+            r: z(),
+            r_h: z(),
+            ag: z(),
+            ag_h: z(),
+            x_trial: z(),
+            w1: z(),
+            w2: z(),
+            hits: vec![0; n],
+        }
+    }
+}
+
+/// The trust-region reflective solver.
+#[derive(Debug, Clone, Default)]
+pub struct Trf {
+    options: TrfOptions,
+}
+
+impl Trf {
+    /// A solver with the given options.
+    pub fn new(options: TrfOptions) -> Self {
+        Trf { options }
+    }
+
+    /// The options.
+    pub fn options(&self) -> &TrfOptions {
+        &self.options
+    }
+
+    /// Evaluates the start point (moved strictly inside the box if it sits on a bound)
+    /// and prepares the state.
+    pub fn init<P: LeastSquaresProblem>(
+        &self,
+        problem: &P,
+        ws: &mut P::Workspace,
+        x0: &[f64],
+        bounds: &Bounds,
+    ) -> Result<TrfState> {
+        let (n, m) = (problem.n_params(), problem.n_residuals());
+        let o = &self.options;
+        for (name, v) in [("ftol", o.ftol), ("xtol", o.xtol), ("gtol", o.gtol)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::Usage(format!("{name} must be finite and >= 0, got {v}")));
+            }
+        }
+        if x0.len() != n || bounds.len() != n {
+            return Err(Error::Usage(format!(
+                "start point has {} entries and bounds {}, the problem has {n} variables",
+                x0.len(),
+                bounds.len()
+            )));
+        }
+        let (lower, upper) = (bounds.lower().to_vec(), bounds.upper().to_vec());
+        let mut x = x0.to_vec();
+        for i in 0..n {
+            if !(x[i] >= lower[i] && x[i] <= upper[i]) {
+                return Err(Error::Usage(format!(
+                    "start point entry {i} = {} is outside [{}, {}]",
+                    x[i], lower[i], upper[i]
+                )));
+            }
+        }
+        make_strictly_feasible(&mut x, &lower, &upper, 1e-10);
+        let mut f = vec![0.0; m];
+        problem.residuals(&x, ws, &mut f)?;
+        if f.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Numerical("residuals at the start point are not finite".into()));
+        }
+        let cost = 0.5 * f.iter().map(|v| v * v).sum::<f64>();
+        let mut state = TrfState {
+            x,
+            f,
+            cost,
+            g: vec![0.0; n],
+            optimality: f64::INFINITY,
+            n_evaluations: 1,
+            n_jacobians: 0,
+            n_iterations: 0,
+            lower,
+            upper,
+            max_evaluations: o.max_evaluations.unwrap_or(100 * n).max(1),
+            status: None,
+            delta: 0.0,
+            lm: 0.0,
+            jac: DMatrix::zeros(m, n),
+            r: DMatrix::zeros(n, n),
+            qtf: vec![0.0; n],
+            f_work: vec![0.0; m],
+            f_new: vec![0.0; m],
+            scale: vec![1.0; n],
+            scale_inv: vec![1.0; n],
+            s: Scratch::new(n),
+        };
+        self.update_jacobian(problem, ws, &mut state)?;
+        // Initial radius: the scaled norm of x0 (1 when x0 = 0).
+        let st = &mut state;
+        cl_scaling(&st.x, &st.g, &st.lower, &st.upper, &mut st.s.v, &mut st.s.dv);
+        let mut delta2 = 0.0;
+        for i in 0..n {
+            let v = if st.s.dv[i] != 0.0 {
+                st.s.v[i] * st.scale_inv[i]
+            } else {
+                st.s.v[i]
+            };
+            delta2 += (st.x[i] * st.scale_inv[i]).powi(2) / v;
+        }
+        st.delta = if delta2 > 0.0 && delta2.is_finite() {
+            delta2.sqrt()
+        } else {
+            1.0
+        };
+        self.check_gradient(st);
+        Ok(state)
+    }
+
+    /// One outer iteration: trial steps until one reduces the cost (or a stopping
+    /// test fires), then the Jacobian at the accepted point.
+    pub fn next_iter<P: LeastSquaresProblem>(
+        &self,
+        problem: &P,
+        ws: &mut P::Workspace,
+        st: &mut TrfState,
+    ) -> Result<()> {
+        if st.status.is_some() {
+            return Ok(());
+        }
+        let n = st.x.len();
+        let m = st.f.len();
+        let s = &mut st.s;
+        cl_scaling(&st.x, &st.g, &st.lower, &st.upper, &mut s.v, &mut s.dv);
+        for i in 0..n {
+            if s.dv[i] != 0.0 {
+                s.v[i] *= st.scale_inv[i];
+            }
+            s.d[i] = s.v[i].sqrt() * st.scale[i];
+            s.diag_h[i] = st.g[i] * s.dv[i] * st.scale[i];
+            s.g_h[i] = s.d[i] * st.g[i];
+        }
+        // Hat-space Jacobian R_h = R diag(d), augmented by diag(diag_h)^(1/2).
+        let r_h = DMatrix::from_fn(n, n, |i, j| st.r[(i, j)] * s.d[j]);
+        let aug = DMatrix::from_fn(2 * n, n, |i, j| {
+            if i < n {
+                r_h[(i, j)]
+            } else if i - n == j {
+                s.diag_h[j].sqrt()
+            } else {
+                0.0
+            }
+        });
+        let (sv, u, v) = svd_descending(aug)?;
+        for j in 0..n {
+            s.uf[j] = (0..n).map(|i| u[(i, j)] * st.qtf[i]).sum();
+        }
+        let theta = (1.0 - st.optimality).max(0.995);
+        let x_norm = norm(&st.x);
+        let mut actual_reduction = -1.0;
+        let mut cost_new = st.cost;
+        while actual_reduction <= 0.0 && st.n_evaluations < st.max_evaluations {
+            st.lm = solve_trust_region(m, &s.uf, &sv, &v, st.delta, st.lm, &mut s.p_h);
+            for i in 0..n {
+                s.p[i] = s.d[i] * s.p_h[i];
+            }
+            let predicted = select_step(&st.x, &st.lower, &st.upper, &r_h, st.delta, theta, s);
+            for i in 0..n {
+                s.x_trial[i] = st.x[i] + s.step[i];
+            }
+            make_strictly_feasible(&mut s.x_trial, &st.lower, &st.upper, 0.0);
+            let ok = problem.residuals(&s.x_trial, ws, &mut st.f_new).is_ok()
+                && st.f_new.iter().all(|v| v.is_finite());
+            st.n_evaluations += 1;
+            let step_h_norm = norm(&s.step_h);
+            if !ok {
+                st.delta = 0.25 * step_h_norm;
+                continue;
+            }
+            cost_new = 0.5 * st.f_new.iter().map(|v| v * v).sum::<f64>();
+            actual_reduction = st.cost - cost_new;
+            let (delta_new, ratio) = update_radius(
+                st.delta,
+                actual_reduction,
+                predicted,
+                step_h_norm,
+                step_h_norm > 0.95 * st.delta,
+            );
+            let step_norm = norm(&s.step);
+            st.status = check_termination(
+                actual_reduction,
+                st.cost,
+                step_norm,
+                x_norm,
+                ratio,
+                self.options.ftol,
+                self.options.xtol,
+            );
+            if st.status.is_some() {
+                break;
+            }
+            st.lm *= st.delta / delta_new;
+            st.delta = delta_new;
+        }
+        if actual_reduction > 0.0 {
+            st.x.copy_from_slice(&s.x_trial);
+            std::mem::swap(&mut st.f, &mut st.f_new);
+            st.cost = cost_new;
+            self.update_jacobian(problem, ws, st)?;
+        }
+        st.n_iterations += 1;
+        self.check_gradient(st);
+        Ok(())
+    }
+
+    /// Why the solver should stop, or `None` to continue.
+    pub fn terminate(&self, state: &TrfState) -> Option<Termination> {
+        state.status
+    }
+
+    /// Runs [`Self::init`] and [`Self::next_iter`] until [`Self::terminate`].
+    pub fn minimize<P: LeastSquaresProblem>(
+        &self,
+        problem: &P,
+        ws: &mut P::Workspace,
+        x0: &[f64],
+        bounds: &Bounds,
+    ) -> Result<Solution> {
+        let mut state = self.init(problem, ws, x0, bounds)?;
+        while self.terminate(&state).is_none() {
+            self.next_iter(problem, ws, &mut state)?;
+        }
+        Ok(self.solution(state, bounds))
+    }
+
+    /// The result of a finished (or interrupted) run.
+    pub fn solution(&self, state: TrfState, bounds: &Bounds) -> Solution {
+        let active = bounds.active(&state.x, self.options.xtol);
+        Solution {
+            termination: state.status.unwrap_or(Termination::MaxEvaluations),
+            active,
+            cost: state.cost,
+            optimality: state.optimality,
+            n_evaluations: state.n_evaluations,
+            n_jacobians: state.n_jacobians,
+            n_iterations: state.n_iterations,
+            x: state.x,
+        }
+    }
+
+    /// Jacobian, gradient, scaling and QR at the current iterate.
+    fn update_jacobian<P: LeastSquaresProblem>(
+        &self,
+        problem: &P,
+        ws: &mut P::Workspace,
+        st: &mut TrfState,
+    ) -> Result<()> {
+        problem.jacobian(&st.x, ws, &mut st.jac)?;
+        st.n_jacobians += 1;
+        if st.jac.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Numerical("Jacobian is not finite".into()));
+        }
+        for (j, g) in st.g.iter_mut().enumerate() {
+            let col = st.jac.column(j);
+            *g = col.iter().zip(&st.f).map(|(a, b)| a * b).sum();
+            if self.options.x_scale == XScale::Jacobian {
+                let cn = col.norm();
+                let inv = if st.n_jacobians == 1 { cn } else { cn.max(st.scale_inv[j]) };
+                st.scale_inv[j] = if inv == 0.0 { 1.0 } else { inv };
+                st.scale[j] = 1.0 / st.scale_inv[j];
+            }
+        }
+        st.f_work.copy_from_slice(&st.f);
+        householder_qr(&mut st.jac, &mut st.f_work, &mut st.r, &mut st.qtf);
+        Ok(())
+    }
+
+    /// First-order optimality at the current iterate, and the `gtol` and budget tests
+    /// (the `gtol` test overrides a pending `ftol`/`xtol`, as in scipy).
+    fn check_gradient(&self, st: &mut TrfState) {
+        cl_scaling(&st.x, &st.g, &st.lower, &st.upper, &mut st.s.v, &mut st.s.dv);
+        st.optimality = st
+            .g
+            .iter()
+            .zip(&st.s.v)
+            .fold(0.0_f64, |a, (g, v)| a.max((g * v).abs()));
+        if st.optimality < self.options.gtol {
+            st.status = Some(Termination::Gtol);
+        } else if st.status.is_none() && st.n_evaluations >= st.max_evaluations {
+            st.status = Some(Termination::MaxEvaluations);
+        }
+    }
+}
+
+/// Coleman-Li scaling: `v_i` is the distance to the bound the negative gradient points
+/// at (1 when that bound is infinite), `dv_i` its derivative (0, +1 or -1).
+fn cl_scaling(x: &[f64], g: &[f64], lower: &[f64], upper: &[f64], v: &mut [f64], dv: &mut [f64]) {
+    for i in 0..x.len() {
+        v[i] = 1.0;
+        dv[i] = 0.0;
+        if g[i] < 0.0 && upper[i].is_finite() {
+            v[i] = upper[i] - x[i];
+            dv[i] = -1.0;
+        }
+        if g[i] > 0.0 && lower[i].is_finite() {
+            v[i] = x[i] - lower[i];
+            dv[i] = 1.0;
+        }
+    }
+}
+
+/// Moves entries on or beyond a bound inside: by `rstep * max(1, |bound|)`, or to the
+/// next representable number when `rstep == 0`; to the midpoint when the box is too
+/// tight for that.
+fn make_strictly_feasible(x: &mut [f64], lower: &[f64], upper: &[f64], rstep: f64) {
+    for i in 0..x.len() {
+        let (l, u) = (lower[i], upper[i]);
+        if x[i] <= l {
+            x[i] = if rstep == 0.0 {
+                l.next_up()
+            } else {
+                l + rstep * l.abs().max(1.0)
+            };
+        } else if x[i] >= u {
+            x[i] = if rstep == 0.0 {
+                u.next_down()
+            } else {
+                u - rstep * u.abs().max(1.0)
+            };
+        }
+        if !(x[i] > l && x[i] < u) && l.is_finite() && u.is_finite() {
+            x[i] = 0.5 * (l + u);
+        }
+    }
+}
+
+/// Chooses among the trust-region step `p` (cut back strictly inside), its reflection
+/// and the scaled anti-gradient step, by the quadratic model; writes the winner into
+/// `s.step` / `s.step_h` and returns its predicted reduction.
+fn select_step(
+    x: &[f64],
+    lower: &[f64],
+    upper: &[f64],
+    r_h: &DMatrix<f64>,
+    delta: f64,
+    theta: f64,
+    s: &mut Scratch,
+) -> f64 {
+    let n = x.len();
+    let inside = (0..n).all(|i| {
+        let v = x[i] + s.p[i];
+        v >= lower[i] && v <= upper[i]
+    });
+    if inside {
+        s.step.copy_from_slice(&s.p);
+        s.step_h.copy_from_slice(&s.p_h);
+        return -evaluate_quadratic(r_h, &s.g_h, &s.p_h, &s.diag_h, &mut s.w1);
+    }
+    let p_stride = step_size_to_bound(x, &s.p, lower, upper, &mut s.hits);
+    // Reflected direction.
+    for i in 0..n {
+        s.r_h[i] = if s.hits[i] != 0 { -s.p_h[i] } else { s.p_h[i] };
+        s.r[i] = s.d[i] * s.r_h[i];
+        s.p[i] *= p_stride;
+        s.p_h[i] *= p_stride;
+        s.x_trial[i] = x[i] + s.p[i];
+    }
+    let (_, to_tr) = intersect_trust_region(&s.p_h, &s.r_h, delta);
+    let to_bound = step_size_to_bound(&s.x_trial, &s.r, lower, upper, &mut s.hits);
+    let r_stride = to_bound.min(to_tr);
+    let (r_lo, r_hi) = if r_stride > 0.0 {
+        let lo = (1.0 - theta) * p_stride / r_stride;
+        let hi = if r_stride == to_bound {
+            theta * to_bound
+        } else {
+            to_tr
+        };
+        (lo, hi)
+    } else {
+        (0.0, -1.0)
+    };
+    let r_value = if r_lo <= r_hi {
+        let (a, b, c) = quadratic_1d(r_h, &s.g_h, &s.r_h, Some(&s.p_h), &s.diag_h, &mut s.w1, &mut s.w2);
+        let (t, val) = minimize_quadratic_1d(a, b, c, r_lo, r_hi);
+        for i in 0..n {
+            s.r_h[i] = s.p_h[i] + t * s.r_h[i];
+            s.r[i] = s.d[i] * s.r_h[i];
+        }
+        val
+    } else {
+        f64::INFINITY
+    };
+    // The trust-region step cut back strictly inside.
+    for i in 0..n {
+        s.p[i] *= theta;
+        s.p_h[i] *= theta;
+    }
+    let p_value = evaluate_quadratic(r_h, &s.g_h, &s.p_h, &s.diag_h, &mut s.w1);
+    // Scaled anti-gradient.
+    for i in 0..n {
+        s.ag_h[i] = -s.g_h[i];
+        s.ag[i] = s.d[i] * s.ag_h[i];
+    }
+    let to_tr = delta / norm(&s.ag_h);
+    let to_bound = step_size_to_bound(x, &s.ag, lower, upper, &mut s.hits);
+    let ag_max = if to_bound < to_tr {
+        theta * to_bound
+    } else {
+        to_tr
+    };
+    let (a, b, _) = quadratic_1d(r_h, &s.g_h, &s.ag_h, None, &s.diag_h, &mut s.w1, &mut s.w2);
+    let (t, ag_value) = minimize_quadratic_1d(a, b, 0.0, 0.0, ag_max);
+    for i in 0..n {
+        s.ag_h[i] *= t;
+        s.ag[i] *= t;
+    }
+    if p_value < r_value && p_value < ag_value {
+        s.step.copy_from_slice(&s.p);
+        s.step_h.copy_from_slice(&s.p_h);
+        -p_value
+    } else if r_value < p_value && r_value < ag_value {
+        s.step.copy_from_slice(&s.r);
+        s.step_h.copy_from_slice(&s.r_h);
+        -r_value
+    } else {
+        s.step.copy_from_slice(&s.ag);
+        s.step_h.copy_from_slice(&s.ag_h);
+        -ag_value
+    }
+}
+
+/// Trust-region radius update from the agreement ratio; returns `(delta, ratio)`.
+fn update_radius(delta: f64, actual: f64, predicted: f64, step_norm: f64, bound_hit: bool) -> (f64, f64) {
+    let ratio = if predicted > 0.0 {
+        actual / predicted
+    } else if predicted == actual && actual == 0.0 {
+        1.0
+    } else {
+        0.0
+    };
+    let delta = if ratio < 0.25 {
+        0.25 * step_norm
+    } else if ratio > 0.75 && bound_hit {
+        2.0 * delta
+    } else {
+        delta
+    };
+    (delta, ratio)
+}
+
+/// scipy's `check_termination`.
+fn check_termination(
+    reduction: f64,
+    cost: f64,
+    step_norm: f64,
+    x_norm: f64,
+    ratio: f64,
+    ftol: f64,
+    xtol: f64,
+) -> Option<Termination> {
+    let f_ok = reduction < ftol * cost && ratio > 0.25;
+    let x_ok = step_norm < xtol * (xtol + x_norm);
+    match (f_ok, x_ok) {
+        (true, true) => Some(Termination::FtolAndXtol),
+        (true, false) => Some(Termination::Ftol),
+        (false, true) => Some(Termination::Xtol),
+        (false, false) => None,
+    }
+}
