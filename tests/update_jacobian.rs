@@ -44,8 +44,12 @@ fn random_general_model(rng: &mut ChaCha8Rng, n: usize) -> StructuralModel {
         unit: "1".into(),
         nominal: None,
     };
-    let k_infl = (0..2).map(|r| (param(format!("a{r}")), psd_rank1(rng, 800.0))).collect();
-    let m_infl = (0..2).map(|r| (param(format!("b{r}")), psd_rank1(rng, 0.8))).collect();
+    let k_infl = (0..2)
+        .map(|r| (param(format!("a{r}")), psd_rank1(rng, 800.0)))
+        .collect();
+    let m_infl = (0..2)
+        .map(|r| (param(format!("b{r}")), psd_rank1(rng, 0.8)))
+        .collect();
     let iota = DVector::from_fn(n, |_, _| rng.random_range(0.5..1.5));
     StructuralModel::from_matrices(k0, m0, k_infl, m_infl, Some(iota)).unwrap()
 }
@@ -139,7 +143,10 @@ fn random_theta(rng: &mut ChaCha8Rng, problem: &Problem) -> Vec<f64> {
 
 fn check_model(rng: &mut ChaCha8Rng, model: StructuralModel, n_modes: Option<usize>, label: &str) {
     let blocks = blocks(rng, &model);
-    let len: usize = blocks.iter().map(|b| b.omega_rad_s.len() * b.pairs.len()).sum();
+    let len: usize = blocks
+        .iter()
+        .map(|b| b.omega_rad_s.len() * b.pairs.len())
+        .sum();
     let magnitude: Vec<f64> = (0..len).map(|_| rng.random_range(1e-4..1e-2)).collect();
     let sigma: Vec<f64> = (0..len).map(|_| rng.random_range(0.01..0.1)).collect();
     for damping in [DampingModel::Rayleigh, DampingModel::Caughey] {
@@ -158,15 +165,29 @@ fn check_model(rng: &mut ChaCha8Rng, model: StructuralModel, n_modes: Option<usi
                 residual: form,
                 n_modes,
             };
-            let problem = Problem::new(model.clone(), data, damping, &VariablesConfig::default(), options).unwrap();
+            let problem = Problem::new(
+                model.clone(),
+                data,
+                damping,
+                &VariablesConfig::default(),
+                options,
+            )
+            .unwrap();
             let theta = random_theta(rng, &problem);
             let what = format!("{label} {damping:?} {form:?} weighted={weighted}");
             // Physical Jacobian, every variable.
             let jac = problem.jacobian_at(&theta).unwrap();
             for (v, var) in problem.variables().variables().iter().enumerate() {
-                let h = FD_STEP * theta[v].abs().max(if var.scale == Scale::Log { 0.0 } else { 1.0 });
+                let h = FD_STEP
+                    * theta[v]
+                        .abs()
+                        .max(if var.scale == Scale::Log { 0.0 } else { 1.0 });
                 let fd = fd_column(&problem, &theta, v, h);
-                assert_columns_close(jac.column(v).as_slice(), &fd, &format!("{what} d/d{}", var.name));
+                assert_columns_close(
+                    jac.column(v).as_slice(),
+                    &fd,
+                    &format!("{what} d/d{}", var.name),
+                );
             }
             // Internal Jacobian (log-scaled damping) through the solver's interface.
             let z = problem.to_internal(&theta);
@@ -178,7 +199,10 @@ fn check_model(rng: &mut ChaCha8Rng, model: StructuralModel, n_modes: Option<usi
             // exp(ln x) round trips to within a few ulps.
             let r_theta = problem.residuals_at(&theta).unwrap();
             for (a, b) in r0.iter().zip(&r_theta) {
-                assert!((a - b).abs() <= 1e-12 * b.abs().max(1.0), "{what}: {a} vs {b}");
+                assert!(
+                    (a - b).abs() <= 1e-12 * b.abs().max(1.0),
+                    "{what}: {a} vs {b}"
+                );
             }
             for c in 0..problem.n_params() {
                 let h = FD_STEP;
@@ -195,7 +219,11 @@ fn check_model(rng: &mut ChaCha8Rng, model: StructuralModel, n_modes: Option<usi
                         .map(|k| (8.0 * (p1[k] - m1[k]) - (p2[k] - m2[k])) / (12.0 * h))
                         .collect()
                 };
-                assert_columns_close(jz.column(c).as_slice(), &col, &format!("{what} internal z{c}"));
+                assert_columns_close(
+                    jz.column(c).as_slice(),
+                    &col,
+                    &format!("{what} internal z{c}"),
+                );
             }
         }
     }
@@ -206,7 +234,12 @@ fn jacobian_matches_finite_differences_shear_frames() {
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     for (n, n_modes) in [(4, None), (3, None), (5, Some(3))] {
         let model = random_shear_frame(&mut rng, n);
-        check_model(&mut rng, model, n_modes, &format!("shear frame n={n} modes={n_modes:?}"));
+        check_model(
+            &mut rng,
+            model,
+            n_modes,
+            &format!("shear frame n={n} modes={n_modes:?}"),
+        );
     }
 }
 
@@ -215,7 +248,12 @@ fn jacobian_matches_finite_differences_general_model() {
     let mut rng = ChaCha8Rng::seed_from_u64(12);
     for n_modes in [None, Some(2)] {
         let model = random_general_model(&mut rng, 4);
-        check_model(&mut rng, model, n_modes, &format!("general n=4 modes={n_modes:?}"));
+        check_model(
+            &mut rng,
+            model,
+            n_modes,
+            &format!("general n=4 modes={n_modes:?}"),
+        );
     }
 }
 
@@ -224,7 +262,10 @@ fn fixed_variables_are_not_solver_columns() {
     let mut rng = ChaCha8Rng::seed_from_u64(13);
     let model = random_shear_frame(&mut rng, 3);
     let blocks = blocks(&mut rng, &model);
-    let len: usize = blocks.iter().map(|b| b.omega_rad_s.len() * b.pairs.len()).sum();
+    let len: usize = blocks
+        .iter()
+        .map(|b| b.omega_rad_s.len() * b.pairs.len())
+        .sum();
     let mut config = VariablesConfig::default();
     config.fixed.insert("m2".into(), 0.02);
     let data = Measurements {
@@ -232,7 +273,14 @@ fn fixed_variables_are_not_solver_columns() {
         magnitude: vec![1e-3; len],
         sigma: None,
     };
-    let problem = Problem::new(model, data, DampingModel::Rayleigh, &config, ObjectiveOptions::default()).unwrap();
+    let problem = Problem::new(
+        model,
+        data,
+        DampingModel::Rayleigh,
+        &config,
+        ObjectiveOptions::default(),
+    )
+    .unwrap();
     assert_eq!(problem.n_params(), problem.variables().len() - 1);
     let theta = problem.variables().initial();
     assert_eq!(theta[4], 0.02);

@@ -41,7 +41,9 @@ impl LeastSquaresProblem for Rosenbrock {
 }
 
 fn solve(bounds: &Bounds, x0: &[f64], opts: TrfOptions) -> frfbayes::update::lsq::Solution {
-    Trf::new(opts).minimize(&Rosenbrock, &mut (), x0, bounds).unwrap()
+    Trf::new(opts)
+        .minimize(&Rosenbrock, &mut (), x0, bounds)
+        .unwrap()
 }
 
 #[test]
@@ -294,8 +296,14 @@ fn multistart_is_deterministic_across_thread_counts() {
     }
     // Starts left of the barrier end in the local minimum, so fewer than all starts
     // reach the global one.
-    assert!((one.best.x[0] - 1.0).abs() < SOLUTION_TOL && (one.best.x[1] - 0.3).abs() < SOLUTION_TOL);
-    assert!(one.n_at_best >= 1 && one.n_at_best < 24, "{}", one.n_at_best);
+    assert!(
+        (one.best.x[0] - 1.0).abs() < SOLUTION_TOL && (one.best.x[1] - 0.3).abs() < SOLUTION_TOL
+    );
+    assert!(
+        one.n_at_best >= 1 && one.n_at_best < 24,
+        "{}",
+        one.n_at_best
+    );
     let counted = one
         .starts
         .iter()
@@ -303,6 +311,12 @@ fn multistart_is_deterministic_across_thread_counts() {
         .count();
     assert_eq!(counted, one.n_at_best);
     // A different seed gives a different design.
-    let other = multistart(&DoubleWell, &bounds, None, &MultistartOptions { seed: 4, ..opts }).unwrap();
+    let other = multistart(
+        &DoubleWell,
+        &bounds,
+        None,
+        &MultistartOptions { seed: 4, ..opts },
+    )
+    .unwrap();
     assert_ne!(other.starts[1].start, one.starts[1].start);
 }

@@ -18,6 +18,7 @@ pub struct Fit {
     pub active: Vec<Active>,
     pub termination: Termination,
     pub n_evaluations: usize,
+    pub n_jacobians: usize,
     pub n_iterations: usize,
 }
 
@@ -79,6 +80,7 @@ pub fn update(problem: &Problem, options: &MultistartOptions) -> Result<UpdateRe
             active,
             termination: s.termination,
             n_evaluations: s.n_evaluations,
+            n_jacobians: s.n_jacobians,
             n_iterations: s.n_iterations,
         }
     };

@@ -61,7 +61,11 @@ pub fn pair_ranges(blocks: &[FrfBlock]) -> Vec<Range<usize>> {
 }
 
 /// Magnitude FDAC of every FRF (block, then pair) of two long vectors.
-pub fn fdac_per_pair(blocks: &[FrfBlock], analytical: &[f64], experimental: &[f64]) -> Result<Vec<f64>> {
+pub fn fdac_per_pair(
+    blocks: &[FrfBlock],
+    analytical: &[f64],
+    experimental: &[f64],
+) -> Result<Vec<f64>> {
     let ranges = pair_ranges(blocks);
     let len = ranges.last().map_or(0, |r| r.end);
     if analytical.len() != len || experimental.len() != len {
@@ -111,7 +115,7 @@ pub fn gauss_newton_covariance(jac: &DMatrix<f64>, residual_variance: f64) -> Re
     let s = &svd.singular_values;
     let smax = s.max();
     let smin = s.min();
-    if !(smin > f64::EPSILON * m as f64 * smax) {
+    if smin.is_nan() || smin <= f64::EPSILON * m as f64 * smax {
         return Err(Error::Numerical(format!(
             "Jacobian is rank deficient (singular values {smax:.3e} .. {smin:.3e}): \
              some combination of variables is not identifiable"
@@ -170,7 +174,10 @@ mod tests {
             // plus 5e-4 for the rounding of the tabulated RSD itself.
             let mean = values.iter().sum::<f64>() / 4.0;
             let tol = 5e-4 * (4.0_f64 / 3.0).sqrt() / mean * 100.0 + 5e-4;
-            assert!((rsd - paper).abs() <= tol, "{values:?}: {rsd} vs {paper} (tol {tol})");
+            assert!(
+                (rsd - paper).abs() <= tol,
+                "{values:?}: {rsd} vs {paper} (tol {tol})"
+            );
         }
         // The population (n) normalisation does not reproduce m2 of Table 1.
         let v = PAPER_ROWS[1].0;
@@ -219,6 +226,8 @@ mod tests {
         assert!((cov[(0, 0)] - 2.0 * (1.0 / 5.0 + 4.0 / 10.0)).abs() < 1e-14);
         let rank1 = DMatrix::from_fn(5, 2, |i, _| x[i]);
         assert!(gauss_newton_covariance(&rank1, 1.0).is_err());
-        assert!((gain_relative_error(0.5, 8) - (0.5_f64).sqrt() / (0.5_f64.sqrt() * 4.0)).abs() < 1e-15);
+        assert!(
+            (gain_relative_error(0.5, 8) - (0.5_f64).sqrt() / (0.5_f64.sqrt() * 4.0)).abs() < 1e-15
+        );
     }
 }

@@ -26,8 +26,9 @@
 //!
 //! # Example
 //! ```
-//! use frfbayes::frf::{Excitation, FrfBlock, FrfKind, FrfPair};
-//! use frfbayes::model::StructuralModel;
+//! use frfbayes::frf::{Excitation, FrfBlock, FrfKind, FrfPair, ModalFrf};
+//! use frfbayes::modal::Modes;
+//! use frfbayes::model::{Damping, StructuralModel};
 //! use frfbayes::update::{
 //!     update, DampingModel, Measurements, MultistartOptions, ObjectiveOptions, Problem,
 //!     VariablesConfig,
@@ -37,19 +38,26 @@
 //!     .map(|r| FrfPair { response: r, excitation: Excitation::Dof(0), kind: FrfKind::Receptance })
 //!     .collect();
 //! let blocks = vec![FrfBlock { omega_rad_s: (1..60).map(|i| 0.3 * i as f64).collect(), pairs }];
-//! // Synthetic data: stiffness +5 % and +10 %, mass -2 % and +3 %, some damping.
-//! let config = VariablesConfig::default();
-//! let data = Measurements { blocks, magnitude: vec![], sigma: None };
+//!
+//! // Synthetic measurements at known values: theta = (alpha1, alpha2, beta1, beta2, a0, a1).
 //! let truth = [0.05, 0.10, -0.02, 0.03, 0.05, 1e-4];
-//! let mut problem = Problem::new(nominal.clone(), Measurements { magnitude: vec![1.0; 118], ..data.clone() },
-//!     DampingModel::Rayleigh, &config, ObjectiveOptions::default())?;
-//! let magnitude = problem.magnitudes(&truth)?;
-//! problem = Problem::new(nominal, Measurements { magnitude, ..data }, DampingModel::Rayleigh,
-//!     &config, ObjectiveOptions::default())?;
+//! let (k, m) = (nominal.stiffness(&truth[..2]), nominal.mass(&truth[2..4]));
+//! let modes = Modes::solve(&k, &m, nominal.ground_influence(), None)?;
+//! let mut modal_c = vec![0.0; 2];
+//! Damping::Rayleigh { a0_per_s: truth[4], a1_s: truth[5] }
+//!     .modal_coefficients(&modes.omega_rad_s, &mut modal_c)?;
+//! let mut frf = ModalFrf::new(blocks.clone());
+//! let mut magnitude = vec![0.0; frf.len()];
+//! frf.magnitudes(&modes, &modal_c, &mut magnitude)?;
+//!
+//! let data = Measurements { blocks, magnitude, sigma: None };
+//! let problem = Problem::new(nominal, data, DampingModel::Rayleigh,
+//!     &VariablesConfig::default(), ObjectiveOptions::default())?;
 //! let result = update(&problem, &MultistartOptions { n_starts: 8, ..Default::default() })?;
 //! for (x, t) in result.best.theta.iter().zip(&truth) {
 //!     assert!((x - t).abs() < 1e-6 * t.abs().max(1e-3));
 //! }
+//! println!("{} of 8 starts reached the best fit", result.n_at_best);
 //! # Ok::<(), frfbayes::Error>(())
 //! ```
 
@@ -61,9 +69,10 @@ mod sensitivity;
 mod variables;
 
 pub use fit::{update, Fit, StartFit, UpdateResult};
+pub use lsq::{Active, MultistartOptions, Termination, TrfOptions, XScale};
 pub use metrics::{
-    fdac, fdac_complex, fdac_per_pair, gain_relative_error, gauss_newton_covariance,
-    pair_ranges, rsd_percent,
+    fdac, fdac_complex, fdac_per_pair, gain_relative_error, gauss_newton_covariance, pair_ranges,
+    rsd_percent,
 };
 pub use problem::{Measurements, ObjectiveOptions, Problem, ProblemWorkspace, ResidualForm};
 pub use sensitivity::REPEATED_EIGENVALUE_RTOL;

@@ -104,7 +104,9 @@ impl Problem {
                 }
             }
             if b.omega_rad_s.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
-                return Err(Error::Usage("frequencies must be finite and positive".into()));
+                return Err(Error::Usage(
+                    "frequencies must be finite and positive".into(),
+                ));
             }
         }
         let frf = ModalFrf::new(data.blocks);
@@ -118,7 +120,11 @@ impl Problem {
                 data.magnitude.len()
             )));
         }
-        if let Some(k) = data.magnitude.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+        if let Some(k) = data
+            .magnitude
+            .iter()
+            .position(|v| !(v.is_finite() && *v >= 0.0))
+        {
             return Err(Error::Usage(format!(
                 "measured magnitude {k} is {}; magnitudes must be finite and >= 0",
                 data.magnitude[k]

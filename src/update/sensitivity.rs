@@ -83,7 +83,11 @@ fn eigen_derivatives(
             (Some(modes.phi.transpose() * (dk * phi_m)), None, None)
         } else {
             let dm = &model.mass_influence()[p - model.n_alpha()];
-            (None, Some(modes.phi.transpose() * (dm * phi_m)), Some(dm * iota))
+            (
+                None,
+                Some(modes.phi.transpose() * (dm * phi_m)),
+                Some(dm * iota),
+            )
         };
         for i in 0..m {
             let a_ji = |j: usize| a.as_ref().map_or(0.0, |a| a[(j, i)]);
@@ -151,15 +155,17 @@ pub(crate) fn magnitude_jacobian(
         ws.poles.clear();
         ws.poles2.clear();
         for &w in &block.omega_rad_s {
-            for i in 0..m {
-                let p = Complex64::new(omega_n[i] * omega_n[i] - w * w, ws.c[i] * w).inv();
+            for (wn, c) in omega_n.iter().zip(&ws.c) {
+                let p = Complex64::new(wn * wn - w * w, c * w).inv();
                 ws.poles.push(p);
                 ws.poles2.push(p * p);
             }
         }
         for pair in &block.pairs {
             if pair.response >= n || matches!(pair.excitation, Excitation::Dof(e) if e >= n) {
-                return Err(Error::Usage(format!("FRF pair {pair:?} outside a {n}-DOF model")));
+                return Err(Error::Usage(format!(
+                    "FRF pair {pair:?} outside a {n}-DOF model"
+                )));
             }
             ws.coef.clear();
             ws.dcoef.resize(n_s * m, 0.0);
@@ -200,15 +206,16 @@ pub(crate) fn magnitude_jacobian(
                 };
                 // B_i = a_i / D_i^2 (1 + j omega dc_i/dlambda_i).
                 ws.b.clear();
-                for i in 0..m {
-                    let a2 = poles2[i] * ws.coef[i];
-                    ws.b.push(a2 * Complex64::new(1.0, w * ws.dc_dlam[i]));
+                for ((q, a), dc) in poles2.iter().zip(&ws.coef).zip(&ws.dc_dlam) {
+                    ws.b.push(q * a * Complex64::new(1.0, w * dc));
                 }
                 for (p, col) in columns[..n_s].iter().enumerate() {
                     let Some(col) = *col else { continue };
+                    let (dcoef, dlam) =
+                        (&ws.dcoef[p * m..(p + 1) * m], &ws.dlam[p * m..(p + 1) * m]);
                     let mut ds = Complex64::new(0.0, 0.0);
-                    for i in 0..m {
-                        ds += poles[i] * ws.dcoef[p * m + i] - ws.b[i] * ws.dlam[p * m + i];
+                    for (((pole, b), da), dl) in poles.iter().zip(&ws.b).zip(dcoef).zip(dlam) {
+                        ds += pole * da - b * dl;
                     }
                     jac[(row, col)] = (g * ds).re;
                 }
@@ -218,9 +225,9 @@ pub(crate) fn magnitude_jacobian(
                     let ds = match damping {
                         Damping::Rayleigh { .. } => {
                             let mut acc = Complex64::new(0.0, 0.0);
-                            for i in 0..m {
-                                let dc = if d == 0 { 1.0 } else { omega_n[i] * omega_n[i] };
-                                acc += poles2[i] * (ws.coef[i] * dc);
+                            for ((q, a), wn) in poles2.iter().zip(&ws.coef).zip(omega_n) {
+                                let dc = if d == 0 { 1.0 } else { wn * wn };
+                                acc += q * (a * dc);
                             }
                             acc
                         }

@@ -181,20 +181,55 @@ impl Variables {
             })
         };
         for (r, p) in model.alpha_parameters().iter().enumerate() {
-            push(p.name.clone(), "1", VariableKind::Alpha(r), config.alpha, 0.0, Scale::Linear);
+            push(
+                p.name.clone(),
+                "1",
+                VariableKind::Alpha(r),
+                config.alpha,
+                0.0,
+                Scale::Linear,
+            );
         }
         for (r, p) in model.beta_parameters().iter().enumerate() {
-            push(p.name.clone(), "1", VariableKind::Beta(r), config.beta, 0.0, Scale::Linear);
+            push(
+                p.name.clone(),
+                "1",
+                VariableKind::Beta(r),
+                config.beta,
+                0.0,
+                Scale::Linear,
+            );
         }
         match damping {
             DampingModel::Rayleigh => {
                 let c = config;
-                push("a0".into(), "1/s", VariableKind::A0, c.a0_per_s, c.initial_a0_per_s, damping_scale);
-                push("a1".into(), "s", VariableKind::A1, c.a1_s, c.initial_a1_s, damping_scale);
+                push(
+                    "a0".into(),
+                    "1/s",
+                    VariableKind::A0,
+                    c.a0_per_s,
+                    c.initial_a0_per_s,
+                    damping_scale,
+                );
+                push(
+                    "a1".into(),
+                    "s",
+                    VariableKind::A1,
+                    c.a1_s,
+                    c.initial_a1_s,
+                    damping_scale,
+                );
             }
             DampingModel::Caughey => {
                 for i in 0..n_modes {
-                    push(format!("xi{}", i + 1), "1", VariableKind::Xi(i), config.xi, config.initial_xi, damping_scale);
+                    push(
+                        format!("xi{}", i + 1),
+                        "1",
+                        VariableKind::Xi(i),
+                        config.xi,
+                        config.initial_xi,
+                        damping_scale,
+                    );
                 }
             }
         }
@@ -217,8 +252,15 @@ impl Variables {
         }
         for (name, &v) in &config.fixed {
             let i = find(name, "fixed")?;
-            if !v.is_finite() || (matches!(vars[i].kind, VariableKind::A0 | VariableKind::A1 | VariableKind::Xi(_)) && v < 0.0) {
-                return Err(Error::Usage(format!("fixed value {v} of {name} is not admissible")));
+            if !v.is_finite()
+                || (matches!(
+                    vars[i].kind,
+                    VariableKind::A0 | VariableKind::A1 | VariableKind::Xi(_)
+                ) && v < 0.0)
+            {
+                return Err(Error::Usage(format!(
+                    "fixed value {v} of {name} is not admissible"
+                )));
             }
             vars[i].fixed = Some(v);
         }
@@ -246,9 +288,13 @@ impl Variables {
                 )));
             }
         }
-        let free = (0..vars.len()).filter(|&i| vars[i].fixed.is_none()).collect::<Vec<_>>();
+        let free = (0..vars.len())
+            .filter(|&i| vars[i].fixed.is_none())
+            .collect::<Vec<_>>();
         if free.is_empty() {
-            return Err(Error::Usage("every variable is fixed: nothing to update".into()));
+            return Err(Error::Usage(
+                "every variable is fixed: nothing to update".into(),
+            ));
         }
         Ok(Variables {
             vars,
@@ -294,7 +340,10 @@ impl Variables {
 
     /// Start values (fixed values for fixed variables).
     pub fn initial(&self) -> Vec<f64> {
-        self.vars.iter().map(|v| v.fixed.unwrap_or(v.initial)).collect()
+        self.vars
+            .iter()
+            .map(|v| v.fixed.unwrap_or(v.initial))
+            .collect()
     }
 
     /// Splits `theta` into `(alpha, beta, damping)`.
@@ -360,8 +409,16 @@ impl Variables {
             Scale::Linear => x,
             Scale::Log => x.ln(),
         };
-        let lower = self.free.iter().map(|&i| map(i, self.vars[i].lower)).collect();
-        let upper = self.free.iter().map(|&i| map(i, self.vars[i].upper)).collect();
+        let lower = self
+            .free
+            .iter()
+            .map(|&i| map(i, self.vars[i].lower))
+            .collect();
+        let upper = self
+            .free
+            .iter()
+            .map(|&i| map(i, self.vars[i].upper))
+            .collect();
         Bounds::new(lower, upper).expect("bounds validated in Variables::new")
     }
 
@@ -381,10 +438,23 @@ impl Variables {
 
     /// Units of [`Self::physical`].
     pub fn physical_units(&self, model: &StructuralModel) -> Vec<String> {
-        let params = model.alpha_parameters().iter().chain(model.beta_parameters());
+        let params = model
+            .alpha_parameters()
+            .iter()
+            .chain(model.beta_parameters());
         params
-            .map(|p| if p.nominal.is_some() { p.unit.clone() } else { "1".into() })
-            .chain(self.vars[self.n_alpha + self.n_beta..].iter().map(|v| v.unit.clone()))
+            .map(|p| {
+                if p.nominal.is_some() {
+                    p.unit.clone()
+                } else {
+                    "1".into()
+                }
+            })
+            .chain(
+                self.vars[self.n_alpha + self.n_beta..]
+                    .iter()
+                    .map(|v| v.unit.clone()),
+            )
             .collect()
     }
 }
@@ -400,12 +470,20 @@ mod tests {
     #[test]
     fn layout_and_round_trip() {
         let model = frame();
-        let v = Variables::new(&model, DampingModel::Caughey, 4, &VariablesConfig::default()).unwrap();
+        let v = Variables::new(
+            &model,
+            DampingModel::Caughey,
+            4,
+            &VariablesConfig::default(),
+        )
+        .unwrap();
         assert_eq!(
             v.names(),
             ["k1", "k2", "k3", "k4", "m1", "m2", "m3", "m4", "xi1", "xi2", "xi3", "xi4"]
         );
-        let theta = vec![0.1, -0.1, 0.0, 0.2, 0.05, 0.0, -0.05, 0.1, 0.01, 0.02, 0.005, 0.001];
+        let theta = vec![
+            0.1, -0.1, 0.0, 0.2, 0.05, 0.0, -0.05, 0.1, 0.01, 0.02, 0.005, 0.001,
+        ];
         let z = v.to_internal(&theta);
         assert!((z[8] - 0.01_f64.ln()).abs() < 1e-15);
         let back = v.theta(&z);
@@ -417,7 +495,12 @@ mod tests {
         assert_eq!(phys[9], 0.02);
         let (alpha, beta, d) = v.split(&theta);
         assert_eq!((alpha.len(), beta.len()), (4, 4));
-        assert_eq!(d, Damping::Caughey { xi: theta[8..].to_vec() });
+        assert_eq!(
+            d,
+            Damping::Caughey {
+                xi: theta[8..].to_vec()
+            }
+        );
     }
 
     #[test]

@@ -10,7 +10,12 @@ use nalgebra::{DMatrix, SVD};
 /// by `Q^T f`). Writes the `n x n` upper-triangular factor `R` (rows beyond `m` zero)
 /// into `r` and the first `n` entries of `Q^T f` (zero beyond `m`) into `qtf`, so that
 /// `||a x + f||^2 = ||R x + qtf||^2 + const` for every `x`.
-pub(crate) fn householder_qr(a: &mut DMatrix<f64>, f: &mut [f64], r: &mut DMatrix<f64>, qtf: &mut [f64]) {
+pub(crate) fn householder_qr(
+    a: &mut DMatrix<f64>,
+    f: &mut [f64],
+    r: &mut DMatrix<f64>,
+    qtf: &mut [f64],
+) {
     let (m, n) = a.shape();
     let steps = m.min(n);
     for j in 0..steps {
@@ -63,8 +68,9 @@ pub(crate) fn householder_qr(a: &mut DMatrix<f64>, f: &mut [f64], r: &mut DMatri
 /// Thin SVD of a small matrix, singular values descending: returns `(s, U, V)` with
 /// `a = U diag(s) V^T`.
 pub(crate) fn svd_descending(a: DMatrix<f64>) -> Result<(Vec<f64>, DMatrix<f64>, DMatrix<f64>)> {
-    let svd = SVD::try_new_unordered(a, true, true, f64::EPSILON, 10_000)
-        .ok_or_else(|| Error::Numerical("SVD of the trust-region system did not converge".into()))?;
+    let svd = SVD::try_new_unordered(a, true, true, f64::EPSILON, 10_000).ok_or_else(|| {
+        Error::Numerical("SVD of the trust-region system did not converge".into())
+    })?;
     let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
         return Err(Error::Numerical("SVD returned no singular vectors".into()));
     };
@@ -221,7 +227,13 @@ pub(crate) fn intersect_trust_region(x: &[f64], s: &[f64], delta: f64) -> (f64, 
 }
 
 /// The quadratic model `0.5 s^T (R^T R + diag) s + g^T s` (R is the n x n factor of J).
-pub(crate) fn evaluate_quadratic(r: &DMatrix<f64>, g: &[f64], s: &[f64], diag: &[f64], work: &mut [f64]) -> f64 {
+pub(crate) fn evaluate_quadratic(
+    r: &DMatrix<f64>,
+    g: &[f64],
+    s: &[f64],
+    diag: &[f64],
+    work: &mut [f64],
+) -> f64 {
     mat_vec(r, s, work);
     let q = dot(work, work) + s.iter().zip(diag).map(|(x, d)| x * x * d).sum::<f64>();
     0.5 * q + dot(s, g)
@@ -244,7 +256,12 @@ pub(crate) fn quadratic_1d(
     let mut c = 0.0;
     if let Some(s0) = s0 {
         mat_vec(r, s0, work2);
-        b += dot(work, work2) + s0.iter().zip(s).zip(diag).map(|((p, q), d)| p * q * d).sum::<f64>();
+        b += dot(work, work2)
+            + s0.iter()
+                .zip(s)
+                .zip(diag)
+                .map(|((p, q), d)| p * q * d)
+                .sum::<f64>();
         c = 0.5 * (dot(work2, work2) + s0.iter().zip(diag).map(|(x, d)| x * x * d).sum::<f64>())
             + dot(g, s0);
     }
@@ -292,7 +309,9 @@ mod tests {
         let a0 = DMatrix::from_row_slice(
             5,
             3,
-            &[1.0, 2.0, 0.5, -1.0, 0.3, 4.0, 2.0, 2.0, 1.0, 0.0, -3.0, 2.0, 1.5, 1.0, -1.0],
+            &[
+                1.0, 2.0, 0.5, -1.0, 0.3, 4.0, 2.0, 2.0, 1.0, 0.0, -3.0, 2.0, 1.5, 1.0, -1.0,
+            ],
         );
         let f0 = vec![1.0, -2.0, 0.5, 3.0, 0.25];
         let (mut a, mut f) = (a0.clone(), f0.clone());
@@ -303,7 +322,11 @@ mod tests {
         let ata = a0.transpose() * &a0;
         assert!((r.transpose() * &r - &ata).amax() < 1e-12 * ata.amax());
         // Least-squares solution from R x = -qtf equals the normal-equation solution.
-        let x_qr = r.clone().lu().solve(&nalgebra::DVector::from_iterator(3, qtf.iter().map(|v| -v))).unwrap();
+        let x_qr = r
+            .clone()
+            .lu()
+            .solve(&nalgebra::DVector::from_iterator(3, qtf.iter().map(|v| -v)))
+            .unwrap();
         let atf = a0.transpose() * nalgebra::DVector::from_vec(f0.clone());
         let x_ne = ata.lu().solve(&(-atf)).unwrap();
         assert!((x_qr - x_ne).amax() < 1e-12);
@@ -357,7 +380,13 @@ mod tests {
         let (tn, tp) = intersect_trust_region(&[0.0, 0.0], &[1.0, 0.0], 2.0);
         assert_eq!((tn, tp), (-2.0, 2.0));
         let mut hits = [0i8; 2];
-        let t = step_size_to_bound(&[0.0, 0.0], &[1.0, -2.0], &[-1.0, -1.0], &[1.0, 1.0], &mut hits);
+        let t = step_size_to_bound(
+            &[0.0, 0.0],
+            &[1.0, -2.0],
+            &[-1.0, -1.0],
+            &[1.0, 1.0],
+            &mut hits,
+        );
         assert_eq!(t, 0.5);
         assert_eq!(hits, [0, -1]);
     }

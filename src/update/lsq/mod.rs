@@ -17,7 +17,9 @@ mod linalg;
 mod multistart;
 mod trf;
 
-pub use multistart::{latin_hypercube, multistart, MultistartOptions, MultistartResult, StartOutcome};
+pub use multistart::{
+    latin_hypercube, multistart, MultistartOptions, MultistartResult, StartOutcome,
+};
 pub use trf::{Solution, Termination, Trf, TrfOptions, TrfState, XScale};
 
 use crate::error::{Error, Result};
@@ -89,7 +91,7 @@ impl Bounds {
             )));
         }
         for (i, (l, u)) in lower.iter().zip(&upper).enumerate() {
-            if !(l < u) {
+            if l.is_nan() || u.is_nan() || l >= u {
                 return Err(Error::Usage(format!(
                     "variable {i}: lower bound {l} must be below upper bound {u}"
                 )));

@@ -17,15 +17,16 @@ use nalgebra::DMatrix;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum XScale {
-    /// No scaling (scipy's `x_scale=1.0`): use when the variables are already of
-    /// comparable size.
-    #[default]
+    /// No scaling (scipy's default `x_scale=1.0`).
     Unit,
-    /// Inverse Jacobian column norms, never decreasing (scipy's `x_scale="jac"`).
+    /// Inverse Jacobian column norms, never decreasing (scipy's `x_scale="jac"`). The
+    /// default here: on the four-story updating problems it cut the iterations per
+    /// start about fourfold (at most 38 against 315 in 64 starts) for the same minima.
+    #[default]
     Jacobian,
 }
 
-/// Tolerances and budget, with scipy's defaults.
+/// Tolerances and budget, with scipy's defaults (except `x_scale`, see [`XScale`]).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TrfOptions {
@@ -50,7 +51,7 @@ impl Default for TrfOptions {
             xtol: 1e-8,
             gtol: 1e-8,
             max_evaluations: None,
-            x_scale: XScale::Unit,
+            x_scale: XScale::Jacobian,
         }
     }
 }
@@ -207,7 +208,9 @@ impl Trf {
         let o = &self.options;
         for (name, v) in [("ftol", o.ftol), ("xtol", o.xtol), ("gtol", o.gtol)] {
             if !(v.is_finite() && v >= 0.0) {
-                return Err(Error::Usage(format!("{name} must be finite and >= 0, got {v}")));
+                return Err(Error::Usage(format!(
+                    "{name} must be finite and >= 0, got {v}"
+                )));
             }
         }
         if x0.len() != n || bounds.len() != n {
@@ -231,7 +234,9 @@ impl Trf {
         let mut f = vec![0.0; m];
         problem.residuals(&x, ws, &mut f)?;
         if f.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Numerical("residuals at the start point are not finite".into()));
+            return Err(Error::Numerical(
+                "residuals at the start point are not finite".into(),
+            ));
         }
         let cost = 0.5 * f.iter().map(|v| v * v).sum::<f64>();
         let mut state = TrfState {
@@ -261,7 +266,14 @@ impl Trf {
         self.update_jacobian(problem, ws, &mut state)?;
         // Initial radius: the scaled norm of x0 (1 when x0 = 0).
         let st = &mut state;
-        cl_scaling(&st.x, &st.g, &st.lower, &st.upper, &mut st.s.v, &mut st.s.dv);
+        cl_scaling(
+            &st.x,
+            &st.g,
+            &st.lower,
+            &st.upper,
+            &mut st.s.v,
+            &mut st.s.dv,
+        );
         let mut delta2 = 0.0;
         for i in 0..n {
             let v = if st.s.dv[i] != 0.0 {
@@ -428,7 +440,11 @@ impl Trf {
             *g = col.iter().zip(&st.f).map(|(a, b)| a * b).sum();
             if self.options.x_scale == XScale::Jacobian {
                 let cn = col.norm();
-                let inv = if st.n_jacobians == 1 { cn } else { cn.max(st.scale_inv[j]) };
+                let inv = if st.n_jacobians == 1 {
+                    cn
+                } else {
+                    cn.max(st.scale_inv[j])
+                };
                 st.scale_inv[j] = if inv == 0.0 { 1.0 } else { inv };
                 st.scale[j] = 1.0 / st.scale_inv[j];
             }
@@ -441,12 +457,18 @@ impl Trf {
     /// First-order optimality at the current iterate, and the `gtol` and budget tests
     /// (the `gtol` test overrides a pending `ftol`/`xtol`, as in scipy).
     fn check_gradient(&self, st: &mut TrfState) {
-        cl_scaling(&st.x, &st.g, &st.lower, &st.upper, &mut st.s.v, &mut st.s.dv);
-        st.optimality = st
-            .g
-            .iter()
-            .zip(&st.s.v)
-            .fold(0.0_f64, |a, (g, v)| a.max((g * v).abs()));
+        cl_scaling(
+            &st.x,
+            &st.g,
+            &st.lower,
+            &st.upper,
+            &mut st.s.v,
+            &mut st.s.dv,
+        );
+        st.optimality =
+            st.g.iter()
+                .zip(&st.s.v)
+                .fold(0.0_f64, |a, (g, v)| a.max((g * v).abs()));
         if st.optimality < self.options.gtol {
             st.status = Some(Termination::Gtol);
         } else if st.status.is_none() && st.n_evaluations >= st.max_evaluations {
@@ -521,12 +543,12 @@ fn select_step(
     }
     let p_stride = step_size_to_bound(x, &s.p, lower, upper, &mut s.hits);
     // Reflected direction.
-    for i in 0..n {
+    for (i, &xi) in x.iter().enumerate() {
         s.r_h[i] = if s.hits[i] != 0 { -s.p_h[i] } else { s.p_h[i] };
         s.r[i] = s.d[i] * s.r_h[i];
         s.p[i] *= p_stride;
         s.p_h[i] *= p_stride;
-        s.x_trial[i] = x[i] + s.p[i];
+        s.x_trial[i] = xi + s.p[i];
     }
     let (_, to_tr) = intersect_trust_region(&s.p_h, &s.r_h, delta);
     let to_bound = step_size_to_bound(&s.x_trial, &s.r, lower, upper, &mut s.hits);
@@ -543,7 +565,15 @@ fn select_step(
         (0.0, -1.0)
     };
     let r_value = if r_lo <= r_hi {
-        let (a, b, c) = quadratic_1d(r_h, &s.g_h, &s.r_h, Some(&s.p_h), &s.diag_h, &mut s.w1, &mut s.w2);
+        let (a, b, c) = quadratic_1d(
+            r_h,
+            &s.g_h,
+            &s.r_h,
+            Some(&s.p_h),
+            &s.diag_h,
+            &mut s.w1,
+            &mut s.w2,
+        );
         let (t, val) = minimize_quadratic_1d(a, b, c, r_lo, r_hi);
         for i in 0..n {
             s.r_h[i] = s.p_h[i] + t * s.r_h[i];
@@ -593,7 +623,13 @@ fn select_step(
 }
 
 /// Trust-region radius update from the agreement ratio; returns `(delta, ratio)`.
-fn update_radius(delta: f64, actual: f64, predicted: f64, step_norm: f64, bound_hit: bool) -> (f64, f64) {
+fn update_radius(
+    delta: f64,
+    actual: f64,
+    predicted: f64,
+    step_norm: f64,
+    bound_hit: bool,
+) -> (f64, f64) {
     let ratio = if predicted > 0.0 {
         actual / predicted
     } else if predicted == actual && actual == 0.0 {
