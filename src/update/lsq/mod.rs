@@ -15,6 +15,7 @@
 
 mod linalg;
 mod multistart;
+mod step;
 mod trf;
 
 pub use multistart::{
