@@ -397,3 +397,123 @@ impl LeastSquaresProblem for Problem {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frf::{Excitation, FrfKind, FrfPair};
+
+    fn setup() -> (StructuralModel, Vec<FrfBlock>) {
+        let model = StructuralModel::shear_frame(&[2.0, 3.0], &[500.0, 800.0]).unwrap();
+        let pairs = vec![
+            FrfPair {
+                response: 1,
+                excitation: Excitation::Dof(0),
+                kind: FrfKind::Accelerance,
+            },
+            FrfPair {
+                response: 0,
+                excitation: Excitation::Ground,
+                kind: FrfKind::Receptance,
+            },
+        ];
+        let omega_rad_s = (1..=30).map(|i| i as f64).collect();
+        (model, vec![FrfBlock { omega_rad_s, pairs }])
+    }
+
+    fn make(
+        magnitude: Vec<f64>,
+        sigma: Option<Vec<f64>>,
+        residual: ResidualForm,
+    ) -> Result<Problem> {
+        let (model, blocks) = setup();
+        let data = Measurements {
+            blocks,
+            magnitude,
+            sigma,
+        };
+        let options = ObjectiveOptions {
+            residual,
+            n_modes: None,
+        };
+        Problem::new(
+            model,
+            data,
+            DampingModel::Caughey,
+            &VariablesConfig::default(),
+            options,
+        )
+    }
+
+    #[test]
+    fn rejects_inconsistent_data() {
+        let e = make(vec![1.0; 59], None, ResidualForm::Magnitude).unwrap_err();
+        assert!(
+            e.to_string().contains("59 measured magnitudes for 60"),
+            "{e}"
+        );
+        let mut m = vec![1.0; 60];
+        m[7] = -1.0;
+        let e = make(m, None, ResidualForm::Magnitude).unwrap_err();
+        assert!(e.to_string().contains("measured magnitude 7"), "{e}");
+        let mut m = vec![1.0; 60];
+        m[3] = 0.0;
+        assert!(make(m.clone(), None, ResidualForm::Magnitude).is_ok());
+        let e = make(m, None, ResidualForm::LogMagnitude).unwrap_err();
+        assert!(e.to_string().contains("point 3"), "{e}");
+        let e = make(vec![1.0; 60], Some(vec![0.0; 60]), ResidualForm::Magnitude).unwrap_err();
+        assert!(e.to_string().contains("sigma 0"), "{e}");
+        let (model, blocks) = setup();
+        let data = Measurements {
+            blocks,
+            magnitude: vec![1.0; 60],
+            sigma: None,
+        };
+        let options = ObjectiveOptions {
+            residual: ResidualForm::Magnitude,
+            n_modes: Some(3),
+        };
+        let e = Problem::new(
+            model,
+            data,
+            DampingModel::Rayleigh,
+            &VariablesConfig::default(),
+            options,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("n_modes"), "{e}");
+    }
+
+    #[test]
+    fn residual_forms_and_frfs_agree() {
+        let measured: Vec<f64> = (0..60).map(|i| 1e-3 * (1.0 + 0.01 * i as f64)).collect();
+        let p = make(measured.clone(), None, ResidualForm::Magnitude).unwrap();
+        let theta = p.variables().initial();
+        let mag = p.magnitudes(&theta).unwrap();
+        let h = p.complex_frf(&theta).unwrap();
+        for (a, b) in mag.iter().zip(&h) {
+            assert!((a - b.norm()).abs() <= 1e-14 * a);
+        }
+        // Plain residuals are divided by the RMS of the measurements.
+        let rms = (measured.iter().map(|v| v * v).sum::<f64>() / 60.0).sqrt();
+        let r = p.residuals_at(&theta).unwrap();
+        assert!((r[5] - (mag[5] - measured[5]) / rms).abs() < 1e-12 * r[5].abs().max(1.0));
+        let sigma: Vec<f64> = (0..60).map(|i| 1e-5 * (1.0 + i as f64)).collect();
+        let pw = make(
+            measured.clone(),
+            Some(sigma.clone()),
+            ResidualForm::Magnitude,
+        )
+        .unwrap();
+        let rw = pw.residuals_at(&theta).unwrap();
+        assert!((rw[9] - (mag[9] - measured[9]) / sigma[9]).abs() < 1e-9 * rw[9].abs().max(1.0));
+        let pl = make(measured.clone(), None, ResidualForm::LogMagnitude).unwrap();
+        let rl = pl.residuals_at(&theta).unwrap();
+        assert!((rl[2] - (mag[2] / measured[2]).ln()).abs() < 1e-12);
+        assert!(
+            (pl.cost_at(&theta).unwrap() - 0.5 * rl.iter().map(|v| v * v).sum::<f64>()).abs()
+                < 1e-12
+        );
+        assert!(p.residuals_at(&theta[1..]).is_err());
+    }
+}
