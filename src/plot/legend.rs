@@ -1,0 +1,135 @@
+//! The legend: drawn inside the plotting area where it hides the fewest data pixels.
+
+use super::panel::{Chart, Occupied, Stroke};
+use super::render::{put_text, text_width, DResult};
+use super::style::{self, text, Sizes};
+use plotters::element::{Circle, DashedPathElement, PathElement, Rectangle};
+use plotters::prelude::DrawingBackend;
+use plotters::style::text_anchor::{HPos, VPos};
+use plotters::style::{Color, RGBAColor, RGBColor};
+
+/// How a legend entry is drawn.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Swatch {
+    Line(Stroke),
+    LineDot(Stroke),
+    Patch(RGBAColor),
+    Dot(RGBAColor),
+}
+
+/// One legend row.
+#[derive(Clone, Debug)]
+pub(crate) struct Entry {
+    pub label: String,
+    pub swatch: Swatch,
+}
+
+/// Draws the legend inside the plotting area, in the corner (or top/bottom centre) where
+/// it covers the fewest data pixels; columns are added when it would be too tall.
+pub(crate) fn legend<DB: DrawingBackend>(
+    chart: &Chart<DB>,
+    entries: &[Entry],
+    occ: &Occupied,
+    sizes: Sizes,
+) -> DResult<(), DB> {
+    let entries: Vec<&Entry> = entries.iter().filter(|e| !e.label.is_empty()).collect();
+    if entries.is_empty() {
+        return Ok(());
+    }
+    let area = chart.plotting_area().strip_coord_spec();
+    let base = area.get_base_pixel();
+    let (w, h) = area.dim_in_pixel();
+    let (w, h) = (w as i32, h as i32);
+    let font = sizes.legend;
+    let row = (font * 1.45) as i32;
+    let pad = 8;
+    let swatch = 28;
+    let max_rows = ((h - 2 * pad - 16) / row).max(1) as usize;
+    let cols = entries.len().div_ceil(max_rows);
+    let rows = entries.len().div_ceil(cols);
+    let col_w: Vec<i32> = (0..cols)
+        .map(|c| {
+            entries
+                .iter()
+                .skip(c * rows)
+                .take(rows)
+                .map(|e| text_width(&area, &e.label, font) as i32)
+                .max()
+                .unwrap_or(0)
+                + swatch
+                + 8
+        })
+        .collect();
+    let box_w = col_w.iter().sum::<i32>() + 2 * pad + 12 * (cols as i32 - 1);
+    let box_h = rows as i32 * row + 2 * pad - (row - font as i32) / 2;
+    let m = 10;
+    let candidates = [
+        (w - box_w - m, m),
+        (m, m),
+        (w - box_w - m, h - box_h - m),
+        (m, h - box_h - m),
+        ((w - box_w) / 2, m),
+        ((w - box_w) / 2, h - box_h - m),
+    ];
+    let covered = |(x, y): (i32, i32)| {
+        occ.0
+            .iter()
+            .filter(|p| {
+                let (px, py) = (p.0 - base.0, p.1 - base.1);
+                px >= x - 4 && px <= x + box_w + 4 && py >= y - 4 && py <= y + box_h + 4
+            })
+            .count()
+    };
+    let (bx, by) = candidates
+        .iter()
+        .copied()
+        .min_by_key(|&c| covered(c))
+        .unwrap_or(candidates[0]);
+    area.draw(&Rectangle::new(
+        [(bx, by), (bx + box_w, by + box_h)],
+        style::WHITE.mix(0.88).filled(),
+    ))?;
+    area.draw(&Rectangle::new(
+        [(bx, by), (bx + box_w, by + box_h)],
+        RGBColor(170, 170, 170).stroke_width(1),
+    ))?;
+    let mut x = bx + pad;
+    for (c, cw) in col_w.iter().enumerate() {
+        for (r, e) in entries.iter().skip(c * rows).take(rows).enumerate() {
+            let cy = by + pad + r as i32 * row + font as i32 / 2;
+            match e.swatch {
+                Swatch::Line(s) | Swatch::LineDot(s) => {
+                    let pts = vec![(x, cy), (x + swatch - 4, cy)];
+                    if let Swatch::LineDot(_) = e.swatch {
+                        area.draw(&Circle::new((x + swatch / 2 - 2, cy), 4, s.color.filled()))?;
+                    }
+                    match s.dash.pattern() {
+                        None => area.draw(&PathElement::new(pts, s.shape()))?,
+                        Some((on, off)) => {
+                            area.draw(&DashedPathElement::new(pts, on, off, s.shape()))?
+                        }
+                    }
+                }
+                Swatch::Patch(color) => area.draw(&Rectangle::new(
+                    [
+                        (x, cy - font as i32 / 2 + 1),
+                        (x + swatch - 4, cy + font as i32 / 2 - 1),
+                    ],
+                    color.filled(),
+                ))?,
+                Swatch::Dot(color) => {
+                    area.draw(&Circle::new((x + swatch / 2 - 2, cy), 4, color.filled()))?
+                }
+            }
+            put_text(
+                &area,
+                &e.label,
+                &text(font),
+                (x + swatch + 4, cy),
+                (HPos::Left, VPos::Center),
+            )?;
+        }
+        x += cw + 12;
+    }
+    Ok(())
+}
