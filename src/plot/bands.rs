@@ -1,6 +1,7 @@
 //! Posterior-predictive bands of a model FRF with the measured FRF on top.
 
 use super::axis::{data_range, limits, union, NiceAxis};
+use super::legend;
 use super::panel::{self, Entry, Occupied, Panel, Stroke, Swatch};
 use super::render::{render, title_area, DResult, Figure};
 use super::style::{self, NORMAL};
@@ -86,6 +87,58 @@ pub fn band_overlay(spec: &BandOverlaySpec, stem: &Path) -> Result<()> {
 
 const MEDIAN_BLUE: RGBColor = RGBColor(0, 84, 140);
 const POINTS_MAX: usize = 200;
+/// Opacity of the blue interval shades (the 50% band lies on the 95% band).
+const ALPHA_95: f64 = 0.18;
+const ALPHA_50: f64 = 0.38;
+
+/// Legend entries for everything any of `panels` draws.
+fn entries(panels: &[BandPanel]) -> Vec<Entry> {
+    let any = |f: fn(&BandPanel) -> bool| panels.iter().any(f);
+    let mut e = Vec::new();
+    if any(|p| p.band_95.is_some()) {
+        e.push(Entry {
+            label: "95% band".into(),
+            swatch: Swatch::Patch(style::OI_BLUE.mix(ALPHA_95)),
+        });
+    }
+    if any(|p| p.band_50.is_some()) {
+        e.push(Entry {
+            label: "50% band".into(),
+            swatch: Swatch::Patch(style::OI_BLUE.mix(ALPHA_50)),
+        });
+    }
+    e.push(Entry {
+        label: "Model median".into(),
+        swatch: Swatch::Line(Stroke::solid(MEDIAN_BLUE, 2)),
+    });
+    if any(|p| {
+        p.measured
+            .as_ref()
+            .is_some_and(|m| m.freq_hz.len() <= POINTS_MAX)
+    }) {
+        e.push(Entry {
+            label: "Measured".into(),
+            swatch: Swatch::Dot(style::BLACK.to_rgba()),
+        });
+    }
+    if any(|p| {
+        p.measured
+            .as_ref()
+            .is_some_and(|m| m.freq_hz.len() > POINTS_MAX)
+    }) {
+        e.push(Entry {
+            label: "Measured".into(),
+            swatch: Swatch::Line(Stroke::solid(style::BLACK, 1)),
+        });
+    }
+    if any(|p| !p.bands.is_empty()) {
+        e.push(Entry {
+            label: "Selected band".into(),
+            swatch: Swatch::Patch(style::band_shade()),
+        });
+    }
+    e
+}
 
 impl Figure for BandOverlaySpec {
     fn default_size(&self) -> (u32, u32) {
@@ -98,8 +151,15 @@ impl Figure for BandOverlaySpec {
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DResult<(), DB> {
         let body = title_area(root, &self.title, NORMAL)?;
+        // Several panels share one legend strip under the title; one panel has its own.
+        let shared = self.panels.len() > 1;
+        let body = if shared {
+            legend::legend_strip(&body, &entries(&self.panels), NORMAL)?
+        } else {
+            body
+        };
         let cells = panel::grid_cells(&body, self.panels.len());
-        for (k, (p, cell)) in self.panels.iter().zip(cells).enumerate() {
+        for (p, cell) in self.panels.iter().zip(cells) {
             let sy = p.y_scale;
             let mut xr = data_range(p.freq_hz.iter().copied(), Scale::Linear);
             let mut yr = data_range(p.median.iter().copied(), sy);
@@ -129,58 +189,30 @@ impl Figure for BandOverlaySpec {
             )?;
             panel::shade_bands(&mut chart, &p.bands)?;
             let mut occ = Occupied::default();
-            let mut entries = Vec::new();
-            let shade_95 = style::OI_BLUE.mix(0.18);
-            let shade_50 = style::OI_BLUE.mix(0.38);
+            let (shade_95, shade_50) = (style::OI_BLUE.mix(ALPHA_95), style::OI_BLUE.mix(ALPHA_50));
             if let Some(b) = &p.band_95 {
                 panel::fill_between(&mut chart, &p.freq_hz, &b.lo, &b.hi, shade_95, &mut occ)?;
-                entries.push(Entry {
-                    label: "95% band".into(),
-                    swatch: Swatch::Patch(shade_95),
-                });
             }
             if let Some(b) = &p.band_50 {
                 panel::fill_between(&mut chart, &p.freq_hz, &b.lo, &b.hi, shade_50, &mut occ)?;
-                entries.push(Entry {
-                    label: "50% band".into(),
-                    swatch: Swatch::Patch(shade_50),
-                });
             }
             let median = Stroke::solid(MEDIAN_BLUE, 2);
             panel::line(&mut chart, &p.freq_hz, &p.median, median, None, &mut occ)?;
-            entries.push(Entry {
-                label: "Model median".into(),
-                swatch: Swatch::Line(median),
-            });
             if let Some(m) = &p.measured {
                 let black = style::BLACK.to_rgba();
                 if m.freq_hz.len() <= POINTS_MAX {
                     panel::points(&mut chart, &m.freq_hz, &m.values, black, 3, &mut occ)?;
-                    entries.push(Entry {
-                        label: "Measured".into(),
-                        swatch: Swatch::Dot(black),
-                    });
                 } else {
                     let s = Stroke::solid(style::BLACK, 1);
                     panel::line(&mut chart, &m.freq_hz, &m.values, s, None, &mut occ)?;
-                    entries.push(Entry {
-                        label: "Measured".into(),
-                        swatch: Swatch::Line(s),
-                    });
                 }
-            }
-            if !p.bands.is_empty() {
-                entries.push(Entry {
-                    label: "Selected band".into(),
-                    swatch: Swatch::Patch(style::band_shade()),
-                });
             }
             panel::frame(&mut chart)?;
             if occ.is_empty() {
                 panel::note(&chart, "no data", NORMAL)?;
             }
-            if k == 0 {
-                panel::legend(&chart, &entries, &occ, NORMAL)?;
+            if !shared {
+                panel::legend(&chart, &entries(std::slice::from_ref(p)), &occ, NORMAL)?;
             }
         }
         Ok(())

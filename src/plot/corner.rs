@@ -246,17 +246,14 @@ impl CornerSpec {
         let width = (xr.1 - xr.0) / bins as f64;
         let heights: Vec<f64> = counts.iter().map(|&c| c as f64 / max as f64).collect();
         chart.draw_series(heights.iter().enumerate().map(|(b, &hgt)| {
-            let x0 = xr.0 + b as f64 * width;
-            Rectangle::new(
-                [(x0, 0.0), (x0 + width, hgt)],
-                style::OI_BLUE.mix(0.25).filled(),
-            )
+            // Both edges from the bin index, so neighbours share them exactly (no gaps).
+            let (x0, x1) = (xr.0 + b as f64 * width, xr.0 + (b + 1) as f64 * width);
+            Rectangle::new([(x0, 0.0), (x1, hgt)], style::OI_BLUE.mix(0.25).filled())
         }))?;
         let mut outline = vec![(xr.0, 0.0)];
         for (b, &hgt) in heights.iter().enumerate() {
-            let x0 = xr.0 + b as f64 * width;
-            outline.push((x0, hgt));
-            outline.push((x0 + width, hgt));
+            outline.push((xr.0 + b as f64 * width, hgt));
+            outline.push((xr.0 + (b + 1) as f64 * width, hgt));
         }
         outline.push((xr.1, 0.0));
         chart.draw_series(std::iter::once(PathElement::new(
@@ -310,11 +307,9 @@ impl CornerSpec {
                     |(idx, &c)| {
                         let (i, k) = (idx % bins, idx / bins);
                         let (x0, y0) = (xr.0 + i as f64 * wx, yr.0 + k as f64 * wy);
+                        let (x1, y1) = (xr.0 + (i + 1) as f64 * wx, yr.0 + (k + 1) as f64 * wy);
                         let t = 0.15 + 0.85 * (c as f64 / max).sqrt();
-                        Rectangle::new(
-                            [(x0, y0), (x0 + wx, y0 + wy)],
-                            style::sequential(t).filled(),
-                        )
+                        Rectangle::new([(x0, y0), (x1, y1)], style::sequential(t).filled())
                     },
                 ))?;
             }

@@ -11,6 +11,8 @@
 //!   with nothing to draw says "no data".
 //! - Lengths that must match (a frequency grid and its values) are checked, and a
 //!   mismatch is an [`Error::Usage`](crate::Error::Usage) naming the series.
+//! - PNG text, lines, bands and markers are anti-aliased (`smooth.rs`); PNG and SVG
+//!   share one text layout.
 //! - Text uses the bundled DejaVu Sans (`src/plot/fonts/`, Bitstream Vera licence beside
 //!   it); colours are Okabe-Ito for lines, ColorBrewer RdBu for signed maps and Blues for
 //!   densities, all safe for the common colour-vision deficiencies.
@@ -30,6 +32,7 @@ mod legend;
 mod lines;
 mod panel;
 mod render;
+mod smooth;
 mod style;
 mod traces;
 

@@ -3,7 +3,7 @@
 //! into a temporary sibling file and renamed into place. A failed run leaves any previous
 //! figure untouched and no temporary file behind.
 
-use super::glyphs::Glyphs;
+use super::smooth::Smooth;
 use super::style::{self, text, Sizes};
 use crate::error::{Error, Result};
 use plotters::backend::{BitMapBackend, DrawingBackend, SVGBackend};
@@ -66,7 +66,7 @@ pub(crate) fn render(fig: &impl Figure, size_px: Option<(u32, u32)>, stem: &Path
 
     let mut svg = String::new();
     {
-        let root = Glyphs {
+        let root = Smooth {
             inner: SVGBackend::with_string(&mut svg, (w, h)),
             rasterise: false,
         }
@@ -81,7 +81,7 @@ pub(crate) fn render(fig: &impl Figure, size_px: Option<(u32, u32)>, stem: &Path
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let tmp = temp_png(&png_path);
     let drawn = {
-        let root = Glyphs {
+        let root = Smooth {
             inner: BitMapBackend::new(&tmp, (w, h)),
             rasterise: true,
         }
