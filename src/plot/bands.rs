@@ -170,8 +170,10 @@ impl Figure for BandOverlaySpec {
                 xr = union(xr, data_range(m.freq_hz.iter().copied(), Scale::Linear));
                 yr = union(yr, data_range(m.values.iter().copied(), sy));
             }
-            let x = NiceAxis::new(Scale::Linear, limits(xr, Scale::Linear, 0.0), 6);
-            let y = NiceAxis::new(sy, limits(yr, sy, 0.04), 6);
+            let (cw, ch) = cell.dim_in_pixel();
+            let x_lim = limits(xr, Scale::Linear, 0.0);
+            let x = NiceAxis::new(Scale::Linear, x_lim, panel::ticks_for(cw, 95, 8));
+            let y = NiceAxis::new(sy, limits(yr, sy, 0.04), panel::ticks_for(ch, 60, 8));
             let y_area = panel::y_area(&cell, &y, &p.y_label, NORMAL);
             let mut chart = panel::build(
                 &cell,

@@ -108,7 +108,8 @@ impl Figure for BarChartSpec {
                 (lo, hi)
             }
         };
-        let y = NiceAxis::new(scale, y_lim, 8);
+        let (_, body_h) = body.dim_in_pixel();
+        let y = NiceAxis::new(scale, y_lim, panel::ticks_for(body_h, 70, 8));
         let y_area = panel::y_area(&body, &y, &self.y_label, NORMAL);
         let n = self.categories.len();
         let (w, _) = body.dim_in_pixel();

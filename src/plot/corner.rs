@@ -114,12 +114,14 @@ impl Figure for CornerSpec {
         } else {
             self.bins
         };
+        let (bw, _) = body.dim_in_pixel();
+        let ticks = panel::ticks_for(bw / n as u32, 70, 3);
         let axes: Vec<NiceAxis> = self
             .params
             .iter()
             .map(|p| {
                 let r = data_range(p.values.iter().copied().chain(p.reference), Scale::Linear);
-                NiceAxis::new(Scale::Linear, limits(r, Scale::Linear, 0.05), 3)
+                NiceAxis::new(Scale::Linear, limits(r, Scale::Linear, 0.05), ticks)
             })
             .collect();
         let texts: Vec<String> = self.params.iter().map(axis_text).collect();

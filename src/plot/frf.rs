@@ -74,11 +74,13 @@ impl Figure for FrfMagnitudesSpec {
             Scale::Linear,
             0.0,
         );
-        let x = NiceAxis::new(Scale::Linear, x_lim, 10);
+        let (top_w, top_h) = top.dim_in_pixel();
+        let x = NiceAxis::new(Scale::Linear, x_lim, panel::ticks_for(top_w, 95, 10));
         let mag_range = self.channels.iter().fold(None, |acc, c| {
             union(acc, data_range(c.magnitude.iter().copied(), Scale::Log))
         });
-        let y = NiceAxis::new(Scale::Log, limits(mag_range, Scale::Log, 0.04), 8);
+        let y_lim = limits(mag_range, Scale::Log, 0.04);
+        let y = NiceAxis::new(Scale::Log, y_lim, panel::ticks_for(top_h, 60, 8));
         let coh = NiceAxis::new(
             Scale::Linear,
             limits(Some((0.0, 1.0)), Scale::Linear, 0.03),
@@ -269,8 +271,11 @@ impl Figure for FrfComparisonSpec {
             let yr = curves.iter().flatten().fold(None, |acc, c| {
                 union(acc, data_range(c.values.iter().copied(), Scale::Log))
             });
-            let x = NiceAxis::new(Scale::Linear, limits(xr, Scale::Linear, 0.0), 6);
-            let y = NiceAxis::new(Scale::Log, limits(yr, Scale::Log, 0.04), 6);
+            let (cw, ch) = cell.dim_in_pixel();
+            let x_lim = limits(xr, Scale::Linear, 0.0);
+            let x = NiceAxis::new(Scale::Linear, x_lim, panel::ticks_for(cw, 95, 8));
+            let y_lim = limits(yr, Scale::Log, 0.04);
+            let y = NiceAxis::new(Scale::Log, y_lim, panel::ticks_for(ch, 60, 8));
             let y_desc = if p.y_label.is_empty() {
                 "FRF magnitude"
             } else {

@@ -154,6 +154,10 @@ pub(crate) fn legend<DB: DrawingBackend>(
         .collect();
     let box_w = col_w.iter().sum::<i32>() + 2 * pad + 12 * (cols as i32 - 1);
     let box_h = rows as i32 * row + 2 * pad - (row - font as i32) / 2;
+    if box_w > w || box_h > h {
+        // Larger than the plot itself (tiny figure): leave the data visible instead.
+        return Ok(());
+    }
     let m = 10;
     let candidates = [
         (w - box_w - m, m),

@@ -89,8 +89,11 @@ impl Figure for LineChartSpec {
         let refs = |r: &[RefLine], scale| data_range(r.iter().map(|l| l.value), scale);
         let xr = union(xr, refs(&self.x_refs, self.x_scale));
         let yr = union(yr, refs(&self.y_refs, self.y_scale));
-        let x = NiceAxis::new(self.x_scale, limits(xr, self.x_scale, 0.02), 10);
-        let y = NiceAxis::new(self.y_scale, limits(yr, self.y_scale, 0.04), 8);
+        let (bw, bh) = body.dim_in_pixel();
+        let x_lim = limits(xr, self.x_scale, 0.02);
+        let x = NiceAxis::new(self.x_scale, x_lim, panel::ticks_for(bw, 95, 10));
+        let y_lim = limits(yr, self.y_scale, 0.04);
+        let y = NiceAxis::new(self.y_scale, y_lim, panel::ticks_for(bh, 60, 8));
         let y_area = panel::y_area(&body, &y, &self.y_label, NORMAL);
         let mut chart = panel::build(
             &body,

@@ -70,6 +70,12 @@ pub(crate) fn x_area(tick_labels: bool, desc: &str, sizes: Sizes) -> u32 {
     labels + desc_height(desc, sizes)
 }
 
+/// Labelled ticks for an axis `px` pixels long: about one per `spacing` pixels, at
+/// least 2 and at most `max`.
+pub(crate) fn ticks_for(px: u32, spacing: u32, max: usize) -> usize {
+    ((px / spacing.max(1)) as usize).clamp(2, max.max(2))
+}
+
 /// Height of an x axis description with its gap (0 when empty).
 pub(crate) fn desc_height(desc: &str, sizes: Sizes) -> u32 {
     if desc.is_empty() {

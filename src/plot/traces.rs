@@ -85,7 +85,13 @@ impl Figure for TracesSpec {
             Scale::Linear,
             0.0,
         );
-        let x = NiceAxis::new(Scale::Linear, x_lim, 8);
+        let (bw, bh) = body.dim_in_pixel();
+        let x = NiceAxis::new(
+            Scale::Linear,
+            x_lim,
+            panel::ticks_for(bw / cols as u32, 95, 8),
+        );
+        let y_ticks = panel::ticks_for(bh / rows as u32, 40, 4);
         let texts: Vec<String> = self
             .params
             .iter()
@@ -105,7 +111,7 @@ impl Figure for TracesSpec {
                     union(acc, data_range(w.iter().copied(), Scale::Linear))
                 });
                 let r = union(r, data_range(p.reference, Scale::Linear));
-                NiceAxis::new(Scale::Linear, limits(r, Scale::Linear, 0.05), 4)
+                NiceAxis::new(Scale::Linear, limits(r, Scale::Linear, 0.05), y_ticks)
             })
             .collect();
         let y_area = (0..n)
