@@ -10,7 +10,7 @@
 //!   anywhere, zeros and negatives on log axes. Lines break at skipped points; a panel
 //!   with nothing to draw says "no data".
 //! - Lengths that must match (a frequency grid and its values) are checked, and a
-//!   mismatch is an [`Error::Usage`](crate::Error::Usage) naming the series.
+//!   mismatch is an [`Error::Usage`] naming the series.
 //! - PNG text, lines, bands and markers are anti-aliased (`smooth.rs`); PNG and SVG
 //!   share one text layout.
 //! - Text uses the bundled DejaVu Sans (`src/plot/fonts/`, Bitstream Vera licence beside
