@@ -108,7 +108,7 @@ pub fn find_peaks(curve_db: &[f64], valid: &[bool], n_peaks: usize) -> Vec<usize
         .collect();
     let v: Vec<f64> = idx.iter().map(|&k| curve_db[k]).collect();
     let n = v.len();
-    let mut cand: Vec<(f64, f64, usize)> = Vec::new();
+    let mut peaks: Vec<usize> = Vec::new();
     let mut i = 1;
     while i + 1 < n {
         if v[i] > v[i - 1] {
@@ -118,37 +118,75 @@ pub fn find_peaks(curve_db: &[f64], valid: &[bool], n_peaks: usize) -> Vec<usize
                 j += 1;
             }
             if j + 1 < n && v[j + 1] < v[i] {
-                let p = (i + j) / 2;
-                cand.push((prominence(&v, p), v[p], p));
+                peaks.push((i + j) / 2);
             }
             i = j + 1;
         } else {
             i += 1;
         }
     }
+    let prom = prominences(&v, &peaks);
+    let mut cand: Vec<(f64, f64, usize)> = peaks
+        .iter()
+        .zip(&prom)
+        .map(|(&p, &pr)| (pr, v[p], p))
+        .collect();
     cand.sort_by(|a, b| b.0.total_cmp(&a.0).then(b.1.total_cmp(&a.1)));
     let mut out: Vec<usize> = cand.iter().take(n_peaks).map(|c| idx[c.2]).collect();
     out.sort_unstable();
     out
 }
 
-fn prominence(v: &[f64], p: usize) -> f64 {
-    let h = v[p];
-    let mut left_min = h;
-    for &x in v[..p].iter().rev() {
-        if x > h {
-            break;
+/// Topographic prominence of each peak `p` of `v`: `v[p]` minus the higher of the minima
+/// of `v` between `p` and the nearest strictly higher sample on each side (or the end).
+/// O(n log n): nearest higher samples by a monotonic stack, minima by a segment tree.
+fn prominences(v: &[f64], peaks: &[usize]) -> Vec<f64> {
+    let n = v.len();
+    let nearest_higher = |order: &mut dyn Iterator<Item = usize>| {
+        let mut out = vec![None; n];
+        let mut stack: Vec<usize> = Vec::new();
+        for i in order {
+            while stack.last().is_some_and(|&t| v[t] <= v[i]) {
+                stack.pop();
+            }
+            out[i] = stack.last().copied();
+            stack.push(i);
         }
-        left_min = left_min.min(x);
+        out
+    };
+    let left = nearest_higher(&mut (0..n));
+    let right = nearest_higher(&mut (0..n).rev());
+    // iterative segment tree of minima
+    let mut tree = vec![f64::INFINITY; 2 * n];
+    tree[n..].copy_from_slice(v);
+    for i in (1..n).rev() {
+        tree[i] = tree[2 * i].min(tree[2 * i + 1]);
     }
-    let mut right_min = h;
-    for &x in &v[p + 1..] {
-        if x > h {
-            break;
+    let range_min = |lo: usize, hi: usize| {
+        // min of v[lo..=hi]
+        let (mut l, mut r, mut m) = (lo + n, hi + n + 1, f64::INFINITY);
+        while l < r {
+            if l & 1 == 1 {
+                m = m.min(tree[l]);
+                l += 1;
+            }
+            if r & 1 == 1 {
+                r -= 1;
+                m = m.min(tree[r]);
+            }
+            l /= 2;
+            r /= 2;
         }
-        right_min = right_min.min(x);
-    }
-    h - left_min.max(right_min)
+        m
+    };
+    peaks
+        .iter()
+        .map(|&p| {
+            let lo = left[p].map_or(0, |l| l + 1);
+            let hi = right[p].map_or(n - 1, |r| r - 1);
+            v[p] - range_min(lo, p).max(range_min(p, hi))
+        })
+        .collect()
 }
 
 /// Half-power band around the peak at bin `peak` (see the module docs).
@@ -273,6 +311,35 @@ mod tests {
         let p = find_peaks(&curve, &valid, 2);
         assert_eq!(p.len(), 2);
         assert!((freq[p[0]] - 2.0).abs() < 0.02 && (freq[p[1]] - 6.0).abs() < 0.05, "{p:?}");
+    }
+
+    #[test]
+    fn fast_prominence_matches_naive_scan() {
+        let v: Vec<f64> = (0..3000)
+            .map(|i| ((i * i) as f64 * 0.0137).sin() * 3.0 + (i as f64 * 0.01).cos() * 5.0)
+            .collect();
+        let peaks: Vec<usize> = (1..v.len() - 1)
+            .filter(|&i| v[i] > v[i - 1] && v[i] > v[i + 1])
+            .collect();
+        let fast = prominences(&v, &peaks);
+        for (&p, &f) in peaks.iter().zip(&fast) {
+            let h = v[p];
+            let mut lm = h;
+            for &x in v[..p].iter().rev() {
+                if x > h {
+                    break;
+                }
+                lm = lm.min(x);
+            }
+            let mut rm = h;
+            for &x in &v[p + 1..] {
+                if x > h {
+                    break;
+                }
+                rm = rm.min(x);
+            }
+            assert_eq!(f, h - lm.max(rm), "peak {p}");
+        }
     }
 
     #[test]

@@ -276,8 +276,8 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
                 CoherenceMethod::LocalRational { half_width_bins } => {
                     let mut c = local_rational_noise(&f_blocks, yb, &h1, half_width_bins, pad)?
                         .coherence;
-                    for (k, v) in c.iter_mut().enumerate() {
-                        if spectra.input_is_null(k) {
+                    for (v, null) in c.iter_mut().zip(spectra.null_input()) {
+                        if null {
                             *v = 0.0;
                         }
                     }

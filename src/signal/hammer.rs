@@ -47,6 +47,9 @@ pub struct HammerOptions {
     pub min_separation_s: f64,
     /// Block start before the impact trigger, s (must exceed margin + taper).
     pub pretrigger_s: f64,
+    /// Apply the force window (false: the force channel is used over the whole block,
+    /// noise included; for comparison).
+    pub force_window: bool,
     /// Flat part of the force window beyond the pulse, each side, s.
     pub force_margin_s: f64,
     /// Cosine taper of the force window, each side, s.
@@ -64,6 +67,7 @@ impl Default for HammerOptions {
             min_peak_fraction: 0.1,
             min_separation_s: 1.0,
             pretrigger_s: 0.1,
+            force_window: true,
             force_margin_s: 0.03,
             force_taper_s: 0.02,
             exp_window: ExpWindow::EndLevel(0.05),
@@ -143,6 +147,18 @@ pub fn detect_impacts(force: &[f64], sample_rate_hz: f64, opts: &HammerOptions) 
     impacts
 }
 
+/// Sensor offset of a response record: the mean of the `quiet` samples before the first
+/// block when there are at least 64 of them, else 0. (The record mean would be wrong: an
+/// impact response has a genuine mean `H(0) * impulse / T`, and once multiplied by the
+/// exponential window a subtracted constant leaks into every bin.)
+pub(crate) fn response_offset(r: &[f64], quiet: usize) -> f64 {
+    if quiet >= 64 {
+        r[..quiet].iter().sum::<f64>() / quiet as f64
+    } else {
+        0.0
+    }
+}
+
 /// Impact blocks of a record: one start per used impact and a common length.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ImpactBlocks {
@@ -209,7 +225,8 @@ pub struct HammerSpectra {
 }
 
 /// Detects impacts, cuts blocks and returns the windowed spectra of the force and of each
-/// response record (`responses[i]`, offsets removed here). `pad` is the zero-padding
+/// response record (`responses[i]`; force offset = its median, response offsets by
+/// [`response_offset`]). `pad` is the zero-padding
 /// factor (`n_fft = pad * block length`).
 pub fn hammer_spectra(
     force: &[f64],
@@ -244,17 +261,22 @@ pub fn hammer_spectra(
         let seg: Vec<f64> = force[s..s + len].iter().map(|&f| f - base).collect();
         let lo = p.trigger.saturating_sub(margin).max(s) - s;
         let hi = (p.pulse_end + margin - s).min(len - 1);
-        let mut w = force_window(len, lo, hi, taper);
+        let mut w = if opts.force_window {
+            force_window(len, lo, hi, taper)
+        } else {
+            vec![1.0; len]
+        };
         if let Some(e) = &expw {
             w.iter_mut().zip(e).for_each(|(a, b)| *a *= b);
         }
         force_spectra.push(fft.forward(&seg, Some(&w), n_fft)?);
     }
+    let quiet = blocks.starts[0];
     use rayon::prelude::*;
     let response_spectra = responses
         .par_iter()
         .map(|r| {
-            let mean = r.iter().sum::<f64>() / n as f64;
+            let mean = response_offset(r, quiet);
             let mut fft = Fft::new();
             blocks
                 .starts

@@ -129,7 +129,7 @@ impl CrossSpectra {
         Ok(s)
     }
 
-    /// `H1 = Gfy / Gff`; 0 where the input has no power (see [`Self::input_is_null`]).
+    /// `H1 = Gfy / Gff`; 0 where the input has no power (see [`Self::null_input`]).
     pub fn h1(&self) -> Vec<Complex64> {
         let floor = self.null_floor();
         self.gfy
@@ -174,10 +174,11 @@ impl CrossSpectra {
             .collect()
     }
 
-    /// True at bins where the input power is at or below `1e-28` of its maximum (rounding
+    /// Per bin: true where the input power is at or below `1e-28` of its maximum (rounding
     /// level of the FFT): there the ratio estimators are undefined and are reported as 0.
-    pub fn input_is_null(&self, k: usize) -> bool {
-        self.gff[k] <= self.null_floor()
+    pub fn null_input(&self) -> Vec<bool> {
+        let floor = self.null_floor();
+        self.gff.iter().map(|&p| p <= floor).collect()
     }
 
     fn null_floor(&self) -> f64 {
@@ -221,7 +222,7 @@ mod tests {
         // null input bin: reported as 0, not NaN
         assert_eq!(s.h1()[1], Complex64::new(0.0, 0.0));
         assert_eq!(s.ordinary_coherence()[1], 0.0);
-        assert!(s.input_is_null(1));
+        assert_eq!(s.null_input(), vec![false, true]);
         // two blocks with output noise: gamma^2 = H1 / H2 (real, < 1)
         let f = vec![vec![Complex64::new(1.0, 0.0)], vec![Complex64::new(0.0, 1.0)]];
         let y = vec![vec![Complex64::new(2.0, 0.1)], vec![Complex64::new(0.3, 1.9)]];

@@ -180,7 +180,7 @@ pub fn exp_window_modal_parameters(
 mod tests {
     use super::*;
     use crate::frf::{modal_frf, Excitation};
-    use crate::model::{caughey_coefficients, StructuralModel};
+    use crate::model::{Damping, StructuralModel};
 
     #[test]
     fn end_level_sets_tau() {
@@ -238,7 +238,12 @@ mod tests {
         let k = model.stiffness(&model.alpha_zero());
         let m = model.mass(&model.beta_zero());
         let modes = Modes::solve(&k, &m, model.ground_influence(), None).unwrap();
-        let c = caughey_coefficients(&modes.omega_rad_s, &[0.01, 0.005, 0.004, 0.002]).unwrap();
+        let mut c = vec![0.0; 4];
+        Damping::Caughey {
+            xi: vec![0.01, 0.005, 0.004, 0.002],
+        }
+        .modal_coefficients(&modes.omega_rad_s, &mut c)
+        .unwrap();
         let tau = 9.0;
         let (wp, cp) = exp_window_modal_parameters(&modes.omega_rad_s, &c, tau);
         let mut shifted = modes.clone();
