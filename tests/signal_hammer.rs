@@ -110,26 +110,6 @@ fn noise_free_h1_is_the_exactly_windowed_frf() {
     }
 }
 
-/// Bound on a free decay of mode `j` started by a unit impulse, seen in a windowed block:
-/// its two pole terms `R / (s - p)`, `conj(R) / (s - conj(p))` (`R = coef / (2 j omega_d)`,
-/// `s = j omega + 1/tau`) enter with unrelated phases, so their magnitudes add; times
-/// `|s|^p` for the FRF kind.
-fn pole_terms(
-    modes: &frfbayes::modal::Modes,
-    c: &[f64],
-    pair: &frfbayes::frf::FrfPair,
-    j: usize,
-    omega: f64,
-    tau: f64,
-) -> f64 {
-    let sigma = 0.5 * c[j];
-    let wd = (modes.omega_rad_s[j].powi(2) - sigma * sigma).sqrt();
-    let s = Complex64::new(1.0 / tau, omega);
-    let p = Complex64::new(-sigma, wd);
-    let r = frfbayes::frf::modal_coefficient(modes, pair, j).abs() / (2.0 * wd);
-    r * (1.0 / (s - p).norm() + 1.0 / (s - p.conj()).norm()) * s.norm().powi(pair.kind.power())
-}
-
 /// Two impacts 60 s apart (the real layout), default options. What is left is (a) the
 /// ring-down of impact 1 still present at the start of block 2: mode j's pole terms
 /// ([`pole_terms`]) times `exp(-xi_j omega_j 60 s)` (3.6 %, 0.5 %, 0.03 %, 1.3 %), halved by

@@ -283,3 +283,24 @@ pub fn read_shared_tests(root: &Path) -> Vec<Test> {
         })
         .collect()
 }
+
+/// Bound on a free decay of mode `j` started by a unit impulse, seen in a windowed block:
+/// its two pole terms `R / (s - p)`, `conj(R) / (s - conj(p))` (`R = coef / (2 j omega_d)`,
+/// `s = j omega + 1/tau`) enter with unrelated phases, so their magnitudes add; times
+/// `|s|^p` for the FRF kind.
+pub fn pole_terms(
+    modes: &Modes,
+    c: &[f64],
+    pair: &FrfPair,
+    j: usize,
+    omega: f64,
+    tau: f64,
+) -> f64 {
+    let sigma = 0.5 * c[j];
+    let wd = (modes.omega_rad_s[j].powi(2) - sigma * sigma).sqrt();
+    let s = Complex64::new(1.0 / tau, omega);
+    let p = Complex64::new(-sigma, wd);
+    let r = modal_coefficient(modes, pair, j).abs() / (2.0 * wd);
+    r * (1.0 / (s - p).norm() + 1.0 / (s - p.conj()).norm()) * s.norm().powi(pair.kind.power())
+}
+
