@@ -16,15 +16,23 @@
 //!
 //! which represents one resonance (pole) plus a smooth background exactly enough over a
 //! few bins, whatever the peak's width. It is solved by weighted linear least squares
-//! with Sanathanan-Koerner re-weighting (3 passes). The residual variance
-//! `sigma_k^2 = sum |e|^2 / (K (2m+1) - 4)` estimates the per-block noise power of `Y` at
-//! bin `k` (output noise plus `|H|^2` times input noise), and
+//! with Sanathanan-Koerner re-weighting (3 passes). Its linearisation puts the noisy `Y`
+//! among the regressors, so at low signal-to-noise ratio the free pole chases the noise and
+//! the residual underestimates it (measured: 2x in variance). So the local *polynomial*
+//! model (`b1 = 0`, 3 parameters; Local Polynomial Method, Pintelon et al. 2010), which is
+//! unbiased when H is smooth over the window, is used unless the rational model reduces
+//! the residual significantly (F test at 1 %, 2 and `2 dof` real degrees of freedom),
+//! which happens where a resonance is sharper than the window.
 //!
-//! `gamma_k^2 = S_k / (S_k + sigma_k^2)`, `S_k = |H1_k|^2 Gff_k / K`
+//! The residual variance `sigma_k^2 = RSS / (K (2m+1) - p)` estimates the per-block noise
+//! power of `Y` at bin `k` (output noise plus `|H|^2` times input noise), and
 //!
-//! is the coherence of the underlying signals. It is exactly what the Bendat & Piersol
+//! `gamma_k^2 = S_k / (S_k + sigma_k^2)`, `S_k = |H1_k|^2 Gff_k / K - sigma_k^2 / K`
+//!
+//! (the second term removes the noise's own contribution to `E|H1|^2`; `S` is floored at
+//! 0) is the coherence of the underlying signals. It is exactly what the Bendat & Piersol
 //! random-error formula needs with `n = K` blocks in the average of H1:
-//! `var(H1) / |H|^2 = sigma^2 / (K Gff/K |H|^2) / K = (1 - gamma^2) / (gamma^2 K)` (complex),
+//! `var(H1) / |H|^2 = sigma^2 / (Gff |H|^2) = (1 - gamma^2) / (gamma^2 K)` (complex),
 //! i.e. `std(|H1|) / |H1| = sqrt((1 - gamma^2) / (2 gamma^2 n))` ([`bendat_piersol_rel_std`]).
 //!
 //! Windows (force, exponential) and zero padding correlate neighbouring bins; the local
@@ -53,8 +61,10 @@ impl Default for CoherenceMethod {
     }
 }
 
-/// Number of complex parameters of the local model.
+/// Number of complex parameters of the local rational model.
 const N_PARAMS: usize = 4;
+/// Significance level of the F test that prefers the rational to the polynomial model.
+const RATIONAL_TEST_LEVEL: f64 = 0.01;
 
 /// Local-rational noise and coherence estimate.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,7 +73,8 @@ pub struct LocalNoise {
     pub noise_power: Vec<f64>,
     /// `gamma^2 = S / (S + sigma^2)` at each bin.
     pub coherence: Vec<f64>,
-    /// Complex degrees of freedom of each noise estimate: `K (2m + 1) - 4`.
+    /// Complex degrees of freedom of each noise estimate: `K (2m + 1) - 4` (rational
+    /// model; one more where the polynomial model is used).
     pub dof: usize,
 }
 
@@ -97,6 +108,15 @@ pub fn local_rational_noise(
         )));
     }
     let dof = rows - N_PARAMS;
+    // RSS_poly / RSS_rat above this: the rational model's extra complex parameter is
+    // significant (F(2, 2 dof) at RATIONAL_TEST_LEVEL)
+    let f_crit = statrs::distribution::FisherSnedecor::new(2.0, 2.0 * dof as f64)
+        .map(|d| {
+            use statrs::distribution::ContinuousCDF;
+            d.inverse_cdf(1.0 - RATIONAL_TEST_LEVEL)
+        })
+        .map_err(|e| Error::Numerical(format!("F distribution: {e}")))?;
+    let ratio_crit = 1.0 + f_crit * 2.0 / (2.0 * dof as f64);
     let mut noise_power = vec![0.0; n_bins];
     let mut coherence = vec![0.0; n_bins];
     let mut a = vec![[Complex64::new(0.0, 0.0); N_PARAMS]; rows];
@@ -128,13 +148,22 @@ pub fn local_rational_noise(
                 row += 1;
             }
         }
-        let sigma2 = fit_residual_power(&a, &y, &u) / dof as f64;
-        let s = h1[k].norm_sqr()
+        let rss_poly = polynomial_residual_power(&a, &y);
+        let rss_rat = rational_residual_power(&a, &y, &u);
+        let sigma2 = if rss_poly > ratio_crit * rss_rat {
+            rss_rat / dof as f64
+        } else {
+            rss_poly / (dof + 1) as f64
+        };
+        let s = (h1[k].norm_sqr()
             * f_blocks.iter().map(|fb| fb[k].norm_sqr()).sum::<f64>()
+            - sigma2)
             / n_blocks as f64;
         noise_power[k] = sigma2;
         coherence[k] = if s > 0.0 && sigma2.is_finite() {
             s / (s + sigma2)
+        } else if sigma2 == 0.0 && s >= 0.0 && h1[k].norm_sqr() > 0.0 {
+            1.0
         } else {
             0.0
         };
@@ -146,8 +175,30 @@ pub fn local_rational_noise(
     })
 }
 
+/// Sum of squared residuals of the local polynomial fit `Y = (a0 + a1 u + a2 u^2) F`.
+fn polynomial_residual_power(a: &[[Complex64; N_PARAMS]], y: &[Complex64]) -> f64 {
+    let mut nm = [[Complex64::new(0.0, 0.0); 3]; 3];
+    let mut rhs = [Complex64::new(0.0, 0.0); 3];
+    for (row, &yy) in a.iter().zip(y) {
+        for i in 0..3 {
+            let ci = row[i].conj();
+            for j in 0..3 {
+                nm[i][j] += ci * row[j];
+            }
+            rhs[i] += ci * yy;
+        }
+    }
+    let Some(theta) = solve(nm, rhs) else {
+        return f64::NAN;
+    };
+    a.iter()
+        .zip(y)
+        .map(|(row, &yy)| (yy - (0..3).map(|i| row[i] * theta[i]).sum::<Complex64>()).norm_sqr())
+        .sum()
+}
+
 /// Sum of squared residuals of the local rational fit, Sanathanan-Koerner iterations.
-fn fit_residual_power(a: &[[Complex64; N_PARAMS]], y: &[Complex64], u: &[f64]) -> f64 {
+fn rational_residual_power(a: &[[Complex64; N_PARAMS]], y: &[Complex64], u: &[f64]) -> f64 {
     let mut beta = Complex64::new(0.0, 0.0);
     let mut theta = [Complex64::new(0.0, 0.0); N_PARAMS];
     for _pass in 0..3 {
@@ -164,7 +215,7 @@ fn fit_residual_power(a: &[[Complex64; N_PARAMS]], y: &[Complex64], u: &[f64]) -
                 rhs[i] += ci * yy;
             }
         }
-        match solve4(nm, rhs) {
+        match solve(nm, rhs) {
             Some(t) => theta = t,
             None => break,
         }
@@ -186,31 +237,31 @@ fn fit_residual_power(a: &[[Complex64; N_PARAMS]], y: &[Complex64], u: &[f64]) -
         .sum()
 }
 
-/// Solves the Hermitian positive (semi-)definite 4x4 system with a tiny ridge
+/// Solves the Hermitian positive (semi-)definite `N x N` system with a tiny ridge
 /// (`1e-12` of the mean diagonal: noise-free data with a constant FRF make the columns
 /// dependent) by Gaussian elimination with partial pivoting.
-fn solve4(
-    mut m: [[Complex64; N_PARAMS]; N_PARAMS],
-    mut b: [Complex64; N_PARAMS],
-) -> Option<[Complex64; N_PARAMS]> {
-    let trace: f64 = (0..N_PARAMS).map(|i| m[i][i].re).sum();
+fn solve<const N: usize>(
+    mut m: [[Complex64; N]; N],
+    mut b: [Complex64; N],
+) -> Option<[Complex64; N]> {
+    let trace: f64 = (0..N).map(|i| m[i][i].re).sum();
     if trace.is_nan() || trace <= 0.0 {
         return None;
     }
-    let ridge = 1e-12 * trace / N_PARAMS as f64;
+    let ridge = 1e-12 * trace / N as f64;
     for (i, row) in m.iter_mut().enumerate() {
         row[i] += ridge;
     }
-    for c in 0..N_PARAMS {
-        let p = (c..N_PARAMS).max_by(|&i, &j| m[i][c].norm().total_cmp(&m[j][c].norm()))?;
+    for c in 0..N {
+        let p = (c..N).max_by(|&i, &j| m[i][c].norm().total_cmp(&m[j][c].norm()))?;
         if m[p][c].norm() == 0.0 {
             return None;
         }
         m.swap(c, p);
         b.swap(c, p);
-        for r in c + 1..N_PARAMS {
+        for r in c + 1..N {
             let f = m[r][c] / m[c][c];
-            for k in c..N_PARAMS {
+            for k in c..N {
                 let v = m[c][k];
                 m[r][k] -= f * v;
             }
@@ -218,9 +269,9 @@ fn solve4(
             b[r] -= f * v;
         }
     }
-    let mut x = [Complex64::new(0.0, 0.0); N_PARAMS];
-    for c in (0..N_PARAMS).rev() {
-        let s: Complex64 = (c + 1..N_PARAMS).map(|k| m[c][k] * x[k]).sum();
+    let mut x = [Complex64::new(0.0, 0.0); N];
+    for c in (0..N).rev() {
+        let s: Complex64 = (c + 1..N).map(|k| m[c][k] * x[k]).sum();
         x[c] = (b[c] - s) / m[c][c];
     }
     x.iter().all(|v| v.is_finite()).then_some(x)
