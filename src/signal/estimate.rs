@@ -309,7 +309,17 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         responses.iter().map(|r| r.channel.floor).max().unwrap_or(0)
     });
     let h_refs: Vec<&[Complex64]> = responses.iter().map(|r| r.h1.as_slice()).collect();
-    let (bands, selected) = select_bands(&freq_hz, &h_refs, &input_power, &opts.bands, n_peaks)?;
+    let mean_coherence: Vec<f64> = (0..n_keep)
+        .map(|k| responses.iter().map(|r| r.coherence[k]).sum::<f64>() / responses.len() as f64)
+        .collect();
+    let (bands, selected) = select_bands(
+        &freq_hz,
+        &h_refs,
+        &input_power,
+        &mean_coherence,
+        &opts.bands,
+        n_peaks,
+    )?;
     Ok(TestFrf {
         test: test.name.clone(),
         freq_hz,

@@ -225,10 +225,17 @@ pub fn shake_test(name: &str, fs: f64, ground: Vec<f64>, disp: Vec<Vec<f64>>, ac
     }
 }
 
-/// `../shared/data/four-story` when present.
+/// `../shared/data/four-story` when present (or under `$FRFBAYES_SHARED_DIR`, for
+/// checkouts that are not next to `shared`, e.g. git worktrees).
 pub fn shared_campaign_dir() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/four-story");
-    p.join("campaign.toml").exists().then_some(p)
+    let mut roots = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")];
+    if let Some(d) = std::env::var_os("FRFBAYES_SHARED_DIR") {
+        roots.push(PathBuf::from(d));
+    }
+    roots
+        .into_iter()
+        .map(|r| r.join("data/four-story"))
+        .find(|p| p.join("campaign.toml").exists())
 }
 
 #[derive(serde::Deserialize)]
