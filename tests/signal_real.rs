@@ -3,11 +3,11 @@
 
 mod signal_common;
 
+use frfbayes::frf::FrfKind;
 use frfbayes::io::{Campaign, NominalModel};
 use frfbayes::modal::Modes;
 use frfbayes::signal::bands::{peak_curve_db, peak_prominences};
 use frfbayes::signal::{estimate_campaign, EstimateOptions, InputKind};
-use frfbayes::frf::FrfKind;
 use signal_common::*;
 use std::time::Instant;
 
@@ -50,7 +50,10 @@ fn four_story_campaign_has_four_clean_peaks_per_channel() {
     let t0 = Instant::now();
     let est = estimate_campaign(&campaign, &EstimateOptions::default()).unwrap();
     let elapsed = t0.elapsed().as_secs_f64();
-    println!("campaign of {} tests estimated in {elapsed:.3} s", est.len());
+    println!(
+        "campaign of {} tests estimated in {elapsed:.3} s",
+        est.len()
+    );
     if !cfg!(debug_assertions) {
         assert!(elapsed < 5.0, "{elapsed} s");
     }
@@ -84,7 +87,11 @@ fn four_story_campaign_has_four_clean_peaks_per_channel() {
                 b.hi_hz,
                 b.damping_ratio()
             );
-            assert!((b.peak_hz / nominal_hz[i] - 1.0).abs() < 0.05, "{}: {b:?}", e.test);
+            assert!(
+                (b.peak_hz / nominal_hz[i] - 1.0).abs() < 0.05,
+                "{}: {b:?}",
+                e.test
+            );
             assert!(!b.clipped);
             for r in &e.responses {
                 let curve = peak_curve_db(&[&r.h1]);
@@ -92,11 +99,22 @@ fn four_story_campaign_has_four_clean_peaks_per_channel() {
                 let peak = peak_prominences(&curve, &valid)
                     .into_iter()
                     .find(|&(k, _)| e.freq_hz[k] >= b.lo_hz - df && e.freq_hz[k] <= b.hi_hz + df);
-                let (k, prominence) =
-                    peak.unwrap_or_else(|| panic!("{} {}: no peak in band {i}", e.test, r.channel.name));
-                assert!(r.coherence[k] >= 0.99, "{} {} mode {i}", e.test, r.channel.name);
+                let (k, prominence) = peak.unwrap_or_else(|| {
+                    panic!("{} {}: no peak in band {i}", e.test, r.channel.name)
+                });
+                assert!(
+                    r.coherence[k] >= 0.99,
+                    "{} {} mode {i}",
+                    e.test,
+                    r.channel.name
+                );
                 if hammer || i < 3 {
-                    assert!(prominence >= 5.0, "{} {} mode {i}: {prominence} dB", e.test, r.channel.name);
+                    assert!(
+                        prominence >= 5.0,
+                        "{} {} mode {i}: {prominence} dB",
+                        e.test,
+                        r.channel.name
+                    );
                 }
             }
         }

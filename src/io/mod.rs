@@ -3,6 +3,7 @@
 
 pub mod atomic;
 mod campaign;
+pub mod frf_csv;
 mod types;
 mod writer;
 

@@ -297,14 +297,18 @@ pub fn select_bands(
     }
     if let Some((lo, hi)) = opts.range_hz {
         if lo.is_nan() || hi.is_nan() || lo >= hi {
-            return Err(Error::Usage(format!("band search range {lo}..{hi} Hz is empty")));
+            return Err(Error::Usage(format!(
+                "band search range {lo}..{hi} Hz is empty"
+            )));
         }
     }
     if responses.is_empty()
         || input_power.len() != freq_hz.len()
         || mean_coherence.len() != freq_hz.len()
     {
-        return Err(Error::Usage("band selection needs responses on the frequency grid".into()));
+        return Err(Error::Usage(
+            "band selection needs responses on the frequency grid".into(),
+        ));
     }
     let max_p = input_power.iter().cloned().fold(0.0, f64::max);
     let floor = max_p * 10f64.powf(opts.min_input_db / 10.0);
@@ -320,7 +324,9 @@ pub fn select_bands(
     let curve = peak_curve_db(responses);
     let mut peaks: Vec<usize> = peak_prominences(&curve, &valid)
         .into_iter()
-        .filter(|&(k, pr)| pr >= opts.min_prominence_db && mean_coherence[k] >= opts.min_peak_coherence)
+        .filter(|&(k, pr)| {
+            pr >= opts.min_prominence_db && mean_coherence[k] >= opts.min_peak_coherence
+        })
         .take(n_peaks)
         .map(|(k, _)| k)
         .collect();
@@ -356,7 +362,10 @@ mod tests {
         let valid = vec![true; freq.len()];
         let p = find_peaks(&curve, &valid, 2, 0.0);
         assert_eq!(p.len(), 2);
-        assert!((freq[p[0]] - 2.0).abs() < 0.02 && (freq[p[1]] - 6.0).abs() < 0.05, "{p:?}");
+        assert!(
+            (freq[p[0]] - 2.0).abs() < 0.02 && (freq[p[1]] - 6.0).abs() < 0.05,
+            "{p:?}"
+        );
     }
 
     #[test]
@@ -425,7 +434,10 @@ mod tests {
                 1.0 / (s * s + 0.02 * 3.0 * s + 9.0) + 0.3 / (s * s + 0.02 * 12.0 * s + 144.0)
             })
             .collect();
-        let power: Vec<f64> = freq.iter().map(|&f| if f < 10.0 { 1.0 } else { 1e-6 }).collect();
+        let power: Vec<f64> = freq
+            .iter()
+            .map(|&f| if f < 10.0 { 1.0 } else { 1e-6 })
+            .collect();
         let opts = BandOptions::default();
         let coh = vec![1.0; freq.len()];
         let (b, sel) = select_bands(&freq, &[&h], &power, &coh, &opts, 2).unwrap();
@@ -445,7 +457,10 @@ mod tests {
         };
         assert!(select_bands(&freq, &[&h], &power, &coh, &bad, 2).is_err());
         // incoherent bins are not searched either
-        let low: Vec<f64> = freq.iter().map(|&f| if f < 5.0 { 0.1 } else { 1.0 }).collect();
+        let low: Vec<f64> = freq
+            .iter()
+            .map(|&f| if f < 5.0 { 0.1 } else { 1.0 })
+            .collect();
         let (b, _) = select_bands(&freq, &[&h], &power, &low, &BandOptions::default(), 2).unwrap();
         assert!(b.is_empty());
     }
