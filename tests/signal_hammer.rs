@@ -95,7 +95,10 @@ fn noise_free_h1_is_the_exactly_windowed_frf() {
                 r.h1[k],
                 hd
             );
-            assert!((r.h2[k] - r.h1[k]).norm() <= 1e-9 * scale, "one block: H2 = H1");
+            assert!(
+                (r.h2[k] - r.h1[k]).norm() <= 1e-9 * scale,
+                "one block: H2 = H1"
+            );
             let hc = windowed_modal_frf(&modes, &c, &pair, w(k), tau);
             let sampling = 1.05 * (w(k) * dt).powi(2) / 12.0;
             assert!(
@@ -123,20 +126,33 @@ fn two_impacts_default_options_recover_frf_and_damping() {
     assert_eq!(est.n_averages, 2);
     assert_eq!(est.impacts_s, vec![1001.0 / FS, 31_001.0 / FS]);
     let tau = est.exp_window_tau_s.unwrap();
-    assert!((tau - est.block_s / 20f64.ln()).abs() < 1e-9, "default end level 5 %");
+    assert!(
+        (tau - est.block_s / 20f64.ln()).abs() < 1e-9,
+        "default end level 5 %"
+    );
     assert_eq!(est.bands.len(), 4);
     let df = est.freq_hz[1];
     let fn_hz: Vec<f64> = modes.omega_rad_s.iter().map(|w| w / (2.0 * PI)).collect();
     let mut worst = [0.0f64; 4];
     for (i, b) in est.bands.iter().enumerate() {
-        assert!((b.peak_hz - fn_hz[i]).abs() <= df, "mode {i}: {} vs {}", b.peak_hz, fn_hz[i]);
+        assert!(
+            (b.peak_hz - fn_hz[i]).abs() <= df,
+            "mode {i}: {} vs {}",
+            b.peak_hz,
+            fn_hz[i]
+        );
         let xi = correct_exp_window_damping(b.damping_ratio(), 2.0 * PI * b.peak_hz, tau);
-        assert!((xi - XI[i]).abs() <= df / (2.0 * fn_hz[i]), "mode {i}: xi {xi}");
+        assert!(
+            (xi - XI[i]).abs() <= df / (2.0 * fn_hz[i]),
+            "mode {i}: xi {xi}"
+        );
         for r in &est.responses {
             let pair = r.pair(&est.input).unwrap();
-            for &k in est.selected.iter().filter(|&&k| {
-                est.freq_hz[k] >= b.lo_hz - df && est.freq_hz[k] <= b.hi_hz + df
-            }) {
+            for &k in est
+                .selected
+                .iter()
+                .filter(|&&k| est.freq_hz[k] >= b.lo_hz - df && est.freq_hz[k] <= b.hi_hz + df)
+            {
                 let w = 2.0 * PI * est.freq_hz[k];
                 let hc = windowed_modal_frf(&modes, &c, &pair, w, tau);
                 let leftover: f64 = (0..4)
@@ -183,7 +199,11 @@ fn exponential_window_damping_correction_recovers_xi() {
     let b = est.bands[0];
     let xi_meas = b.damping_ratio();
     // window more than doubles the apparent damping here
-    assert!((xi_meas - (xi + eps)).abs() < 2e-4, "{xi_meas} vs {}", xi + eps);
+    assert!(
+        (xi_meas - (xi + eps)).abs() < 2e-4,
+        "{xi_meas} vs {}",
+        xi + eps
+    );
     let xi_corr = correct_exp_window_damping(xi_meas, 2.0 * PI * b.peak_hz, tau);
     assert!((xi_corr - xi).abs() < 2e-4, "corrected {xi_corr} vs {xi}");
 }
@@ -254,7 +274,9 @@ fn noisy_force_biases_h1_not_h2_and_the_force_window_removes_it() {
             count += 1.0;
         }
         let (h1_ratio, h2_ratio, rho) = (h1_ratio / count, h2_ratio / count, rho / count);
-        println!("force window {window}: mean H1/H {h1_ratio:.4} (theory {rho:.4}), H2/H {h2_ratio:.4}");
+        println!(
+            "force window {window}: mean H1/H {h1_ratio:.4} (theory {rho:.4}), H2/H {h2_ratio:.4}"
+        );
         assert!(count > 140.0);
         assert!((h1_ratio - rho).abs() < 0.015, "H1 {h1_ratio} vs {rho}");
         assert!((h2_ratio - 1.0).abs() < 0.04, "H2 {h2_ratio}");
@@ -265,4 +287,3 @@ fn noisy_force_biases_h1_not_h2_and_the_force_window_removes_it() {
         }
     }
 }
-

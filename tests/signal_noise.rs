@@ -121,5 +121,8 @@ fn shake_table_coherence_predicts_the_scatter_of_h1() {
     let ag = chirp(FS, 60.0, 10.0, 130.0, 1.0);
     let (disp, acc) = simulate(&modes, &c, Excitation::Ground, &ag, 1.0 / FS);
     let clean = shake_test("s", FS, ag, disp, acc);
-    check(&calibration(&clean, &EstimateOptions::default(), 4), "shake table");
+    check(
+        &calibration(&clean, &EstimateOptions::default(), 4),
+        "shake table",
+    );
 }

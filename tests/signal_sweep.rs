@@ -56,7 +56,10 @@ fn full_record_is_exact_for_a_decayed_transient() {
                 r.h1[k],
                 hd
             );
-            assert!((r.h1[k] - r.h2[k]).norm() <= 1e-12 * scale, "one block: H2 = H1");
+            assert!(
+                (r.h1[k] - r.h2[k]).norm() <= 1e-12 * scale,
+                "one block: H2 = H1"
+            );
         }
     }
 }
@@ -102,8 +105,18 @@ fn peak_errors(
                 .map(|&f| modal_frf(modes, c, pair, 2.0 * PI * f))
                 .collect();
             let curve: Vec<f64> = h_true.iter().map(|v| 20.0 * v.norm().log10()).collect();
-            let bt = half_power_band(&curve, freq_hz, &valid, k_peak(freq_hz, &h_true, fn_hz, half));
-            (at_fn, est_peak / true_peak - 1.0, b.damping_ratio(), bt.damping_ratio())
+            let bt = half_power_band(
+                &curve,
+                freq_hz,
+                &valid,
+                k_peak(freq_hz, &h_true, fn_hz, half),
+            );
+            (
+                at_fn,
+                est_peak / true_peak - 1.0,
+                b.damping_ratio(),
+                bt.damping_ratio(),
+            )
         })
         .collect()
 }
@@ -133,7 +146,11 @@ fn full_record_accuracy_and_welch_peak_bias() {
     )
     .unwrap();
     let ground = test.data[0].clone();
-    let acc4_rel: Vec<f64> = test.data[4].iter().zip(&ground).map(|(a, g)| a - g).collect();
+    let acc4_rel: Vec<f64> = test.data[4]
+        .iter()
+        .zip(&ground)
+        .map(|(a, g)| a - g)
+        .collect();
     let disp4 = test.data[8].clone();
     for (name, kind, rel) in [
         ("acc4", FrfKind::Accelerance, &acc4_rel),
@@ -164,9 +181,21 @@ fn full_record_accuracy_and_welch_peak_bias() {
             assert!(e.1.abs() < 0.01 && (e.2 - e.3).abs() < 0.02 * e.3, "{e:?}");
         }
         for (n_seg, overlap) in [(8, 0.5), (4, 0.5)] {
-            let w = welch_frf(&ground, rel, FS, &WelchOptions { n_segments: n_seg, overlap }).unwrap();
+            let w = welch_frf(
+                &ground,
+                rel,
+                FS,
+                &WelchOptions {
+                    n_segments: n_seg,
+                    overlap,
+                },
+            )
+            .unwrap();
             let welch = peak_errors(&w.freq_hz, &w.h1, &modes, &c, &pair);
-            println!("{name}: Welch {n_seg} segments of {:.1} s", w.segment_len as f64 / FS);
+            println!(
+                "{name}: Welch {n_seg} segments of {:.1} s",
+                w.segment_len as f64 / FS
+            );
             for i in 0..4 {
                 println!(
                     "  mode {} ({:.3} Hz, xi {}): full-record at f_n {:+.4} peak {:+.4} xi_hp {:.4} (true FRF {:.4}) | Welch at f_n {:+.4} peak {:+.4} xi_hp {:.4} (true FRF {:.4})",

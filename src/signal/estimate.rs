@@ -171,6 +171,19 @@ impl TestFrf {
     }
 }
 
+/// Block spectra of a test, before the estimators.
+struct Blocks {
+    input: InputKind,
+    /// Input spectra per block.
+    f_blocks: Vec<Vec<Complex64>>,
+    /// Per response, spectra per block.
+    y_blocks: Vec<Vec<Vec<Complex64>>>,
+    tau: Option<f64>,
+    /// Block length, samples (before padding).
+    block_len: usize,
+    impacts: Vec<Impact>,
+}
+
 fn data_path(test: &Test) -> PathBuf {
     Path::new("tests").join(&test.name).join("data.csv")
 }
@@ -197,22 +210,25 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
     }
     let resp_idx = test.response_channels();
     if resp_idx.is_empty() {
-        return Err(Error::invalid(path, "no acceleration or displacement channel"));
+        return Err(Error::invalid(
+            path,
+            "no acceleration or displacement channel",
+        ));
     }
     let pad = opts.zero_pad_factor.max(1);
     let fs = test.sample_rate_hz;
-    let (input, f_blocks, y_blocks, tau, block_len, impacts): (
-        InputKind,
-        Vec<Vec<Complex64>>,
-        Vec<Vec<Vec<Complex64>>>,
-        Option<f64>,
-        usize,
-        Vec<Impact>,
-    ) = match test.kind {
+    let Blocks {
+        input,
+        f_blocks,
+        y_blocks,
+        tau,
+        block_len,
+        impacts,
+    } = match test.kind {
         TestKind::Hammer { excited_floor } => {
-            let fi = test.find(Quantity::Force).ok_or_else(|| {
-                Error::invalid(&path, "hammer test without a force channel")
-            })?;
+            let fi = test
+                .find(Quantity::Force)
+                .ok_or_else(|| Error::invalid(&path, "hammer test without a force channel"))?;
             let records: Vec<&[f64]> = resp_idx.iter().map(|&i| test.data[i].as_slice()).collect();
             let s = hammer_spectra(&test.data[fi], &records, fs, &opts.hammer, pad)
                 .map_err(|e| Error::invalid(&path, e.to_string()))?;
@@ -220,19 +236,31 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
                 floor: excited_floor,
                 channel: test.channels[fi].name.clone(),
             };
-            (input, s.force, s.responses, s.tau_s, s.blocks.len, s.blocks.impacts)
+            Blocks {
+                input,
+                f_blocks: s.force,
+                y_blocks: s.responses,
+                tau: s.tau_s,
+                block_len: s.blocks.len,
+                impacts: s.blocks.impacts,
+            }
         }
         TestKind::ShakeTable => {
             let gi = test.find(Quantity::GroundAcceleration).ok_or_else(|| {
-                Error::invalid(&path, "shake-table test without a ground_acceleration channel")
+                Error::invalid(
+                    &path,
+                    "shake-table test without a ground_acceleration channel",
+                )
             })?;
             let ground = &test.data[gi];
             let records: Vec<Vec<f64>> = resp_idx
                 .iter()
                 .map(|&i| match test.channels[i].quantity {
-                    Quantity::Acceleration => {
-                        test.data[i].iter().zip(ground).map(|(a, g)| a - g).collect()
-                    }
+                    Quantity::Acceleration => test.data[i]
+                        .iter()
+                        .zip(ground)
+                        .map(|(a, g)| a - g)
+                        .collect(),
                     _ => test.data[i].clone(),
                 })
                 .collect();
@@ -243,7 +271,14 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
                 channel: test.channels[gi].name.clone(),
             };
             let y = s.responses.into_iter().map(|r| vec![r]).collect();
-            (input, vec![s.input], y, None, test.n_samples(), Vec::new())
+            Blocks {
+                input,
+                f_blocks: vec![s.input],
+                y_blocks: y,
+                tau: None,
+                block_len: test.n_samples(),
+                impacts: Vec::new(),
+            }
         }
     };
     let n_fft = block_len * pad;
@@ -274,8 +309,8 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             let mut coherence = match opts.coherence {
                 CoherenceMethod::Ordinary => spectra.ordinary_coherence(),
                 CoherenceMethod::LocalRational { half_width_bins } => {
-                    let mut c = local_rational_noise(&f_blocks, yb, &h1, half_width_bins, pad)?
-                        .coherence;
+                    let mut c =
+                        local_rational_noise(&f_blocks, yb, &h1, half_width_bins, pad)?.coherence;
                     for (v, null) in c.iter_mut().zip(spectra.null_input()) {
                         if null {
                             *v = 0.0;
@@ -305,11 +340,22 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             *p += f.norm_sqr();
         }
     }
-    let n_peaks = opts.bands.n_peaks.unwrap_or_else(|| {
-        responses.iter().map(|r| r.channel.floor).max().unwrap_or(0)
-    });
+    let n_peaks = opts
+        .bands
+        .n_peaks
+        .unwrap_or_else(|| responses.iter().map(|r| r.channel.floor).max().unwrap_or(0));
     let h_refs: Vec<&[Complex64]> = responses.iter().map(|r| r.h1.as_slice()).collect();
-    let (bands, selected) = select_bands(&freq_hz, &h_refs, &input_power, &opts.bands, n_peaks)?;
+    let mean_coherence: Vec<f64> = (0..n_keep)
+        .map(|k| responses.iter().map(|r| r.coherence[k]).sum::<f64>() / responses.len() as f64)
+        .collect();
+    let (bands, selected) = select_bands(
+        &freq_hz,
+        &h_refs,
+        &input_power,
+        &mean_coherence,
+        &opts.bands,
+        n_peaks,
+    )?;
     Ok(TestFrf {
         test: test.name.clone(),
         freq_hz,

@@ -181,17 +181,30 @@ pub fn impact_blocks(
         return Err(Error::Usage("no impacts to cut blocks from".into()));
     }
     let pre = (opts.pretrigger_s * sample_rate_hz).round() as usize;
-    let mut starts: Vec<usize> = impacts.iter().map(|p| p.trigger.saturating_sub(pre)).collect();
+    let mut starts: Vec<usize> = impacts
+        .iter()
+        .map(|p| p.trigger.saturating_sub(pre))
+        .collect();
     let mut ends: Vec<usize> = starts[1..].to_vec();
     ends.push(n_samples);
     let mut used: Vec<Impact> = impacts.to_vec();
-    let longest = starts.iter().zip(&ends).map(|(s, e)| e - s).max().unwrap_or(0);
+    let longest = starts
+        .iter()
+        .zip(&ends)
+        .map(|(s, e)| e - s)
+        .max()
+        .unwrap_or(0);
     if used.len() > 1 && 2 * (n_samples - starts[used.len() - 1]) < longest {
         used.pop();
         starts.pop();
         ends.pop();
     }
-    let mut len = starts.iter().zip(&ends).map(|(s, e)| e - s).min().unwrap_or(0);
+    let mut len = starts
+        .iter()
+        .zip(&ends)
+        .map(|(s, e)| e - s)
+        .min()
+        .unwrap_or(0);
     if let Some(max_s) = opts.max_block_s {
         len = len.min((max_s * sample_rate_hz).round() as usize);
     }
@@ -237,7 +250,9 @@ pub fn hammer_spectra(
 ) -> Result<HammerSpectra> {
     let n = force.len();
     if responses.iter().any(|r| r.len() != n) {
-        return Err(Error::Usage("force and response records differ in length".into()));
+        return Err(Error::Usage(
+            "force and response records differ in length".into(),
+        ));
     }
     let impacts = detect_impacts(force, sample_rate_hz, opts);
     if impacts.is_empty() {
@@ -327,7 +342,12 @@ mod tests {
     fn finds_impacts_ignores_double_hit_and_small_spike() {
         let fs = 500.0;
         // impacts at 1000 and 30000, double hit at 1100 (0.2 s later), small spike at 20000
-        let f = record(60_000, &[(1000, 40.0), (1100, 8.0), (20_000, 2.0), (30_000, -35.0)], 0.02, 1);
+        let f = record(
+            60_000,
+            &[(1000, 40.0), (1100, 8.0), (20_000, 2.0), (30_000, -35.0)],
+            0.02,
+            1,
+        );
         let imp = detect_impacts(&f, fs, &HammerOptions::default());
         assert_eq!(imp.len(), 2, "{imp:?}");
         assert_eq!(imp[0].trigger, 999);
@@ -344,7 +364,12 @@ mod tests {
     #[test]
     fn late_short_impact_block_is_dropped_and_no_impact_is_an_error() {
         let fs = 500.0;
-        let f = record(60_000, &[(1000, 40.0), (50_000, 40.0), (58_000, 40.0)], 0.02, 2);
+        let f = record(
+            60_000,
+            &[(1000, 40.0), (50_000, 40.0), (58_000, 40.0)],
+            0.02,
+            2,
+        );
         let imp = detect_impacts(&f, fs, &HammerOptions::default());
         assert_eq!(imp.len(), 3);
         let blocks = impact_blocks(&imp, f.len(), fs, &HammerOptions::default()).unwrap();

@@ -155,8 +155,7 @@ pub fn local_rational_noise(
         } else {
             rss_poly / (dof + 1) as f64
         };
-        let s = (h1[k].norm_sqr()
-            * f_blocks.iter().map(|fb| fb[k].norm_sqr()).sum::<f64>()
+        let s = (h1[k].norm_sqr() * f_blocks.iter().map(|fb| fb[k].norm_sqr()).sum::<f64>()
             - sigma2)
             / n_blocks as f64;
         noise_power[k] = sigma2;
@@ -259,11 +258,11 @@ fn solve<const N: usize>(
         }
         m.swap(c, p);
         b.swap(c, p);
+        let pivot = m[c];
         for r in c + 1..N {
-            let f = m[r][c] / m[c][c];
-            for k in c..N {
-                let v = m[c][k];
-                m[r][k] -= f * v;
+            let f = m[r][c] / pivot[c];
+            for (x, &p) in m[r][c..].iter_mut().zip(&pivot[c..]) {
+                *x -= f * p;
             }
             let v = b[c];
             b[r] -= f * v;
@@ -312,21 +311,41 @@ mod tests {
         let est = local_rational_noise(&[f], &[y], &h1, 4, 1).unwrap();
         assert_eq!(est.dof, 5);
         for k in 0..n {
-            assert!(est.coherence[k] > 1.0 - 1e-9, "bin {k}: {}", est.coherence[k]);
+            assert!(
+                est.coherence[k] > 1.0 - 1e-9,
+                "bin {k}: {}",
+                est.coherence[k]
+            );
         }
     }
 
     #[test]
     fn step_keeps_window_on_the_padding_grid() {
         let n = 200;
-        let f: Vec<Complex64> = (0..n).map(|k| Complex64::new(1.0, 0.01 * k as f64)).collect();
+        let f: Vec<Complex64> = (0..n)
+            .map(|k| Complex64::new(1.0, 0.01 * k as f64))
+            .collect();
         let y: Vec<Complex64> = f.iter().map(|&v| v * 2.0).collect();
         let h1 = vec![Complex64::new(2.0, 0.0); n];
         for step in [1, 2, 4] {
-            let est = local_rational_noise(&[f.clone()], &[y.clone()], &h1, 3, step).unwrap();
+            let est = local_rational_noise(
+                std::slice::from_ref(&f),
+                std::slice::from_ref(&y),
+                &h1,
+                3,
+                step,
+            )
+            .unwrap();
             assert!(est.coherence.iter().all(|&g| g > 1.0 - 1e-9));
         }
-        assert!(local_rational_noise(&[f.clone()], &[y.clone()], &h1, 0, 1).is_err());
+        assert!(local_rational_noise(
+            std::slice::from_ref(&f),
+            std::slice::from_ref(&y),
+            &h1,
+            0,
+            1
+        )
+        .is_err());
         assert!(local_rational_noise(&[f], &[y], &h1, 150, 1).is_err());
     }
 

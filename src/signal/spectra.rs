@@ -47,7 +47,12 @@ impl Fft {
     /// DFT of `x` (optionally multiplied sample by sample by `window`, which must then have
     /// the length of `x`) zero-padded to `n_fft >= x.len()`; returns the `n_fft/2 + 1`
     /// non-negative-frequency bins.
-    pub fn forward(&mut self, x: &[f64], window: Option<&[f64]>, n_fft: usize) -> Result<Vec<Complex64>> {
+    pub fn forward(
+        &mut self,
+        x: &[f64],
+        window: Option<&[f64]>,
+        n_fft: usize,
+    ) -> Result<Vec<Complex64>> {
         if n_fft < x.len() || n_fft == 0 {
             return Err(Error::Usage(format!(
                 "FFT length {n_fft} shorter than the block ({} samples)",
@@ -103,10 +108,7 @@ impl CrossSpectra {
     pub fn from_blocks(f_blocks: &[Vec<Complex64>], y_blocks: &[Vec<Complex64>]) -> Result<Self> {
         let n_bins = f_blocks.first().map_or(0, Vec::len);
         if f_blocks.len() != y_blocks.len()
-            || f_blocks
-                .iter()
-                .chain(y_blocks)
-                .any(|b| b.len() != n_bins)
+            || f_blocks.iter().chain(y_blocks).any(|b| b.len() != n_bins)
         {
             return Err(Error::Usage(
                 "input and output block spectra differ in count or length".into(),
@@ -135,7 +137,13 @@ impl CrossSpectra {
         self.gfy
             .iter()
             .zip(&self.gff)
-            .map(|(&g, &p)| if p > floor { g / p } else { Complex64::new(0.0, 0.0) })
+            .map(|(&g, &p)| {
+                if p > floor {
+                    g / p
+                } else {
+                    Complex64::new(0.0, 0.0)
+                }
+            })
             .collect()
     }
 
@@ -193,7 +201,9 @@ mod tests {
 
     #[test]
     fn fft_matches_naive_dft_with_padding_and_window() {
-        let x: Vec<f64> = (0..37).map(|n| ((n * n) as f64 * 0.37).sin() + 0.1 * n as f64).collect();
+        let x: Vec<f64> = (0..37)
+            .map(|n| ((n * n) as f64 * 0.37).sin() + 0.1 * n as f64)
+            .collect();
         let w: Vec<f64> = (0..37).map(|n| 1.0 - n as f64 / 50.0).collect();
         let n_fft = 64;
         let got = Fft::new().forward(&x, Some(&w), n_fft).unwrap();
@@ -224,8 +234,14 @@ mod tests {
         assert_eq!(s.ordinary_coherence()[1], 0.0);
         assert_eq!(s.null_input(), vec![false, true]);
         // two blocks with output noise: gamma^2 = H1 / H2 (real, < 1)
-        let f = vec![vec![Complex64::new(1.0, 0.0)], vec![Complex64::new(0.0, 1.0)]];
-        let y = vec![vec![Complex64::new(2.0, 0.1)], vec![Complex64::new(0.3, 1.9)]];
+        let f = vec![
+            vec![Complex64::new(1.0, 0.0)],
+            vec![Complex64::new(0.0, 1.0)],
+        ];
+        let y = vec![
+            vec![Complex64::new(2.0, 0.1)],
+            vec![Complex64::new(0.3, 1.9)],
+        ];
         let s = CrossSpectra::from_blocks(&f, &y).unwrap();
         let ratio = s.h1()[0] / s.h2()[0];
         assert!(ratio.im.abs() < 1e-15);

@@ -60,7 +60,11 @@ pub struct RecordSpectra {
 
 /// Transforms the whole input and response records, offsets (means) removed, zero-padded to
 /// `pad` times the record length.
-pub fn full_record_spectra(input: &[f64], responses: &[&[f64]], pad: usize) -> Result<RecordSpectra> {
+pub fn full_record_spectra(
+    input: &[f64],
+    responses: &[&[f64]],
+    pad: usize,
+) -> Result<RecordSpectra> {
     let n = input.len();
     if n < 16 || responses.iter().any(|r| r.len() != n) {
         return Err(Error::Usage(format!(
@@ -127,10 +131,12 @@ pub fn welch_frf(
             "Welch: equal records, at least one segment and overlap in [0, 1) required".into(),
         ));
     }
-    let seg = (n as f64 / (1.0 + (opts.n_segments - 1) as f64 * (1.0 - opts.overlap))).floor()
-        as usize;
+    let seg =
+        (n as f64 / (1.0 + (opts.n_segments - 1) as f64 * (1.0 - opts.overlap))).floor() as usize;
     if seg < 16 {
-        return Err(Error::Usage(format!("Welch segments of {seg} samples are too short")));
+        return Err(Error::Usage(format!(
+            "Welch segments of {seg} samples are too short"
+        )));
     }
     let hop = if opts.n_segments > 1 {
         (n - seg) / (opts.n_segments - 1)
@@ -165,7 +171,9 @@ mod tests {
     #[test]
     fn welch_segments_cover_the_record() {
         let n = 4500;
-        let x: Vec<f64> = (0..n).map(|i| (i as f64 * 0.37).sin() + (i as f64 * 0.011).cos()).collect();
+        let x: Vec<f64> = (0..n)
+            .map(|i| (i as f64 * 0.37).sin() + (i as f64 * 0.011).cos())
+            .collect();
         let y: Vec<f64> = x.iter().map(|v| 2.0 * v).collect();
         let w = welch_frf(&x, &y, 100.0, &WelchOptions::default()).unwrap();
         assert_eq!(w.segment_len, 1000);
@@ -195,7 +203,10 @@ mod tests {
         for k in 1..s.input.len() {
             if s.input[k].norm() > 1e-3 {
                 let h = s.responses[0][k] / s.input[k];
-                let exact = Complex64::from_polar(1.0, -2.0 * std::f64::consts::PI * 3.0 * k as f64 / 400.0);
+                let exact = Complex64::from_polar(
+                    1.0,
+                    -2.0 * std::f64::consts::PI * 3.0 * k as f64 / 400.0,
+                );
                 assert!((h - exact).norm() < 1e-9, "bin {k}");
             }
         }

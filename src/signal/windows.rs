@@ -101,9 +101,7 @@ pub fn force_window(len: usize, start: usize, end: usize, taper: usize) -> Vec<f
 /// Periodic Hann window of `len` samples (used by the Welch comparison estimator).
 pub fn hann(len: usize) -> Vec<f64> {
     (0..len)
-        .map(|n| {
-            0.5 - 0.5 * (2.0 * std::f64::consts::PI * n as f64 / len as f64).cos()
-        })
+        .map(|n| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * n as f64 / len as f64).cos())
         .collect()
 }
 

@@ -108,13 +108,13 @@ pub fn simulate(
     let n_dof = modes.phi.nrows();
     let mut disp = vec![vec![0.0; u.len()]; n_dof];
     let mut acc = vec![vec![0.0; u.len()]; n_dof];
-    for i in 0..modes.n_modes() {
+    for (i, &ci) in c.iter().enumerate().take(modes.n_modes()) {
         let g = match excitation {
             Excitation::Dof(e) => modes.phi[(e, i)],
             Excitation::Ground => -modes.participation[i],
         };
         let ui: Vec<f64> = u.iter().map(|v| g * v).collect();
-        let (q, qdd) = ModeDisc::new(modes.omega_rad_s[i], c[i], dt).respond(&ui);
+        let (q, qdd) = ModeDisc::new(modes.omega_rad_s[i], ci, dt).respond(&ui);
         for r in 0..n_dof {
             let ph = modes.phi[(r, i)];
             for n in 0..u.len() {
@@ -127,10 +127,16 @@ pub fn simulate(
 }
 
 /// Exact discrete-time FRF of the simulated system for a pair at `zeta`.
-pub fn discrete_frf(modes: &Modes, c: &[f64], pair: &FrfPair, zeta: Complex64, dt: f64) -> Complex64 {
+pub fn discrete_frf(
+    modes: &Modes,
+    c: &[f64],
+    pair: &FrfPair,
+    zeta: Complex64,
+    dt: f64,
+) -> Complex64 {
     let mut h = Complex64::new(0.0, 0.0);
-    for i in 0..modes.n_modes() {
-        let (q, qdd) = ModeDisc::new(modes.omega_rad_s[i], c[i], dt).transfer(zeta);
+    for (i, &ci) in c.iter().enumerate().take(modes.n_modes()) {
+        let (q, qdd) = ModeDisc::new(modes.omega_rad_s[i], ci, dt).transfer(zeta);
         let coef = modal_coefficient(modes, pair, i);
         h += coef
             * match pair.kind {
@@ -182,22 +188,39 @@ fn channel(name: &str, quantity: Quantity, floor: usize) -> Channel {
 }
 
 /// A hammer test laid out like the shared campaign: force, acc1.., disp1...
-pub fn hammer_test(name: &str, floor: usize, fs: f64, force: Vec<f64>, disp: Vec<Vec<f64>>, acc: Vec<Vec<f64>>) -> Test {
+pub fn hammer_test(
+    name: &str,
+    floor: usize,
+    fs: f64,
+    force: Vec<f64>,
+    disp: Vec<Vec<f64>>,
+    acc: Vec<Vec<f64>>,
+) -> Test {
     let n = disp.len();
     let mut channels = vec![channel("force", Quantity::Force, floor)];
     let mut data = vec![force];
     for (r, a) in acc.into_iter().enumerate() {
-        channels.push(channel(&format!("acc{}", r + 1), Quantity::Acceleration, r + 1));
+        channels.push(channel(
+            &format!("acc{}", r + 1),
+            Quantity::Acceleration,
+            r + 1,
+        ));
         data.push(a);
     }
     for (r, d) in disp.into_iter().enumerate() {
-        channels.push(channel(&format!("disp{}", r + 1), Quantity::Displacement, r + 1));
+        channels.push(channel(
+            &format!("disp{}", r + 1),
+            Quantity::Displacement,
+            r + 1,
+        ));
         data.push(d);
     }
     assert_eq!(channels.len(), 1 + 2 * n);
     Test {
         name: name.into(),
-        kind: TestKind::Hammer { excited_floor: floor },
+        kind: TestKind::Hammer {
+            excited_floor: floor,
+        },
         sample_rate_hz: fs,
         channels,
         data,
@@ -205,15 +228,29 @@ pub fn hammer_test(name: &str, floor: usize, fs: f64, force: Vec<f64>, disp: Vec
 }
 
 /// A shake-table test laid out like the shared campaign; `acc_rel` is made absolute here.
-pub fn shake_test(name: &str, fs: f64, ground: Vec<f64>, disp: Vec<Vec<f64>>, acc_rel: Vec<Vec<f64>>) -> Test {
+pub fn shake_test(
+    name: &str,
+    fs: f64,
+    ground: Vec<f64>,
+    disp: Vec<Vec<f64>>,
+    acc_rel: Vec<Vec<f64>>,
+) -> Test {
     let mut channels = vec![channel("ground_acc", Quantity::GroundAcceleration, 0)];
     let mut data = vec![ground.clone()];
     for (r, a) in acc_rel.into_iter().enumerate() {
-        channels.push(channel(&format!("acc{}", r + 1), Quantity::Acceleration, r + 1));
+        channels.push(channel(
+            &format!("acc{}", r + 1),
+            Quantity::Acceleration,
+            r + 1,
+        ));
         data.push(a.iter().zip(&ground).map(|(x, g)| x + g).collect());
     }
     for (r, d) in disp.into_iter().enumerate() {
-        channels.push(channel(&format!("disp{}", r + 1), Quantity::Displacement, r + 1));
+        channels.push(channel(
+            &format!("disp{}", r + 1),
+            Quantity::Displacement,
+            r + 1,
+        ));
         data.push(d);
     }
     Test {
@@ -225,10 +262,17 @@ pub fn shake_test(name: &str, fs: f64, ground: Vec<f64>, disp: Vec<Vec<f64>>, ac
     }
 }
 
-/// `../shared/data/four-story` when present.
+/// `../shared/data/four-story` when present (or under `$FRFBAYES_SHARED_DIR`, for
+/// checkouts that are not next to `shared`, e.g. git worktrees).
 pub fn shared_campaign_dir() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/four-story");
-    p.join("campaign.toml").exists().then_some(p)
+    let mut roots = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")];
+    if let Some(d) = std::env::var_os("FRFBAYES_SHARED_DIR") {
+        roots.push(PathBuf::from(d));
+    }
+    roots
+        .into_iter()
+        .map(|r| r.join("data/four-story"))
+        .find(|p| p.join("campaign.toml").exists())
 }
 
 #[derive(serde::Deserialize)]
@@ -288,14 +332,7 @@ pub fn read_shared_tests(root: &Path) -> Vec<Test> {
 /// its two pole terms `R / (s - p)`, `conj(R) / (s - conj(p))` (`R = coef / (2 j omega_d)`,
 /// `s = j omega + 1/tau`) enter with unrelated phases, so their magnitudes add; times
 /// `|s|^p` for the FRF kind.
-pub fn pole_terms(
-    modes: &Modes,
-    c: &[f64],
-    pair: &FrfPair,
-    j: usize,
-    omega: f64,
-    tau: f64,
-) -> f64 {
+pub fn pole_terms(modes: &Modes, c: &[f64], pair: &FrfPair, j: usize, omega: f64, tau: f64) -> f64 {
     let sigma = 0.5 * c[j];
     let wd = (modes.omega_rad_s[j].powi(2) - sigma * sigma).sqrt();
     let s = Complex64::new(1.0 / tau, omega);
@@ -303,4 +340,3 @@ pub fn pole_terms(
     let r = modal_coefficient(modes, pair, j).abs() / (2.0 * wd);
     r * (1.0 / (s - p).norm() + 1.0 / (s - p.conj()).norm()) * s.norm().powi(pair.kind.power())
 }
-
