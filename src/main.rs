@@ -20,6 +20,10 @@ enum Command {
     Frf(cli::frf::Args),
     /// Print the nominal natural frequencies and mode shapes of a campaign's model.
     Modes(cli::modes::Args),
+    /// Reproduce the paper (Tables 1-2, Figures 4, 5, 8, 9) on the bundled campaign.
+    Repro(cli::repro::ReproArgs),
+    /// Run an experiment file (experiments/<name>.toml).
+    Run(cli::repro::RunArgs),
     /// Simulate a campaign with known truth from a model file.
     Simulate(cli::simulate::Args),
 }
@@ -30,6 +34,8 @@ fn main() -> std::process::ExitCode {
         Command::Check(a) => cli::check::run(a),
         Command::Frf(a) => cli::frf::run(a),
         Command::Modes(a) => cli::modes::run(a),
+        Command::Repro(a) => cli::repro::repro(a),
+        Command::Run(a) => cli::repro::run(a),
         Command::Simulate(a) => cli::simulate::run(a),
     };
     match result {
