@@ -28,7 +28,10 @@ pub struct Args {
 /// Estimates, writes and plots.
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.band_factor > 0.0, "--band-factor must be positive");
-    anyhow::ensure!(args.exp_window_tau_s >= 0.0, "--exp-window-tau-s must not be negative");
+    anyhow::ensure!(
+        args.exp_window_tau_s >= 0.0,
+        "--exp-window-tau-s must not be negative"
+    );
     let campaign = read_campaign(&args.campaign)?;
     for w in &campaign.warnings {
         eprintln!("warning: {w}");
@@ -36,7 +39,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut opts = EstimateOptions::default();
     opts.bands.band_factor = args.band_factor;
     opts.freq_max_hz = Some(args.freq_max_hz);
-    opts.hammer.exp_window = if args.exp_window_tau_s > 0.0 { ExpWindow::TauS(args.exp_window_tau_s) } else { ExpWindow::None };
+    opts.hammer.exp_window = if args.exp_window_tau_s > 0.0 {
+        ExpWindow::TauS(args.exp_window_tau_s)
+    } else {
+        ExpWindow::None
+    };
     let staged = StagedDir::new(&args.out)?;
     let pb = ProgressBar::new(campaign.tests.len() as u64);
     for test in &campaign.tests {
@@ -45,15 +52,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let dir = staged.path().join(&test.name);
         frfbayes::io::frf_csv::write_frf_csv(&dir.join("frf.csv"), &frf)?;
         estimate_figures(&frf, &dir)?;
-        let peaks: Vec<String> = frf.bands.iter().map(|b| format!("{:.3}", b.peak_hz)).collect();
-        pb.suspend(|| println!(
-            "{}: {} responses, {} averages, peaks at [{}] Hz, {} selected points",
-            test.name,
-            frf.responses.len(),
-            frf.n_averages,
-            peaks.join(", "),
-            frf.selected.len()
-        ));
+        let peaks: Vec<String> = frf
+            .bands
+            .iter()
+            .map(|b| format!("{:.3}", b.peak_hz))
+            .collect();
+        pb.suspend(|| {
+            println!(
+                "{}: {} responses, {} averages, peaks at [{}] Hz, {} selected points",
+                test.name,
+                frf.responses.len(),
+                frf.n_averages,
+                peaks.join(", "),
+                frf.selected.len()
+            )
+        });
         pb.inc(1);
     }
     pb.finish_and_clear();

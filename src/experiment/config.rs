@@ -73,7 +73,11 @@ pub struct EstimateSection {
 
 impl Default for EstimateSection {
     fn default() -> Self {
-        EstimateSection { exp_window_tau_s: Some(20.0), band_factor: 1.0, freq_max_hz: Some(25.0) }
+        EstimateSection {
+            exp_window_tau_s: Some(20.0),
+            band_factor: 1.0,
+            freq_max_hz: Some(25.0),
+        }
     }
 }
 
@@ -143,7 +147,8 @@ impl ExperimentConfig {
     /// Reads an experiment file.
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let cfg: ExperimentConfig = toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))?;
+        let cfg: ExperimentConfig =
+            toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))?;
         cfg.validate().map_err(|e| Error::invalid(path, e))?;
         Ok(cfg)
     }
@@ -162,7 +167,10 @@ impl ExperimentConfig {
         }
         for f in &self.figures {
             if f.table != "table1" && f.table != "table2" {
-                return Err(format!("figure.table must be \"table1\" or \"table2\", got {:?}", f.table));
+                return Err(format!(
+                    "figure.table must be \"table1\" or \"table2\", got {:?}",
+                    f.table
+                ));
             }
         }
         Ok(())

@@ -7,7 +7,7 @@ use super::figures::{comparison_figure, estimate_figures};
 use super::pipeline::{run_variant, TableId, Variant, VariantRun};
 use super::report::comparison_markdown;
 use super::runinfo::RunInfo;
-use super::tables::{ParamTable, PaperTables};
+use super::tables::{PaperTables, ParamTable};
 use crate::error::{Error, Result};
 use crate::io::{read_campaign, write_atomic, Campaign, StagedDir};
 use crate::signal::{estimate_campaign, TestFrf};
@@ -18,7 +18,9 @@ use std::path::{Path, PathBuf};
 pub fn resolve_data(spec: &str) -> Result<PathBuf> {
     match spec {
         "bundled:four-story" => crate::io::bundled::bundled_four_story(),
-        s if s.starts_with("bundled:") => Err(Error::Usage(format!("unknown bundled dataset {s:?} (have: bundled:four-story)"))),
+        s if s.starts_with("bundled:") => Err(Error::Usage(format!(
+            "unknown bundled dataset {s:?} (have: bundled:four-story)"
+        ))),
         s => Ok(PathBuf::from(s)),
     }
 }
@@ -36,13 +38,21 @@ pub struct Outcome {
     pub info: RunInfo,
 }
 
-fn table_from_runs(id: TableId, runs: &[VariantRun], cfg: &ExperimentConfig, campaign: &Campaign) -> Option<ParamTable> {
+fn table_from_runs(
+    id: TableId,
+    runs: &[VariantRun],
+    cfg: &ExperimentConfig,
+    campaign: &Campaign,
+) -> Option<ParamTable> {
     let mine: Vec<&VariantRun> = runs.iter().filter(|r| r.variant.table == id).collect();
     if mine.is_empty() {
         return None;
     }
     let n = campaign.nominal.n_floors();
-    let mut t = ParamTable { rows: ParamTable::paper_rows(n), ..Default::default() };
+    let mut t = ParamTable {
+        rows: ParamTable::paper_rows(n),
+        ..Default::default()
+    };
     for (i, m) in campaign.nominal.floor_mass_kg.iter().enumerate() {
         t.initial.insert(format!("m{}", i + 1), *m);
     }
@@ -56,7 +66,8 @@ fn table_from_runs(id: TableId, runs: &[VariantRun], cfg: &ExperimentConfig, cam
         t.initial.insert(format!("xi{i}"), v.initial_xi);
     }
     for r in mine {
-        t.columns.insert(r.variant.column(), r.corrected.iter().cloned().collect());
+        t.columns
+            .insert(r.variant.column(), r.corrected.iter().cloned().collect());
     }
     Some(t)
 }
@@ -105,7 +116,9 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
     let campaign = info.time("read_campaign", || read_campaign(&root))?;
     let model = campaign.nominal.structural_model()?;
     progress("estimating FRFs", 0, 1);
-    let frfs = info.time("estimate_frfs", || estimate_campaign(&campaign, &cfg.estimate.options()))?;
+    let frfs = info.time("estimate_frfs", || {
+        estimate_campaign(&campaign, &cfg.estimate.options())
+    })?;
     let variants: Vec<Variant> = Variant::all()
         .into_iter()
         .filter(|v| frfs.iter().any(|f| v.table.includes(f)))
@@ -113,11 +126,18 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
     let mut runs = Vec::new();
     let t_update = std::time::Instant::now();
     for (i, v) in variants.iter().enumerate() {
-        progress(&format!("updating {} {}", v.table.key(), v.column()), i, variants.len());
+        progress(
+            &format!("updating {} {}", v.table.key(), v.column()),
+            i,
+            variants.len(),
+        );
         runs.push(run_variant(&model, &frfs, *v, cfg, cfg.seed)?);
     }
     progress("updating", variants.len(), variants.len());
-    info.timings_s.push(("update_all_variants".into(), t_update.elapsed().as_secs_f64()));
+    info.timings_s.push((
+        "update_all_variants".into(),
+        t_update.elapsed().as_secs_f64(),
+    ));
 
     let staged = StagedDir::new(&cfg.out)?;
     let dir = staged.path().to_path_buf();
@@ -125,15 +145,31 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
     let t1 = table_from_runs(TableId::Table1, &runs, cfg, &campaign);
     let t2 = table_from_runs(TableId::Table2, &runs, cfg, &campaign);
     if let Some(t) = &t1 {
-        t.write(&dir, "table1", "Table 1. Model updating results from impact hammer tests (ours)")?;
+        t.write(
+            &dir,
+            "table1",
+            "Table 1. Model updating results from impact hammer tests (ours)",
+        )?;
     }
     if let Some(t) = &t2 {
-        t.write(&dir, "table2", "Table 2. Model updating results from ground excitation (ours)")?;
+        t.write(
+            &dir,
+            "table2",
+            "Table 2. Model updating results from ground excitation (ours)",
+        )?;
     }
     let tau = runs.iter().find_map(|r| r.window_tau_s);
-    let md = comparison_markdown(t1.as_ref(), t2.as_ref(), &paper.table1, &paper.table2, &runs, tau);
+    let md = comparison_markdown(
+        t1.as_ref(),
+        t2.as_ref(),
+        &paper.table1,
+        &paper.table2,
+        &runs,
+        tau,
+    );
     write_atomic(&dir.join("comparison.md"), md.as_bytes())?;
-    let summary = serde_json::to_vec_pretty(&summary_json(&runs)).map_err(|e| Error::Usage(e.to_string()))?;
+    let summary =
+        serde_json::to_vec_pretty(&summary_json(&runs)).map_err(|e| Error::Usage(e.to_string()))?;
     write_atomic(&dir.join("summary.json"), &summary)?;
     info.time("figures", || -> Result<()> {
         for (i, f) in cfg.figures.iter().enumerate() {
@@ -149,7 +185,13 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
     })?;
     info.write(&dir)?;
     let out = staged.commit()?;
-    Ok(Outcome { out, campaign, frfs, runs, info })
+    Ok(Outcome {
+        out,
+        campaign,
+        frfs,
+        runs,
+        info,
+    })
 }
 
 /// The output folder of an experiment relative to `base` when it is relative.

@@ -6,7 +6,9 @@ use super::config::FigureSpec;
 use super::pipeline::{model_curve, pair_label, TableId, VariantRun};
 use crate::error::{Error, Result};
 use crate::frf::{Excitation, FrfKind, FrfPair};
-use crate::plot::{self, ChannelFrf, ComparisonPanel, Curve, FreqBand, FrfComparisonSpec, FrfMagnitudesSpec};
+use crate::plot::{
+    self, ChannelFrf, ComparisonPanel, Curve, FreqBand, FrfComparisonSpec, FrfMagnitudesSpec,
+};
 use crate::signal::{InputKind, TestFrf};
 use crate::update::DampingModel;
 use std::path::Path;
@@ -15,7 +17,13 @@ use std::path::Path;
 const FIG_RANGE_HZ: (f64, f64) = (0.2, 10.0);
 
 fn bands(frf: &TestFrf) -> Vec<FreqBand> {
-    frf.bands.iter().map(|b| FreqBand { lo_hz: b.lo_hz, hi_hz: b.hi_hz }).collect()
+    frf.bands
+        .iter()
+        .map(|b| FreqBand {
+            lo_hz: b.lo_hz,
+            hi_hz: b.hi_hz,
+        })
+        .collect()
 }
 
 /// Unit label of an FRF kind for ground or force input.
@@ -31,8 +39,17 @@ pub fn y_label(kind: FrfKind, ground: bool) -> &'static str {
 }
 
 /// Draws one comparison figure (receptance and accelerance panels) from the runs.
-pub fn comparison_figure(spec: &FigureSpec, runs: &[VariantRun], frfs: &[TestFrf], stem: &Path) -> Result<()> {
-    let table = if spec.table == "table1" { TableId::Table1 } else { TableId::Table2 };
+pub fn comparison_figure(
+    spec: &FigureSpec,
+    runs: &[VariantRun],
+    frfs: &[TestFrf],
+    stem: &Path,
+) -> Result<()> {
+    let table = if spec.table == "table1" {
+        TableId::Table1
+    } else {
+        TableId::Table2
+    };
     let test = frfs
         .iter()
         .filter(|f| table.includes(f))
@@ -41,7 +58,12 @@ pub fn comparison_figure(spec: &FigureSpec, runs: &[VariantRun], frfs: &[TestFrf
             (InputKind::Ground { .. }, _) => true,
             _ => false,
         })
-        .ok_or_else(|| Error::Usage(format!("figure: no {} test with excited floor {:?}", spec.table, spec.excited_floor)))?;
+        .ok_or_else(|| {
+            Error::Usage(format!(
+                "figure: no {} test with excited floor {:?}",
+                spec.table, spec.excited_floor
+            ))
+        })?;
     let excitation = match spec.excited_floor {
         Some(e) if table == TableId::Table1 => Excitation::Dof(e - 1),
         _ => Excitation::Ground,
@@ -50,30 +72,72 @@ pub fn comparison_figure(spec: &FigureSpec, runs: &[VariantRun], frfs: &[TestFrf
     for kind in [FrfKind::Receptance, FrfKind::Accelerance] {
         let run = runs
             .iter()
-            .find(|r| r.variant.table == table && r.variant.damping == spec.damping && r.variant.kind == kind)
-            .ok_or_else(|| Error::Usage(format!("figure: variant {:?} {:?} was not run", spec.damping, kind)))?;
+            .find(|r| {
+                r.variant.table == table
+                    && r.variant.damping == spec.damping
+                    && r.variant.kind == kind
+            })
+            .ok_or_else(|| {
+                Error::Usage(format!(
+                    "figure: variant {:?} {:?} was not run",
+                    spec.damping, kind
+                ))
+            })?;
         let response = test
             .responses
             .iter()
             .find(|r| r.kind == kind && r.channel.floor == spec.response_floor)
-            .ok_or_else(|| Error::Usage(format!("figure: test {} has no {kind:?} channel at floor {}", test.test, spec.response_floor)))?;
-        let pair = FrfPair { response: spec.response_floor - 1, excitation, kind };
+            .ok_or_else(|| {
+                Error::Usage(format!(
+                    "figure: test {} has no {kind:?} channel at floor {}",
+                    test.test, spec.response_floor
+                ))
+            })?;
+        let pair = FrfPair {
+            response: spec.response_floor - 1,
+            excitation,
+            kind,
+        };
         let idx: Vec<usize> = (0..test.freq_hz.len())
             .filter(|&k| test.freq_hz[k] >= FIG_RANGE_HZ.0 && test.freq_hz[k] <= FIG_RANGE_HZ.1)
             .collect();
         let freq_hz: Vec<f64> = idx.iter().map(|&k| test.freq_hz[k]).collect();
-        let omega: Vec<f64> = freq_hz.iter().map(|f| 2.0 * std::f64::consts::PI * f).collect();
-        let experimental = Curve { freq_hz: freq_hz.clone(), values: idx.iter().map(|&k| response.h1[k].norm()).collect() };
-        let initial = model_curve(&run.problem, &run.problem.variables().initial(), pair, &omega)?;
+        let omega: Vec<f64> = freq_hz
+            .iter()
+            .map(|f| 2.0 * std::f64::consts::PI * f)
+            .collect();
+        let experimental = Curve {
+            freq_hz: freq_hz.clone(),
+            values: idx.iter().map(|&k| response.h1[k].norm()).collect(),
+        };
+        let initial = model_curve(
+            &run.problem,
+            &run.problem.variables().initial(),
+            pair,
+            &omega,
+        )?;
         let updated = model_curve(&run.problem, &run.result.best.theta, pair, &omega)?;
         let label = pair_label(&pair);
         let fdac = run.fdac.iter().find(|(l, _, _)| *l == label);
         panels.push(ComparisonPanel {
-            title: format!("{} {label}", if kind == FrfKind::Receptance { "receptance" } else { "accelerance" }),
+            title: format!(
+                "{} {label}",
+                if kind == FrfKind::Receptance {
+                    "receptance"
+                } else {
+                    "accelerance"
+                }
+            ),
             y_label: y_label(kind, table == TableId::Table2).into(),
             experimental,
-            initial: Some(Curve { freq_hz: freq_hz.clone(), values: initial }),
-            updated: Some(Curve { freq_hz, values: updated }),
+            initial: Some(Curve {
+                freq_hz: freq_hz.clone(),
+                values: initial,
+            }),
+            updated: Some(Curve {
+                freq_hz,
+                values: updated,
+            }),
             fdac_initial: fdac.map(|f| f.1),
             fdac_updated: fdac.map(|f| f.2),
             bands: bands(test),
@@ -83,7 +147,11 @@ pub fn comparison_figure(spec: &FigureSpec, runs: &[VariantRun], frfs: &[TestFrf
         DampingModel::Rayleigh => "Rayleigh",
         DampingModel::Caughey => "Caughey",
     };
-    let what = if table == TableId::Table1 { "Hammer test" } else { "Shake-table test" };
+    let what = if table == TableId::Table1 {
+        "Hammer test"
+    } else {
+        "Shake-table test"
+    };
     plot::frf_comparison(
         &FrfComparisonSpec {
             title: format!("{what}: initial, experimental and updated FRFs ({damping} damping; FDAC over the selected bands)"),
@@ -97,7 +165,9 @@ pub fn comparison_figure(spec: &FigureSpec, runs: &[VariantRun], frfs: &[TestFrf
 /// Draws one test's FRF estimates (one figure per FRF kind) with bands and coherence.
 pub fn estimate_figures(frf: &TestFrf, dir: &Path) -> Result<()> {
     let ground = matches!(frf.input, InputKind::Ground { .. });
-    let idx: Vec<usize> = (0..frf.freq_hz.len()).filter(|&k| frf.freq_hz[k] > 0.0 && frf.freq_hz[k] <= FIG_RANGE_HZ.1 * 1.5).collect();
+    let idx: Vec<usize> = (0..frf.freq_hz.len())
+        .filter(|&k| frf.freq_hz[k] > 0.0 && frf.freq_hz[k] <= FIG_RANGE_HZ.1 * 1.5)
+        .collect();
     for kind in [FrfKind::Receptance, FrfKind::Accelerance] {
         let channels: Vec<ChannelFrf> = frf
             .responses
@@ -112,10 +182,17 @@ pub fn estimate_figures(frf: &TestFrf, dir: &Path) -> Result<()> {
         if channels.is_empty() {
             continue;
         }
-        let name = if kind == FrfKind::Receptance { "receptance" } else { "accelerance" };
+        let name = if kind == FrfKind::Receptance {
+            "receptance"
+        } else {
+            "accelerance"
+        };
         plot::frf_magnitudes(
             &FrfMagnitudesSpec {
-                title: format!("{}: {name} (H1), selected half-power bands shaded", frf.test),
+                title: format!(
+                    "{}: {name} (H1), selected half-power bands shaded",
+                    frf.test
+                ),
                 y_label: y_label(kind, ground).into(),
                 freq_hz: idx.iter().map(|&k| frf.freq_hz[k]).collect(),
                 channels,

@@ -8,6 +8,6 @@ pub mod runinfo;
 pub mod tables;
 
 pub use config::ExperimentConfig;
+pub mod driver;
 pub mod figures;
 pub mod report;
-pub mod driver;

@@ -75,7 +75,11 @@ impl Variant {
         for table in [TableId::Table1, TableId::Table2] {
             for damping in [DampingModel::Rayleigh, DampingModel::Caughey] {
                 for kind in [FrfKind::Receptance, FrfKind::Accelerance] {
-                    v.push(Variant { table, damping, kind });
+                    v.push(Variant {
+                        table,
+                        damping,
+                        kind,
+                    });
                 }
             }
         }
@@ -98,7 +102,11 @@ pub fn pair_label(pair: &FrfPair) -> String {
 
 /// The measured long vector of one variant: every test of the table, the responses of
 /// `kind`, at each test's selected points; with Bendat & Piersol sigmas when weighted.
-pub fn measurements(frfs: &[&TestFrf], kind: FrfKind, weighting: Weighting) -> Result<Measurements> {
+pub fn measurements(
+    frfs: &[&TestFrf],
+    kind: FrfKind,
+    weighting: Weighting,
+) -> Result<Measurements> {
     let mut blocks = Vec::new();
     let mut magnitude = Vec::new();
     let mut sigma = Vec::new();
@@ -114,20 +122,34 @@ pub fn measurements(frfs: &[&TestFrf], kind: FrfKind, weighting: Weighting) -> R
             }
             pairs.push(*p);
             magnitude.extend_from_slice(&mags[j * nw..(j + 1) * nw]);
-            sigma.extend(mags[j * nw..(j + 1) * nw].iter().zip(&rel[j * nw..(j + 1) * nw]).map(|(m, r)| m * r));
+            sigma.extend(
+                mags[j * nw..(j + 1) * nw]
+                    .iter()
+                    .zip(&rel[j * nw..(j + 1) * nw])
+                    .map(|(m, r)| m * r),
+            );
         }
         if !pairs.is_empty() && nw > 0 {
-            blocks.push(FrfBlock { omega_rad_s: full.omega_rad_s.clone(), pairs });
+            blocks.push(FrfBlock {
+                omega_rad_s: full.omega_rad_s.clone(),
+                pairs,
+            });
         }
     }
     if blocks.is_empty() {
-        return Err(Error::Usage(format!("no {kind:?} FRFs with selected points in these tests")));
+        return Err(Error::Usage(format!(
+            "no {kind:?} FRFs with selected points in these tests"
+        )));
     }
     let sigma = match weighting {
         Weighting::None => None,
         Weighting::Coherence => Some(sigma),
     };
-    Ok(Measurements { blocks, magnitude, sigma })
+    Ok(Measurements {
+        blocks,
+        magnitude,
+        sigma,
+    })
 }
 
 /// The outcome of one variant.
@@ -145,6 +167,11 @@ pub struct VariantRun {
     pub corrected: Vec<(String, f64)>,
     /// Exponential-window time constant of the data, s.
     pub window_tau_s: Option<f64>,
+    /// Natural frequencies of the updated model, Hz.
+    pub freq_hz: Vec<f64>,
+    /// Modal damping ratios the updated damping implies, window contribution removed
+    /// (Rayleigh: `(a0 / omega_i + a1 omega_i) / 2`, Eq. 7; Caughey: `xi_i`).
+    pub damping_ratios: Vec<f64>,
     pub n_points: usize,
     pub wall_s: f64,
 }
@@ -155,20 +182,38 @@ impl VariantRun {
         self.result
             .on_bounds()
             .into_iter()
-            .map(|(n, a)| format!("{n} ({})", if a == Active::Lower { "lower" } else { "upper" }))
+            .map(|(n, a)| {
+                format!(
+                    "{n} ({})",
+                    if a == Active::Lower { "lower" } else { "upper" }
+                )
+            })
             .collect()
     }
 }
 
 /// Magnitudes of one FRF pair of the model at `theta` over `omega_rad_s` (for figures).
-pub fn model_curve(problem: &Problem, theta: &[f64], pair: FrfPair, omega_rad_s: &[f64]) -> Result<Vec<f64>> {
+pub fn model_curve(
+    problem: &Problem,
+    theta: &[f64],
+    pair: FrfPair,
+    omega_rad_s: &[f64],
+) -> Result<Vec<f64>> {
     let vars = problem.variables();
     let model = problem.model();
     let (alpha, beta, damping) = vars.split(theta);
-    let modes = Modes::solve(&model.stiffness(alpha), &model.mass(beta), model.ground_influence(), Some(problem.n_modes()))?;
+    let modes = Modes::solve(
+        &model.stiffness(alpha),
+        &model.mass(beta),
+        model.ground_influence(),
+        Some(problem.n_modes()),
+    )?;
     let mut c = vec![0.0; modes.n_modes()];
     damping.modal_coefficients(&modes.omega_rad_s, &mut c)?;
-    let mut eval = ModalFrf::new(vec![FrfBlock { omega_rad_s: omega_rad_s.to_vec(), pairs: vec![pair] }]);
+    let mut eval = ModalFrf::new(vec![FrfBlock {
+        omega_rad_s: omega_rad_s.to_vec(),
+        pairs: vec![pair],
+    }]);
     let mut out = vec![0.0; eval.len()];
     eval.magnitudes(&modes, &c, &mut out)?;
     Ok(out)
@@ -185,7 +230,11 @@ fn correct_window(
     physical: &[f64],
     tau_s: Option<f64>,
 ) -> Result<Vec<(String, f64)>> {
-    let mut out: Vec<(String, f64)> = names.iter().cloned().zip(physical.iter().copied()).collect();
+    let mut out: Vec<(String, f64)> = names
+        .iter()
+        .cloned()
+        .zip(physical.iter().copied())
+        .collect();
     let Some(tau) = tau_s else { return Ok(out) };
     let eps = 1.0 / tau;
     let (alpha, beta, damping) = problem.variables().split(theta);
@@ -196,7 +245,12 @@ fn correct_window(
             }
         }
         Damping::Caughey { .. } => {
-            let modes = Modes::solve(&model.stiffness(alpha), &model.mass(beta), model.ground_influence(), Some(problem.n_modes()))?;
+            let modes = Modes::solve(
+                &model.stiffness(alpha),
+                &model.mass(beta),
+                model.ground_influence(),
+                Some(problem.n_modes()),
+            )?;
             for (i, w) in modes.omega_rad_s.iter().enumerate() {
                 let name = format!("xi{}", i + 1);
                 if let Some(x) = out.iter_mut().find(|(n, _)| *n == name) {
@@ -219,7 +273,10 @@ pub fn run_variant(
     let t0 = Instant::now();
     let group: Vec<&TestFrf> = frfs.iter().filter(|f| variant.table.includes(f)).collect();
     if group.is_empty() {
-        return Err(Error::Usage(format!("no tests for {} in the campaign", variant.table.key())));
+        return Err(Error::Usage(format!(
+            "no tests for {} in the campaign",
+            variant.table.key()
+        )));
     }
     let taus: Vec<Option<f64>> = group.iter().map(|f| f.exp_window_tau_s).collect();
     let window_tau_s = taus[0];
@@ -235,17 +292,78 @@ pub fn run_variant(
         (TableId::Table2, Some(v)) => v,
         _ => &cfg.update.variables,
     };
-    let options = ObjectiveOptions { residual: cfg.update.residual, n_modes: None };
-    let problem = Problem::new(model.clone(), data.clone(), variant.damping, vars_cfg, options)?;
-    let ms = MultistartOptions { n_starts: cfg.update.starts, seed, ..Default::default() };
+    let options = ObjectiveOptions {
+        residual: cfg.update.residual,
+        n_modes: None,
+    };
+    let problem = Problem::new(
+        model.clone(),
+        data.clone(),
+        variant.damping,
+        vars_cfg,
+        options,
+    )?;
+    let ms = MultistartOptions {
+        n_starts: cfg.update.starts,
+        seed,
+        ..Default::default()
+    };
     let result = update(&problem, &ms)?;
     let initial = problem.variables().initial();
-    let labels: Vec<String> = data.blocks.iter().flat_map(|b| b.pairs.iter().map(pair_label)).collect();
-    let f_init = fdac_per_pair(&data.blocks, &problem.magnitudes(&initial)?, &data.magnitude)?;
-    let f_best = fdac_per_pair(&data.blocks, &problem.magnitudes(&result.best.theta)?, &data.magnitude)?;
-    let fdac = labels.into_iter().zip(f_init).zip(f_best).map(|((l, a), b)| (l, a, b)).collect();
-    let fitted: Vec<(String, f64)> = result.names.iter().cloned().zip(result.best.physical.iter().copied()).collect();
-    let corrected = correct_window(model, &problem, &result.best.theta, &result.names, &result.best.physical, window_tau_s)?;
+    let labels: Vec<String> = data
+        .blocks
+        .iter()
+        .flat_map(|b| b.pairs.iter().map(pair_label))
+        .collect();
+    let f_init = fdac_per_pair(
+        &data.blocks,
+        &problem.magnitudes(&initial)?,
+        &data.magnitude,
+    )?;
+    let f_best = fdac_per_pair(
+        &data.blocks,
+        &problem.magnitudes(&result.best.theta)?,
+        &data.magnitude,
+    )?;
+    let fdac = labels
+        .into_iter()
+        .zip(f_init)
+        .zip(f_best)
+        .map(|((l, a), b)| (l, a, b))
+        .collect();
+    let fitted: Vec<(String, f64)> = result
+        .names
+        .iter()
+        .cloned()
+        .zip(result.best.physical.iter().copied())
+        .collect();
+    let corrected = correct_window(
+        model,
+        &problem,
+        &result.best.theta,
+        &result.names,
+        &result.best.physical,
+        window_tau_s,
+    )?;
+    let (alpha, beta, _) = problem.variables().split(&result.best.theta);
+    let modes = Modes::solve(
+        &model.stiffness(alpha),
+        &model.mass(beta),
+        model.ground_influence(),
+        Some(problem.n_modes()),
+    )?;
+    let value = |name: &str| corrected.iter().find(|(n, _)| n == name).map(|x| x.1);
+    let damping_ratios = modes
+        .omega_rad_s
+        .iter()
+        .enumerate()
+        .map(|(i, w)| match variant.damping {
+            DampingModel::Rayleigh => {
+                (value("a0").unwrap_or(0.0) / w + value("a1").unwrap_or(0.0) * w) / 2.0
+            }
+            DampingModel::Caughey => value(&format!("xi{}", i + 1)).unwrap_or(f64::NAN),
+        })
+        .collect();
     Ok(VariantRun {
         variant,
         problem,
@@ -254,6 +372,8 @@ pub fn run_variant(
         fitted,
         corrected,
         window_tau_s,
+        freq_hz: modes.freq_hz(),
+        damping_ratios,
         n_points,
         wall_s: t0.elapsed().as_secs_f64(),
     })

@@ -3,7 +3,7 @@
 //! `paper_repro/paper_tables.toml`; the prose only states what the numbers show.
 
 use super::pipeline::{TableId, VariantRun};
-use super::tables::{fmt_paper, ParamTable, PaperTable, VARIANT_COLUMNS};
+use super::tables::{fmt_paper, PaperTable, ParamTable, VARIANT_COLUMNS};
 use std::fmt::Write;
 
 /// Upper bound of the masses implied by the paper (5.155 kg = 1.111 x 4.64 kg).
@@ -14,14 +14,32 @@ fn rel_diff(ours: f64, paper: f64) -> f64 {
 }
 
 /// Writes the comparison of one table.
-fn table_section(out: &mut String, id: TableId, ours: &ParamTable, paper: &PaperTable, runs: &[VariantRun]) {
+fn table_section(
+    out: &mut String,
+    id: TableId,
+    ours: &ParamTable,
+    paper: &PaperTable,
+    runs: &[VariantRun],
+) {
     let p = paper.to_param_table(4);
-    let _ = writeln!(out, "## {} ({})\n", if id == TableId::Table1 { "Table 1" } else { "Table 2" }, paper.title);
+    let _ = writeln!(
+        out,
+        "## {} ({})\n",
+        if id == TableId::Table1 {
+            "Table 1"
+        } else {
+            "Table 2"
+        },
+        paper.title
+    );
     let _ = writeln!(out, "Each cell: paper / ours. RSD across the four variants (sample standard deviation, n - 1).\n");
     let _ = writeln!(out, "| parameter | initial | Rayleigh receptance | Rayleigh accelerance | Caughey receptance | Caughey accelerance | RSD % paper / ours |");
     let _ = writeln!(out, "|---|---|---|---|---|---|---|");
     for row in &ours.rows {
-        let mut line = format!("| {row} | {} |", fmt_paper(row, ours.initial.get(row).copied()));
+        let mut line = format!(
+            "| {row} | {} |",
+            fmt_paper(row, ours.initial.get(row).copied())
+        );
         for v in VARIANT_COLUMNS {
             let (a, b) = (p.value(v, row), ours.value(v, row));
             if a.is_none() && b.is_none() {
@@ -30,7 +48,11 @@ fn table_section(out: &mut String, id: TableId, ours: &ParamTable, paper: &Paper
                 line += &format!(" {} / {} |", fmt_paper(row, a), fmt_paper(row, b));
             }
         }
-        let rsd = |t: &ParamTable| t.rsd(row).map(|r| format!("{r:.3}")).unwrap_or_else(|| "-".into());
+        let rsd = |t: &ParamTable| {
+            t.rsd(row)
+                .map(|r| format!("{r:.3}"))
+                .unwrap_or_else(|| "-".into())
+        };
         line += &format!(" {} / {} |", rsd(&p), rsd(ours));
         let _ = writeln!(out, "{line}");
     }
@@ -41,7 +63,13 @@ fn table_section(out: &mut String, id: TableId, ours: &ParamTable, paper: &Paper
         for v in VARIANT_COLUMNS {
             if let (Some(a), Some(b)) = (p.value(v, row), ours.value(v, row)) {
                 let d = rel_diff(b, a).abs();
-                let slot = if row.starts_with('m') { &mut worst_m } else if row.starts_with('k') { &mut worst_k } else { continue };
+                let slot = if row.starts_with('m') {
+                    &mut worst_m
+                } else if row.starts_with('k') {
+                    &mut worst_k
+                } else {
+                    continue;
+                };
                 if d > slot.0 {
                     *slot = (d, format!("{row}, {v}"));
                 }
@@ -50,7 +78,11 @@ fn table_section(out: &mut String, id: TableId, ours: &ParamTable, paper: &Paper
     }
     let _ = writeln!(out, "\n**Mass and stiffness.** Largest difference from the paper: masses {:.1} % ({}), stiffnesses {:.1} % ({}).", 100.0 * worst_m.0, worst_m.1, 100.0 * worst_k.0, worst_k.1);
     let max_rsd = |t: &ParamTable, prefix: char| {
-        t.rows.iter().filter(|r| r.starts_with(prefix)).filter_map(|r| t.rsd(r)).fold(0.0_f64, f64::max)
+        t.rows
+            .iter()
+            .filter(|r| r.starts_with(prefix))
+            .filter_map(|r| t.rsd(r))
+            .fold(0.0_f64, f64::max)
     };
     let _ = writeln!(
         out,
@@ -60,15 +92,58 @@ fn table_section(out: &mut String, id: TableId, ours: &ParamTable, paper: &Paper
         max_rsd(ours, 'm'),
         max_rsd(ours, 'k')
     );
+    // Modal damping implied by each variant.
+    let mine: Vec<&VariantRun> = runs.iter().filter(|r| r.variant.table == id).collect();
+    if let Some(first) = mine.first() {
+        let _ = writeln!(out, "\n**Modal damping each variant implies** (natural frequency of its updated model in Hz / damping ratio in %, window contribution removed):\n");
+        let header: Vec<String> = mine.iter().map(|r| r.variant.column()).collect();
+        let _ = writeln!(out, "| mode | {} |", header.join(" | "));
+        let _ = writeln!(out, "|---|{}", "---|".repeat(mine.len()));
+        for i in 0..first.freq_hz.len() {
+            let cells: Vec<String> = mine
+                .iter()
+                .map(|r| format!("{:.3} / {:.2}", r.freq_hz[i], 100.0 * r.damping_ratios[i]))
+                .collect();
+            let _ = writeln!(out, "| {} | {} |", i + 1, cells.join(" | "));
+        }
+        let spread = |pred: &dyn Fn(&&&VariantRun) -> bool, prefix: char| {
+            let sel: Vec<&&VariantRun> = mine.iter().filter(|r| pred(r)).collect();
+            ours.rows
+                .iter()
+                .filter(|row| row.starts_with(prefix))
+                .filter_map(|row| {
+                    let v: Option<Vec<f64>> = sel
+                        .iter()
+                        .map(|r| ours.value(&r.variant.column(), row))
+                        .collect();
+                    v.and_then(|v| super::tables::rsd_percent(&v))
+                })
+                .fold(0.0_f64, f64::max)
+        };
+        let caughey = |r: &&&VariantRun| r.variant.damping == crate::update::DampingModel::Caughey;
+        let _ = writeln!(
+            out,
+            "\nTwo Rayleigh coefficients give damping ratios a0/(2 omega) + a1 omega/2, which cannot follow the ratios the Caughey fits find for four modes; the magnitude least squares then trades peak heights against mass and stiffness. Largest RSD between the two Caughey variants alone: {:.3} % (masses), {:.3} % (stiffnesses).",
+            spread(&caughey, 'm'),
+            spread(&caughey, 'k')
+        );
+    }
     // Bounds.
-    let _ = writeln!(out, "\n**Bounds.** Variables that end on a bound of the box (ours):\n");
+    let _ = writeln!(
+        out,
+        "\n**Bounds.** Variables that end on a bound of the box (ours):\n"
+    );
     for r in runs.iter().filter(|r| r.variant.table == id) {
         let b = r.on_bounds();
         let _ = writeln!(
             out,
             "- {}: {} ({} of {} starts reached the best minimum; {} data points; {:.2} s)",
             r.variant.column(),
-            if b.is_empty() { "none".to_string() } else { b.join(", ") },
+            if b.is_empty() {
+                "none".to_string()
+            } else {
+                b.join(", ")
+            },
             r.result.n_at_best,
             r.result.starts.len(),
             r.n_points,
@@ -90,12 +165,24 @@ fn table_section(out: &mut String, id: TableId, ours: &ParamTable, paper: &Paper
     // FDAC.
     let _ = writeln!(out, "\n**FDAC** over the selected bands (paper figure pair: paper / ours; mean over all FRFs of the variant, initial -> updated):\n");
     for (variant, f) in &paper.fdac {
-        if let Some(r) = runs.iter().find(|r| r.variant.table == id && r.variant.column() == *variant) {
-            let ours = r.fdac.iter().find(|(l, _, _)| *l == f.pair).map(|x| format!("{:.3}", x.2)).unwrap_or_else(|| "n/a".into());
+        if let Some(r) = runs
+            .iter()
+            .find(|r| r.variant.table == id && r.variant.column() == *variant)
+        {
+            let ours = r
+                .fdac
+                .iter()
+                .find(|(l, _, _)| *l == f.pair)
+                .map(|x| format!("{:.3}", x.2))
+                .unwrap_or_else(|| "n/a".into());
             let n = r.fdac.len().max(1) as f64;
             let mean0 = r.fdac.iter().map(|x| x.1).sum::<f64>() / n;
             let mean1 = r.fdac.iter().map(|x| x.2).sum::<f64>() / n;
-            let _ = writeln!(out, "- {variant}: {} {:.3} / {ours}; mean {:.3} -> {:.3}", f.pair, f.value, mean0, mean1);
+            let _ = writeln!(
+                out,
+                "- {variant}: {} {:.3} / {ours}; mean {:.3} -> {:.3}",
+                f.pair, f.value, mean0, mean1
+            );
         }
     }
     let _ = writeln!(out);
