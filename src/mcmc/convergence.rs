@@ -34,16 +34,9 @@ pub struct Diagnostics {
     pub ess_tail: f64,
 }
 
-/// All of [`Diagnostics`] for `chains`.
+/// All of [`Diagnostics`] for independent `chains`.
 pub fn diagnostics(chains: &[Vec<f64>]) -> Diagnostics {
-    let split = split_chains(chains);
-    let rhat_bulk = rhat_basic(&rank_normalize(&split));
-    let med = quantile(&sorted_all(chains), 0.5);
-    let folded: Vec<Vec<f64>> = split
-        .iter()
-        .map(|c| c.iter().map(|v| (v - med).abs()).collect())
-        .collect();
-    let rhat_tail = rhat_basic(&rank_normalize(&folded));
+    let (rhat_bulk, rhat_tail) = rhat_of_split(&split_chains(chains), chains);
     Diagnostics {
         rhat: rhat_bulk.max(rhat_tail),
         rhat_bulk,
@@ -53,7 +46,55 @@ pub fn diagnostics(chains: &[Vec<f64>]) -> Diagnostics {
     }
 }
 
-/// Rank-normalised split R-hat, `max(bulk, tail)`.
+/// Diagnostics of ensemble-sampler output: `chains` are walker chains, consecutive groups
+/// of `walkers` chains forming one ensemble.
+///
+/// - R-hat treats each *ensemble* as one chain: its draws are all its walkers' draws,
+///   split in time (first and second half of the steps), then rank-normalised and folded
+///   as usual. With walkers as chains, each walker holds few effective draws and split
+///   R-hat is biased upward by about `(tau_c - 1) / (2 N)` (`N` draws per half-chain,
+///   `tau_c` their autocorrelation time): in a seeded 10-D test with 128 walkers, 1.02
+///   on well-converged output. Pooling the walkers of an ensemble makes each chain long;
+///   independent ensembles still compare as independent chains (cf. nested R-hat,
+///   Margossian et al. 2024, superchains of subchains).
+/// - ESS is Stan's multi-chain ESS over the walker chains (it needs time series; it was
+///   checked against replicate runs: estimated Monte Carlo errors matched the observed
+///   spread within 10-30%, on the conservative side).
+pub fn ensemble_diagnostics(chains: &[Vec<f64>], walkers: usize) -> Diagnostics {
+    assert!(
+        walkers > 0 && chains.len() % walkers == 0,
+        "chains must come in whole ensembles"
+    );
+    let n = chains.first().map_or(0, |c| c.len());
+    let half = n / 2;
+    let mut split = Vec::with_capacity(2 * chains.len() / walkers);
+    for group in chains.chunks(walkers) {
+        split.push(group.iter().flat_map(|c| c[..half].iter().copied()).collect());
+        split.push(group.iter().flat_map(|c| c[n - half..].iter().copied()).collect());
+    }
+    let (rhat_bulk, rhat_tail) = rhat_of_split(&split, chains);
+    Diagnostics {
+        rhat: rhat_bulk.max(rhat_tail),
+        rhat_bulk,
+        rhat_tail,
+        ess_bulk: ess_bulk(chains),
+        ess_tail: ess_tail(chains),
+    }
+}
+
+/// Bulk and tail R-hat of already split chains; `chains` (unsplit) give the median
+/// about which draws are folded.
+fn rhat_of_split(split: &[Vec<f64>], chains: &[Vec<f64>]) -> (f64, f64) {
+    let rhat_bulk = rhat_basic(&rank_normalize(split));
+    let med = quantile(&sorted_all(chains), 0.5);
+    let folded: Vec<Vec<f64>> = split
+        .iter()
+        .map(|c| c.iter().map(|v| (v - med).abs()).collect())
+        .collect();
+    (rhat_bulk, rhat_basic(&rank_normalize(&folded)))
+}
+
+/// Rank-normalised split R-hat, `max(bulk, tail)`, of independent chains.
 pub fn rhat(chains: &[Vec<f64>]) -> f64 {
     diagnostics(chains).rhat
 }
@@ -216,9 +257,9 @@ pub fn ess_basic(chains: &[Vec<f64>]) -> f64 {
     if is_constant(chains) {
         return total;
     }
-    let plan = AcovPlan::new(n);
-    let acov: Vec<Vec<f64>> = chains.iter().map(|c| plan.autocovariance(c)).collect();
-    let mean_acov = |t: usize| acov.iter().map(|a| a[t]).sum::<f64>() / m as f64;
+    let refs: Vec<&[f64]> = chains.iter().map(|c| c.as_slice()).collect();
+    let acov = AcovPlan::new(n).mean_autocovariance(&refs);
+    let mean_acov = |t: usize| acov[t];
     let nf = n as f64;
     let chain_means: Vec<f64> = chains.iter().map(|c| c.iter().sum::<f64>() / nf).collect();
     // Mean within-chain variance W (denominator N - 1) and var+ = (N-1)/N W + B/N.

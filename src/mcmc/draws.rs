@@ -9,7 +9,7 @@ use ndarray_npy::WriteNpyExt;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::convergence::{diagnostics, ess_mean, quantile, Diagnostics};
+use super::convergence::{ensemble_diagnostics, ess_mean, quantile, Diagnostics};
 use super::ensemble::Ensemble;
 use crate::error::{Error, Result};
 use crate::io::write_atomic_with;
@@ -19,6 +19,8 @@ use crate::io::write_atomic_with;
 pub struct Draws {
     /// Chains (ensembles x walkers).
     pub n_chains: usize,
+    /// Walkers per ensemble (consecutive chains form one ensemble).
+    pub n_walkers: usize,
     /// Draws per chain.
     pub n_draws: usize,
     /// Parameters.
@@ -52,7 +54,8 @@ pub struct ParamSummary {
     pub q50: f64,
     /// 95% quantile.
     pub q95: f64,
-    /// R-hat and ESS.
+    /// R-hat (ensembles as chains) and ESS (walkers as chains); see
+    /// [`ensemble_diagnostics`](super::ensemble_diagnostics).
     pub diagnostics: Diagnostics,
 }
 
@@ -83,6 +86,7 @@ impl Draws {
         }
         Draws {
             n_chains,
+            n_walkers: w,
             n_draws,
             dim,
             n_pointwise: np,
@@ -161,7 +165,7 @@ impl Draws {
                     q05: quantile(&all, 0.05),
                     q50: quantile(&all, 0.5),
                     q95: quantile(&all, 0.95),
-                    diagnostics: diagnostics(&chains),
+                    diagnostics: ensemble_diagnostics(&chains, self.n_walkers),
                 }
             })
             .collect()

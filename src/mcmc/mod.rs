@@ -20,16 +20,17 @@
 //! threads (rayon parallelises over ensembles and over the walkers of a split).
 //!
 //! ## Chains for R-hat and ESS
-//! Every walker of every ensemble is treated as a chain (as ArviZ does for emcee). At
-//! stationarity the ensemble targets the product `pi^W`, so each walker's sequence has
-//! the target as marginal and the walkers at one step are independent; walkers of
-//! different ensembles are independent at all lags, so an ensemble stuck elsewhere
-//! shows in the between-chain variance. Within an ensemble, walker `j` at step `t+1`
-//! depends on walker `i` at step `t` through the proposal; Stan's ESS ignores such
-//! lagged cross-correlations, which can make it optimistic. Treating each ensemble as
-//! one chain would need a scalar per ensemble and step (e.g. the walker mean), whose
-//! quantiles are not the posterior's, so rank-normalised and tail diagnostics would
-//! lose their meaning.
+//! ESS (bulk and tail) treats every walker of every ensemble as a chain, as ArviZ does
+//! for emcee: at stationarity the ensemble targets the product `pi^W`, so each walker's
+//! sequence has the target as marginal and the walkers at one step are independent.
+//! Within an ensemble, walker `j` at step `t+1` depends on walker `i` at step `t`
+//! through the proposal; Stan's ESS ignores such lagged cross-correlations, and
+//! replicate runs showed the resulting Monte Carlo errors to be accurate to 10-30%
+//! (conservative). R-hat treats every *ensemble* as a chain (its walkers pooled, split
+//! in time): walker chains are short after burn-in and thinning, which biases split
+//! R-hat upward (see [`ensemble_diagnostics`]), while `K >= 4` independent ensembles
+//! still expose an ensemble that sits elsewhere. Stuck single walkers show in the
+//! per-walker acceptance fractions ([`Sampler::acceptance_fractions`]).
 //!
 //! ```
 //! use frfbayes::mcmc::{Ball, Burn, DensityFn, Moves, Sampler, SamplerConfig, Start};
@@ -56,7 +57,7 @@ mod sampler;
 
 pub use autocorr::{autocorrelation, integrated_time, TauEstimate};
 pub use convergence::{
-    diagnostics, ess_basic, ess_bulk, ess_mean, ess_tail, mcse_mean, rank_normalize, rhat,
+    diagnostics, ensemble_diagnostics, ess_basic, ess_bulk, ess_mean, ess_tail, mcse_mean, rank_normalize, rhat,
     rhat_basic, split_chains, Diagnostics,
 };
 pub use density::{DensityFn, LogDensity};
