@@ -9,6 +9,7 @@ use ndarray_npy::WriteNpyExt;
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::density::{checked_ln_density, LogDensity};
 use super::convergence::{ensemble_diagnostics, ess_mean, quantile, Diagnostics};
 use super::ensemble::Ensemble;
 use crate::error::{Error, Result};
@@ -169,6 +170,35 @@ impl Draws {
                 }
             })
             .collect()
+    }
+
+    /// Evaluates `density`'s pointwise log-likelihood at every draw (in parallel) and
+    /// stores it in [`Draws::pointwise`]. An alternative to `store_pointwise` when the
+    /// terms are many: storing them for every stored step costs
+    /// `steps / thin_by x walkers x terms` values, this only `draws x terms`.
+    pub fn compute_pointwise<D: LogDensity + ?Sized>(&mut self, density: &D) -> Result<()> {
+        let np = density.n_pointwise();
+        if np == 0 {
+            return Err(Error::Usage(
+                "the density gives no pointwise log-likelihood (n_pointwise() = 0)".into(),
+            ));
+        }
+        let rows: Vec<Result<Vec<f64>>> = self
+            .values
+            .par_chunks(self.dim)
+            .map(|theta| {
+                let mut pw = vec![0.0; np];
+                checked_ln_density(density, theta, &mut pw)?;
+                Ok(pw)
+            })
+            .collect();
+        let mut pointwise = Vec::with_capacity(rows.len() * np);
+        for r in rows {
+            pointwise.extend(r?);
+        }
+        self.pointwise = pointwise;
+        self.n_pointwise = np;
+        Ok(())
     }
 
     /// CSV with columns `chain, draw, <names...>, ln_density` (written atomically).

@@ -65,5 +65,5 @@ pub use draws::{Draws, ParamSummary};
 pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};
 pub use sampler::{
     Ball, Burn, CheckpointConfig, Progress, RunSummary, Sampler, SamplerConfig, Start,
-    StopReason, TauCheck, MIN_ENSEMBLES,
+    StopReason, TauCheck, MIN_DRAWS_PER_WALKER, MIN_ENSEMBLES,
 };

@@ -9,7 +9,9 @@
 //! Burn-in and thinning ([`Burn::Auto`]): discard the first half of the steps, and at
 //! least `ceil(2 max tau)` (Stan's and Gelman et al.'s convention; under the stopping rule
 //! the kept half is still longer than 25 tau), and keep every `max(1, floor(min tau / 2))`-th
-//! step. emcee's documentation discards only `2 max tau` ([`Burn::Tau`]); that assumes
+//! step, but keep at least [`MIN_DRAWS_PER_WALKER`] draws per walker (a judgement call:
+//! under the stopping rule, thinning by tau/2 would leave ~50 draws per walker, 25 per
+//! split half-chain, few lags for Geyer's ESS estimator to work with). emcee's documentation discards only `2 max tau` ([`Burn::Tau`]); that assumes
 //! the walkers started in the typical set: a seeded test on a 10-D Gaussian started
 //! from a tiny ball 16 sd away showed variances biased by 4-5 Monte Carlo standard
 //! errors after a `2 tau` burn-in, and none after discarding half.
@@ -30,6 +32,10 @@ use crate::error::{Error, Result};
 
 /// Fewest independent ensembles (R-hat compares them).
 pub const MIN_ENSEMBLES: usize = 4;
+
+/// [`Burn::Auto`] and [`Burn::Tau`] thin less when needed to keep this many draws per
+/// walker.
+pub const MIN_DRAWS_PER_WALKER: u64 = 100;
 
 /// Where and how often to write checkpoints.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -173,10 +179,10 @@ pub struct RunSummary {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Burn {
     /// Discard half the steps (at least `ceil(2 max tau)`), thin by
-    /// `max(1, floor(min tau / 2))`.
+    /// `max(1, floor(min tau / 2))` while keeping at least [`MIN_DRAWS_PER_WALKER`] draws.
     Auto,
     /// emcee's advice: discard `ceil(multiple * max tau)` steps (`multiple` = 2 in its
-    /// docs), thin by `max(1, floor(min tau / 2))`.
+    /// docs), thin as [`Burn::Auto`].
     Tau { multiple: f64 },
     /// Discard the first `discard` steps; keep every `thin`-th step (rounded down to a
     /// multiple of `thin_by`, at least one stored state).
@@ -436,7 +442,11 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
                     Burn::Tau { multiple } => (multiple * max).ceil() as u64,
                     _ => ((2.0 * max).ceil() as u64).max(self.step / 2),
                 };
-                (by_tau, ((0.5 * min).floor() as u64).max(1))
+                let kept_steps = self.step.saturating_sub(by_tau);
+                let thin = ((0.5 * min).floor() as u64)
+                    .min(kept_steps / MIN_DRAWS_PER_WALKER)
+                    .max(1);
+                (by_tau, thin)
             }
         };
         let first = (discard / thin_by) as usize;
