@@ -47,9 +47,16 @@ fn tau_of_ar1_chains_matches_theory() {
         let tau = (1.0 + rho) / (1.0 - rho);
         let m = est.window as f64;
         let sd = tau * (2.0 * (2.0 * m + 1.0) / (n * w) as f64).sqrt();
-        println!("rho {rho}: tau {tau} estimate {:.3} (window {m}, sd {sd:.3})", est.tau);
+        println!(
+            "rho {rho}: tau {tau} estimate {:.3} (window {m}, sd {sd:.3})",
+            est.tau
+        );
         assert!(est.window_found && est.is_reliable(n, 50.0));
-        assert!((est.tau - tau).abs() < 4.0 * sd, "rho {rho}: {} vs {tau}", est.tau);
+        assert!(
+            (est.tau - tau).abs() < 4.0 * sd,
+            "rho {rho}: {} vs {tau}",
+            est.tau
+        );
     }
 }
 
@@ -75,7 +82,10 @@ fn ess_of_ar1_matches_theory() {
     let expect = 200_000.0 / 3.0;
     for (name, ess) in [("mean", ess_mean(&chains)), ("bulk", ess_bulk(&chains))] {
         println!("ESS {name}: {ess:.0} vs {expect:.0}");
-        assert!((ess / expect - 1.0).abs() < 0.127, "{name}: {ess} vs {expect}");
+        assert!(
+            (ess / expect - 1.0).abs() < 0.127,
+            "{name}: {ess} vs {expect}"
+        );
     }
 }
 
@@ -91,8 +101,15 @@ fn rhat_and_ess_on_independent_draws() {
     let d: Diagnostics = diagnostics(&chains);
     println!("{d:?}");
     let s = 40_000.0;
-    assert!(d.rhat < 1.001 && d.rhat_bulk >= 0.999 && d.rhat_tail >= 0.999, "{d:?}");
-    for (name, ess) in [("bulk", d.ess_bulk), ("tail", d.ess_tail), ("mean", ess_mean(&chains))] {
+    assert!(
+        d.rhat < 1.001 && d.rhat_bulk >= 0.999 && d.rhat_tail >= 0.999,
+        "{d:?}"
+    );
+    for (name, ess) in [
+        ("bulk", d.ess_bulk),
+        ("tail", d.ess_tail),
+        ("mean", ess_mean(&chains)),
+    ] {
         assert!((ess / s - 1.0).abs() < 0.085, "{name} ESS {ess}");
     }
     assert_eq!(d.ess_tail, ess_tail(&chains));
@@ -146,7 +163,11 @@ fn ensemble_rhat_flags_a_displaced_ensemble() {
     let shifted: Vec<Vec<f64>> = chains
         .iter()
         .enumerate()
-        .map(|(i, c)| c.iter().map(|v| if i >= 48 { v + 1.0 } else { *v }).collect())
+        .map(|(i, c)| {
+            c.iter()
+                .map(|v| if i >= 48 { v + 1.0 } else { *v })
+                .collect()
+        })
         .collect();
     let d = ensemble_diagnostics(&shifted, 16);
     println!("displaced ensemble: {d:?}");

@@ -5,12 +5,12 @@
 
 mod mcmc_support;
 
+use frfbayes::mcmc::LogDensity;
 use frfbayes::mcmc::{
-    Ball, Burn, Complement, DifferentialEvolution, Move, Moves, Sampler, SamplerConfig,
-    Snooker, Start, StopReason, Stretch, Walk,
+    Ball, Burn, Complement, DifferentialEvolution, Move, Moves, Sampler, SamplerConfig, Snooker,
+    Start, StopReason, Stretch, Walk,
 };
 use mcmc_support::{check_gaussian_moments, Gaussian};
-use frfbayes::mcmc::LogDensity;
 use nalgebra::DVector;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -36,7 +36,11 @@ fn stationary_acceptance(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut draw = || -> Vec<f64> {
         let z = DVector::from_fn(DIM, |_, _| rng.sample(StandardNormal));
-        (&l * z).iter().zip(&target.mean).map(|(a, m)| a + m).collect()
+        (&l * z)
+            .iter()
+            .zip(&target.mean)
+            .map(|(a, m)| a + m)
+            .collect()
     };
     let (mut s, mut s2) = (0.0, 0.0);
     let mut prop_rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
@@ -103,7 +107,12 @@ fn run(moves: Moves, label: &str, seed: u64, max_steps: u64, hard_start: bool) -
         .collect();
     let n = per_walker.len() as f64;
     let acceptance = per_walker.iter().sum::<f64>() / n;
-    let sd = (per_walker.iter().map(|a| (a - acceptance).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    let sd = (per_walker
+        .iter()
+        .map(|a| (a - acceptance).powi(2))
+        .sum::<f64>()
+        / (n - 1.0))
+        .sqrt();
 
     let draws = sampler.draws(Burn::Auto).unwrap();
     let (worst_z, min_ess) = check_gaussian_moments(&draws, &target, label);
@@ -128,8 +137,14 @@ fn run(moves: Moves, label: &str, seed: u64, max_steps: u64, hard_start: bool) -
     println!(
         "{label}: {} after {} steps, max tau {:.1}, acceptance {:.4} +- {:.4}, worst |z| {:.2}, \
          min ESS {:.0}, max R-hat {:.4}",
-        out.stopped, out.steps, out.max_tau, out.acceptance, out.acceptance_se, out.worst_z,
-        out.min_ess, out.max_rhat
+        out.stopped,
+        out.steps,
+        out.max_tau,
+        out.acceptance,
+        out.acceptance_se,
+        out.worst_z,
+        out.min_ess,
+        out.max_rhat
     );
     out
 }
@@ -137,7 +152,8 @@ fn run(moves: Moves, label: &str, seed: u64, max_steps: u64, hard_start: bool) -
 /// Acceptance after burn-in vs the stationary expectation, within 4 combined standard
 /// errors.
 fn check_acceptance(out: &Outcome, mv: &dyn Move, label: &str) {
-    let (expect, se) = stationary_acceptance(&Gaussian::correlated(DIM), mv, WALKERS / 2, 100_000, 77);
+    let (expect, se) =
+        stationary_acceptance(&Gaussian::correlated(DIM), mv, WALKERS / 2, 100_000, 77);
     let tol = 4.0 * (se * se + out.acceptance_se * out.acceptance_se).sqrt();
     println!("{label}: stationary acceptance {expect:.4} +- {se:.4}; tolerance {tol:.4}");
     assert!(
@@ -158,7 +174,13 @@ fn check_converged(out: &Outcome, label: &str) {
 
 #[test]
 fn stretch_move_samples_the_correlated_gaussian_and_stops_by_emcee_rule() {
-    let out = run(Moves::single(Stretch::default()), "stretch", 1, 30_000, true);
+    let out = run(
+        Moves::single(Stretch::default()),
+        "stretch",
+        1,
+        30_000,
+        true,
+    );
     assert_eq!(out.stopped, StopReason::Converged);
     assert!(out.steps as f64 > 50.0 * out.max_tau);
     check_converged(&out, "stretch");

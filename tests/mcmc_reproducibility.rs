@@ -202,7 +202,9 @@ fn pointwise_terms_and_output_files() {
         for d in 0..draws.n_draws {
             let theta = draws.draw(c, d);
             let mut pw = [0.0; 6];
-            let lp = OK_DENSITY.ln_density_with_pointwise(theta, &mut pw).unwrap();
+            let lp = OK_DENSITY
+                .ln_density_with_pointwise(theta, &mut pw)
+                .unwrap();
             let k = c * draws.n_draws + d;
             assert_eq!(lp.to_bits(), draws.ln_density[k].to_bits());
             assert_eq!(bits(&pw), bits(&draws.pointwise[k * 6..(k + 1) * 6]));
@@ -268,7 +270,12 @@ fn bad_setups_are_clear_errors() {
 
     let mut c = config(10);
     c.n_walkers = 8;
-    let m = usage_error(Sampler::new(d, Moves::single(Walk { subset: Some(6) }), c, start()));
+    let m = usage_error(Sampler::new(
+        d,
+        Moves::single(Walk { subset: Some(6) }),
+        c,
+        start(),
+    ));
     assert!(m.contains("needs 6 complementary walkers"), "{m}");
 
     // Walkers on a line: rank 1.
@@ -277,7 +284,12 @@ fn bad_setups_are_clear_errors() {
         vec![1.0 + 0.01 * t, second + 0.02 * t, 0.1 * t, -0.02 * t]
     };
     let on_line: Vec<Vec<f64>> = (0..48).map(|i| line(i, 1.0)).collect();
-    let m = usage_error(Sampler::new(d, moves(), config(10), Start::Positions(on_line)));
+    let m = usage_error(Sampler::new(
+        d,
+        moves(),
+        config(10),
+        Start::Positions(on_line),
+    ));
     assert!(m.contains("degenerate"), "{m}");
     let constant: Vec<Vec<f64>> = (0..48)
         .map(|i| {
@@ -286,7 +298,12 @@ fn bad_setups_are_clear_errors() {
             p
         })
         .collect();
-    let m = usage_error(Sampler::new(d, moves(), config(10), Start::Positions(constant)));
+    let m = usage_error(Sampler::new(
+        d,
+        moves(),
+        config(10),
+        Start::Positions(constant),
+    ));
     assert!(m.contains("same value of parameter 1"), "{m}");
 
     let flat = Start::Ball(Ball {

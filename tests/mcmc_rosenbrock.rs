@@ -74,6 +74,9 @@ fn quadrature_reference_matches_the_closed_form() {
     }
 }
 
+/// A named expectation `E f` and its reference value.
+type Check = (&'static str, Box<dyn Fn(&[f64]) -> f64 + Sync>, f64);
+
 /// Runs the stretch move (K = 4 ensembles of `walkers`, stored every 10 steps) and
 /// checks R-hat and the moments; returns the run summary.
 fn sample_and_check(seed: u64, walkers: usize, max_steps: u64) -> frfbayes::mcmc::RunSummary {
@@ -102,7 +105,7 @@ fn sample_and_check(seed: u64, walkers: usize, max_steps: u64) -> frfbayes::mcmc
     }
     // Each expectation within 4 Monte Carlo standard errors (ESS-based; see z_score).
     let (mx, my) = (m[0], m[2]);
-    let checks: [(&str, Box<dyn Fn(&[f64]) -> f64 + Sync>, f64); 5] = [
+    let checks: [Check; 5] = [
         ("E x", Box::new(|v| v[0]), mx),
         ("Var x", Box::new(move |v| (v[0] - mx).powi(2)), m[1]),
         ("E y", Box::new(|v| v[1]), my),

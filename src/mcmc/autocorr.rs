@@ -8,18 +8,18 @@
 //! next even 5-smooth length). As the inverse FFT is linear, the walkers' normalised
 //! power spectra are summed first and transformed back once per parameter.
 
+use rayon::prelude::*;
 use realfft::num_complex::Complex;
 use realfft::RealFftPlanner;
-use rayon::prelude::*;
 
 /// Smallest even `m >= n` whose only prime factors are 2, 3 and 5.
 fn good_fft_size(n: usize) -> usize {
     let mut m = n.max(2);
     loop {
-        if m % 2 == 0 {
+        if m.is_multiple_of(2) {
             let mut r = m;
             for p in [2, 3, 5] {
-                while r % p == 0 {
+                while r.is_multiple_of(p) {
                     r /= p;
                 }
             }
@@ -217,9 +217,12 @@ impl TauEstimate {
 /// equal-length series (walkers), then Sokal's window with constant `c` (5 in emcee).
 ///
 /// ```
-/// // White noise has tau ~ 1.
+/// // White noise has tau = 1; with N = 4096 and window M ~ 5, sd(tau_hat) ~
+/// // sqrt(2 (2M + 1) / N) ~ 0.07 (Sokal), so 0.3 is a 4-sd tolerance.
 /// use frfbayes::mcmc::integrated_time;
-/// let x: Vec<f64> = (0..4096u64).map(|i| ((i * 2654435761) % 1000) as f64).collect();
+/// use rand::{RngExt, SeedableRng};
+/// let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+/// let x: Vec<f64> = (0..4096).map(|_| rng.random::<f64>()).collect();
 /// let t = integrated_time(&[&x[..]], 5.0);
 /// assert!((t.tau - 1.0).abs() < 0.3);
 /// ```
@@ -335,12 +338,16 @@ mod tests {
 
     #[test]
     fn fft_autocovariance_matches_the_direct_sum() {
-        let x: Vec<f64> = (0..37).map(|i| ((i * 7919) % 31) as f64 * 0.1 + (i as f64).sin()).collect();
+        let x: Vec<f64> = (0..37)
+            .map(|i| ((i * 7919) % 31) as f64 * 0.1 + (i as f64).sin())
+            .collect();
         let n = x.len();
         let mean = x.iter().sum::<f64>() / n as f64;
         let acov = AcovPlan::new(n).autocovariance(&x);
         for k in 0..n {
-            let direct: f64 = (0..n - k).map(|t| (x[t] - mean) * (x[t + k] - mean)).sum::<f64>()
+            let direct: f64 = (0..n - k)
+                .map(|t| (x[t] - mean) * (x[t + k] - mean))
+                .sum::<f64>()
                 / n as f64;
             assert!((acov[k] - direct).abs() < 1e-12, "lag {k}");
         }
@@ -357,13 +364,19 @@ mod tests {
         let all = [&a[..], &b[..], &c[..]];
         let mean = plan.mean_autocorrelation_with(3, &|i, out| out.copy_from_slice(all[i]));
         for k in 0..50 {
-            assert!((mean[k] - (ra[k] + rb[k] + 1.0) / 3.0).abs() < 1e-12, "lag {k}");
+            assert!(
+                (mean[k] - (ra[k] + rb[k] + 1.0) / 3.0).abs() < 1e-12,
+                "lag {k}"
+            );
         }
         assert_eq!(good_fft_size(2 * 37), 80);
         let mean_cov = plan.mean_autocovariance(&[&a, &b]);
         let (ca, cb) = (plan.autocovariance(&a), plan.autocovariance(&b));
         for k in 0..50 {
-            assert!((mean_cov[k] - (ca[k] + cb[k]) / 2.0).abs() < 1e-9, "lag {k}");
+            assert!(
+                (mean_cov[k] - (ca[k] + cb[k]) / 2.0).abs() < 1e-9,
+                "lag {k}"
+            );
         }
     }
 
@@ -371,14 +384,24 @@ mod tests {
     fn by_walker_matches_per_parameter() {
         // 3 walkers x 2 parameters, 64 steps.
         let x: Vec<Vec<f64>> = (0..6)
-            .map(|s| (0..64).map(|t| ((t * (s + 3) * 7919) % 101) as f64 + 0.1 * t as f64).collect())
+            .map(|s| {
+                (0..64)
+                    .map(|t| ((t * (s + 3) * 7919) % 101) as f64 + 0.1 * t as f64)
+                    .collect()
+            })
             .collect();
-        let taus = integrated_times_by_walker(64, 2, 3, &|i, block| {
-            for t in 0..64 {
-                block[t * 2] = x[2 * i][t];
-                block[t * 2 + 1] = x[2 * i + 1][t];
-            }
-        }, 5.0);
+        let taus = integrated_times_by_walker(
+            64,
+            2,
+            3,
+            &|i, block| {
+                for t in 0..64 {
+                    block[t * 2] = x[2 * i][t];
+                    block[t * 2 + 1] = x[2 * i + 1][t];
+                }
+            },
+            5.0,
+        );
         for d in 0..2 {
             let series: Vec<&[f64]> = (0..3).map(|i| x[2 * i + d].as_slice()).collect();
             let direct = integrated_time(&series, 5.0);

@@ -131,7 +131,9 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         let bad = |what: String| Error::invalid(path, what);
         if bytes.len() < 16 || &bytes[..8] != MAGIC {
-            return Err(bad("not a frfbayes MCMC checkpoint (bad magic bytes)".into()));
+            return Err(bad(
+                "not a frfbayes MCMC checkpoint (bad magic bytes)".into()
+            ));
         }
         let header_len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
         let body = bytes
@@ -187,12 +189,17 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
                 && r.walker_rngs.len() == w
                 && r.accepted.len() == w;
             if !ok {
-                return Err(bad(format!("ensemble {i}: state sizes do not match the settings")));
+                return Err(bad(format!(
+                    "ensemble {i}: state sizes do not match the settings"
+                )));
             }
             let n = r.n_stored;
-            let chain = read_f64s(&mut rest, n * w * dim).ok_or_else(|| bad(format!("ensemble {i}: truncated chain")))?;
-            let chain_ln_p = read_f64s(&mut rest, n * w).ok_or_else(|| bad(format!("ensemble {i}: truncated chain")))?;
-            let chain_pointwise = read_f64s(&mut rest, n * w * np).ok_or_else(|| bad(format!("ensemble {i}: truncated chain")))?;
+            let chain = read_f64s(&mut rest, n * w * dim)
+                .ok_or_else(|| bad(format!("ensemble {i}: truncated chain")))?;
+            let chain_ln_p = read_f64s(&mut rest, n * w)
+                .ok_or_else(|| bad(format!("ensemble {i}: truncated chain")))?;
+            let chain_pointwise = read_f64s(&mut rest, n * w * np)
+                .ok_or_else(|| bad(format!("ensemble {i}: truncated chain")))?;
             ensembles.push(Ensemble {
                 dim,
                 n_pointwise: np,

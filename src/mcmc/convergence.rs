@@ -62,15 +62,25 @@ pub fn diagnostics(chains: &[Vec<f64>]) -> Diagnostics {
 ///   spread within 10-30%, on the conservative side).
 pub fn ensemble_diagnostics(chains: &[Vec<f64>], walkers: usize) -> Diagnostics {
     assert!(
-        walkers > 0 && chains.len() % walkers == 0,
+        walkers > 0 && chains.len().is_multiple_of(walkers),
         "chains must come in whole ensembles"
     );
     let n = chains.first().map_or(0, |c| c.len());
     let half = n / 2;
     let mut split = Vec::with_capacity(2 * chains.len() / walkers);
     for group in chains.chunks(walkers) {
-        split.push(group.iter().flat_map(|c| c[..half].iter().copied()).collect());
-        split.push(group.iter().flat_map(|c| c[n - half..].iter().copied()).collect());
+        split.push(
+            group
+                .iter()
+                .flat_map(|c| c[..half].iter().copied())
+                .collect(),
+        );
+        split.push(
+            group
+                .iter()
+                .flat_map(|c| c[n - half..].iter().copied())
+                .collect(),
+        );
     }
     let (rhat_bulk, rhat_tail) = rhat_of_split(&split, chains);
     Diagnostics {
@@ -252,7 +262,10 @@ pub fn ess_basic(chains: &[Vec<f64>]) -> f64 {
     if m == 0 || n < 3 || chains.iter().flatten().any(|v| !v.is_finite()) {
         return f64::NAN;
     }
-    assert!(chains.iter().all(|c| c.len() == n), "chains must have equal lengths");
+    assert!(
+        chains.iter().all(|c| c.len() == n),
+        "chains must have equal lengths"
+    );
     let total = (m * n) as f64;
     if is_constant(chains) {
         return total;

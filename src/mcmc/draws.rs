@@ -9,8 +9,8 @@ use ndarray_npy::WriteNpyExt;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::density::{checked_ln_density, LogDensity};
 use super::convergence::{ensemble_diagnostics, ess_mean, quantile, Diagnostics};
+use super::density::{checked_ln_density, LogDensity};
 use super::ensemble::Ensemble;
 use crate::error::{Error, Result};
 use crate::io::write_atomic_with;
@@ -230,8 +230,9 @@ impl Draws {
 
     /// `.npy` of the draws, shape `(chain, draw, dim)`.
     pub fn write_npy(&self, path: &Path) -> Result<()> {
-        let a = Array3::from_shape_vec((self.n_chains, self.n_draws, self.dim), self.values.clone())
-            .map_err(|e| Error::Numerical(e.to_string()))?;
+        let a =
+            Array3::from_shape_vec((self.n_chains, self.n_draws, self.dim), self.values.clone())
+                .map_err(|e| Error::Numerical(e.to_string()))?;
         write_npy_atomic(path, |w| a.write_npy(w))
     }
 

@@ -247,7 +247,7 @@ fn check_full_rank(index: usize, positions: &[f64], n_walkers: usize, dim: usize
     }
     let cov = centred.transpose() * &centred / (n_walkers as f64 - 1.0);
     let sd: Vec<f64> = (0..dim).map(|i| cov[(i, i)].sqrt()).collect();
-    if let Some(i) = sd.iter().position(|s| !(*s > 0.0)) {
+    if let Some(i) = sd.iter().position(|s| s.is_nan() || *s <= 0.0) {
         return Err(Error::Usage(format!(
             "ensemble {index}: all initial walkers have the same value of parameter {i}; \
              give it a positive spread"
@@ -256,7 +256,7 @@ fn check_full_rank(index: usize, positions: &[f64], n_walkers: usize, dim: usize
     let corr = nalgebra::DMatrix::from_fn(dim, dim, |i, j| cov[(i, j)] / (sd[i] * sd[j]));
     let eig = corr.symmetric_eigenvalues();
     let (lo, hi) = (eig.min(), eig.max());
-    if !(lo > 1e-10 * hi) {
+    if lo.is_nan() || lo <= 1e-10 * hi {
         return Err(Error::Usage(format!(
             "ensemble {index}: the initial walkers are degenerate (correlation eigenvalues \
              from {lo:.3e} to {hi:.3e}); they must span all {dim} dimensions"

@@ -57,13 +57,13 @@ mod sampler;
 
 pub use autocorr::{autocorrelation, integrated_time, TauEstimate};
 pub use convergence::{
-    diagnostics, ensemble_diagnostics, ess_basic, ess_bulk, ess_mean, ess_tail, mcse_mean, rank_normalize, rhat,
-    rhat_basic, split_chains, Diagnostics,
+    diagnostics, ensemble_diagnostics, ess_basic, ess_bulk, ess_mean, ess_tail, mcse_mean,
+    rank_normalize, rhat, rhat_basic, split_chains, Diagnostics,
 };
 pub use density::{DensityFn, LogDensity};
 pub use draws::{Draws, ParamSummary};
 pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};
 pub use sampler::{
-    Ball, Burn, CheckpointConfig, Progress, RunSummary, Sampler, SamplerConfig, Start,
+    Ball, Burn, CheckpointConfig, Progress, ProgressFn, RunSummary, Sampler, SamplerConfig, Start,
     StopReason, TauCheck, MIN_DRAWS_PER_WALKER, MIN_ENSEMBLES,
 };

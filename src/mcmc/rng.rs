@@ -42,9 +42,8 @@ pub(crate) struct RngState {
 
 impl RngState {
     pub(crate) fn of(rng: &ChaCha8Rng) -> Result<Self> {
-        let word_pos = u64::try_from(rng.get_word_pos()).map_err(|_| {
-            Error::Numerical("random stream position exceeds 2^64 words".into())
-        })?;
+        let word_pos = u64::try_from(rng.get_word_pos())
+            .map_err(|_| Error::Numerical("random stream position exceeds 2^64 words".into()))?;
         Ok(RngState {
             key: rng.get_seed(),
             stream: rng.get_stream(),

@@ -160,6 +160,10 @@ pub struct Progress<'a> {
     pub n_evaluations: u64,
 }
 
+/// The progress callback of [`Sampler::run`]: called after every step; returning
+/// `ControlFlow::Break(())` stops the run (a checkpoint is written when configured).
+pub type ProgressFn<'a> = dyn FnMut(&Progress) -> ControlFlow<()> + 'a;
+
 /// Outcome of [`Sampler::run`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RunSummary {
@@ -256,10 +260,7 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
     /// Steps until converged, the step cap, or the callback returns `Break`; writes
     /// checkpoints on the way and at the end when configured. Calling `run` again (or
     /// after [`Sampler::set_max_steps`]) continues the same chain.
-    pub fn run(
-        &mut self,
-        mut progress: Option<&mut dyn FnMut(&Progress) -> ControlFlow<()>>,
-    ) -> Result<RunSummary> {
+    pub fn run(&mut self, mut progress: Option<&mut ProgressFn<'_>>) -> Result<RunSummary> {
         if let Some(why) = &self.failed {
             return Err(Error::Usage(format!(
                 "the sampler failed earlier ({why}); resume from a checkpoint"
@@ -273,9 +274,10 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
                 self.failed = Some(e.to_string());
                 return Err(e);
             }
-            let converged = self.step % self.config.check_every == 0 && self.check_convergence();
+            let converged =
+                self.step.is_multiple_of(self.config.check_every) && self.check_convergence();
             if let Some(cp) = &self.config.checkpoint {
-                if self.step % cp.every_steps == 0 {
+                if self.step.is_multiple_of(cp.every_steps) {
                     self.save_checkpoint(&cp.path)?;
                 }
             }
@@ -294,7 +296,11 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
         Ok(RunSummary {
             stopped_because: reason,
             steps: self.step,
-            tau_steps: self.history.last().map(|h| h.tau_steps.clone()).unwrap_or_default(),
+            tau_steps: self
+                .history
+                .last()
+                .map(|h| h.tau_steps.clone())
+                .unwrap_or_default(),
             acceptance: self.acceptance(),
             n_evaluations: self.n_evaluations(),
         })
@@ -310,7 +316,7 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;
         self.step += 1;
-        if self.step % self.config.thin_by == 0 {
+        if self.step.is_multiple_of(self.config.thin_by) {
             self.ensembles.iter_mut().for_each(Ensemble::store);
         }
         Ok(())
@@ -407,7 +413,8 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
     /// Acceptance fraction of all walkers together.
     pub fn acceptance(&self) -> f64 {
         let acc: u64 = self.ensembles.iter().flat_map(|e| &e.accepted).sum();
-        acc as f64 / (self.step.max(1) * (self.config.n_ensembles * self.config.n_walkers) as u64) as f64
+        acc as f64
+            / (self.step.max(1) * (self.config.n_ensembles * self.config.n_walkers) as u64) as f64
     }
 
     /// Current positions, ensemble-major then walker, `dim` each.
@@ -469,7 +476,11 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
     }
 }
 
-pub(super) fn validate<D: LogDensity + ?Sized>(density: &D, moves: &Moves, c: &SamplerConfig) -> Result<()> {
+pub(super) fn validate<D: LogDensity + ?Sized>(
+    density: &D,
+    moves: &Moves,
+    c: &SamplerConfig,
+) -> Result<()> {
     let dim = density.dim();
     if dim == 0 {
         return Err(Error::Usage("the density has no parameters".into()));
@@ -491,13 +502,19 @@ pub(super) fn validate<D: LogDensity + ?Sized>(density: &D, moves: &Moves, c: &S
         )));
     }
     if c.check_every == 0 || c.thin_by == 0 {
-        return Err(Error::Usage("check_every and thin_by must be at least 1".into()));
+        return Err(Error::Usage(
+            "check_every and thin_by must be at least 1".into(),
+        ));
     }
     if c.checkpoint.as_ref().is_some_and(|cp| cp.every_steps == 0) {
-        return Err(Error::Usage("checkpoint every_steps must be at least 1".into()));
+        return Err(Error::Usage(
+            "checkpoint every_steps must be at least 1".into(),
+        ));
     }
     if !(c.tau_multiple > 0.0 && c.tau_rel_change > 0.0) {
-        return Err(Error::Usage("tau_multiple and tau_rel_change must be positive".into()));
+        return Err(Error::Usage(
+            "tau_multiple and tau_rel_change must be positive".into(),
+        ));
     }
     for m in moves.iter() {
         let splits = m.n_splits();
