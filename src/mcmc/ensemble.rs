@@ -111,7 +111,6 @@ impl Ensemble {
 
     /// Builds ensemble `index` as `center + scale ⊙ N(0, I)` per walker, each walker
     /// drawing from its own stream.
-    #[allow(clippy::too_many_arguments)]
     pub fn from_ball<D: LogDensity + ?Sized>(
         density: &D,
         key: [u8; 32],

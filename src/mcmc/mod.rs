@@ -54,6 +54,7 @@ mod ensemble;
 mod moves;
 mod rng;
 mod sampler;
+mod spec;
 
 pub use autocorr::{autocorrelation, integrated_time, TauEstimate};
 pub use convergence::{
@@ -67,3 +68,4 @@ pub use sampler::{
     Ball, Burn, CheckpointConfig, Progress, ProgressFn, RunSummary, Sampler, SamplerConfig, Start,
     StopReason, TauCheck, MIN_DRAWS_PER_WALKER, MIN_ENSEMBLES,
 };
+pub use spec::{MoveSpec, WeightedMove};

@@ -46,31 +46,67 @@ pub struct CheckpointConfig {
     pub every_steps: u64,
 }
 
-/// Sampler settings. `SamplerConfig::new(n_walkers, seed)` gives the defaults.
+/// Sampler settings. `SamplerConfig::new(n_walkers, seed)` gives the defaults, and so
+/// does deserialising (e.g. from TOML) with only `n_walkers` and `seed` given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SamplerConfig {
     /// Walkers per ensemble (>= 2 x dim).
     pub n_walkers: usize,
     /// Independent ensembles (>= 4; default 4).
+    #[serde(default = "defaults::n_ensembles")]
     pub n_ensembles: usize,
     /// Master seed: all random streams derive from it.
     pub seed: u64,
-    /// Step cap.
+    /// Step cap (default 100 000).
+    #[serde(default = "defaults::max_steps")]
     pub max_steps: u64,
     /// Steps between convergence checks (default 100, as in emcee's example).
+    #[serde(default = "defaults::check_every")]
     pub check_every: u64,
     /// Chain must be longer than this many tau (default 50).
+    #[serde(default = "defaults::tau_multiple")]
     pub tau_multiple: f64,
     /// Largest relative change of tau between checks (default 0.01).
+    #[serde(default = "defaults::tau_rel_change")]
     pub tau_rel_change: f64,
     /// Store every this many steps (default 1).
+    #[serde(default = "defaults::one")]
     pub thin_by: u64,
     /// Shuffle walkers between splits every step (emcee's default, true).
+    #[serde(default = "defaults::yes")]
     pub randomize_split: bool,
-    /// Store the density's pointwise log-likelihood with the chain.
+    /// Store the density's pointwise log-likelihood with the chain (default false; see
+    /// also [`Draws::compute_pointwise`]).
+    #[serde(default)]
     pub store_pointwise: bool,
-    /// Periodic checkpoints.
+    /// Periodic checkpoints (default none).
+    #[serde(default)]
     pub checkpoint: Option<CheckpointConfig>,
+}
+
+mod defaults {
+    pub fn n_ensembles() -> usize {
+        super::MIN_ENSEMBLES
+    }
+    pub fn max_steps() -> u64 {
+        100_000
+    }
+    pub fn check_every() -> u64 {
+        100
+    }
+    pub fn tau_multiple() -> f64 {
+        50.0
+    }
+    pub fn tau_rel_change() -> f64 {
+        0.01
+    }
+    pub fn one() -> u64 {
+        1
+    }
+    pub fn yes() -> bool {
+        true
+    }
 }
 
 impl SamplerConfig {
@@ -78,12 +114,12 @@ impl SamplerConfig {
     pub fn new(n_walkers: usize, seed: u64) -> Self {
         SamplerConfig {
             n_walkers,
-            n_ensembles: MIN_ENSEMBLES,
+            n_ensembles: defaults::n_ensembles(),
             seed,
-            max_steps: 100_000,
-            check_every: 100,
-            tau_multiple: 50.0,
-            tau_rel_change: 0.01,
+            max_steps: defaults::max_steps(),
+            check_every: defaults::check_every(),
+            tau_multiple: defaults::tau_multiple(),
+            tau_rel_change: defaults::tau_rel_change(),
             thin_by: 1,
             randomize_split: true,
             store_pointwise: false,
