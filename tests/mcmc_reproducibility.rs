@@ -339,6 +339,8 @@ fn nan_density_stops_the_run_with_a_numerical_error() {
         other => panic!("expected a numerical error, got {other:?}"),
     }
     assert!(usage_error(s.run(None)).contains("failed earlier"));
+    let dir = tempfile::tempdir().unwrap();
+    assert!(usage_error(s.save_checkpoint(&dir.path().join("x"))).contains("failed run"));
 }
 
 #[test]

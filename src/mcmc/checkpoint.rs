@@ -66,8 +66,14 @@ fn unbits(v: &[u64]) -> Vec<f64> {
 }
 
 impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
-    /// Writes the full state to `path` atomically.
+    /// Writes the full state to `path` atomically. Refused after a failed step (the
+    /// state may be half-updated; resume from the previous checkpoint instead).
     pub fn save_checkpoint(&self, path: &Path) -> Result<()> {
+        if let Some(why) = &self.failed {
+            return Err(Error::Usage(format!(
+                "not saving a checkpoint of a failed run ({why})"
+            )));
+        }
         let header = Header {
             format_version: FORMAT_VERSION,
             crate_version: env!("CARGO_PKG_VERSION").into(),

@@ -317,13 +317,15 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
                     self.save_checkpoint(&cp.path)?;
                 }
             }
+            let interrupted = match progress.as_deref_mut() {
+                Some(cb) => cb(&self.progress()).is_break(),
+                None => false,
+            };
             if converged {
                 break StopReason::Converged;
             }
-            if let Some(cb) = progress.as_deref_mut() {
-                if cb(&self.progress()).is_break() {
-                    break StopReason::Interrupted;
-                }
+            if interrupted {
+                break StopReason::Interrupted;
             }
         };
         if let Some(cp) = &self.config.checkpoint {
@@ -415,6 +417,18 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
     /// Changes the step cap (e.g. to extend a resumed run).
     pub fn set_max_steps(&mut self, max_steps: u64) {
         self.config.max_steps = max_steps;
+    }
+
+    /// Changes where (and whether) checkpoints are written, e.g. after resuming from a
+    /// moved file.
+    pub fn set_checkpoint(&mut self, checkpoint: Option<CheckpointConfig>) -> Result<()> {
+        if checkpoint.as_ref().is_some_and(|cp| cp.every_steps == 0) {
+            return Err(Error::Usage(
+                "checkpoint every_steps must be at least 1".into(),
+            ));
+        }
+        self.config.checkpoint = checkpoint;
+        Ok(())
     }
 
     /// Steps done.
