@@ -57,9 +57,9 @@ pub fn diagnostics(chains: &[Vec<f64>]) -> Diagnostics {
 ///   on well-converged output. Pooling the walkers of an ensemble makes each chain long;
 ///   independent ensembles still compare as independent chains (cf. nested R-hat,
 ///   Margossian et al. 2024, superchains of subchains).
-/// - ESS is Stan's multi-chain ESS over the walker chains (it needs time series; it was
-///   checked against replicate runs: estimated Monte Carlo errors matched the observed
-///   spread within 10-30%, on the conservative side).
+/// - ESS is Stan's multi-chain ESS over the walker chains (it needs time series); over
+///   100 replicate runs the ESS-based standard errors matched the observed spread of the
+///   estimates to within 5% (`tests/mcmc_thorough.rs`).
 pub fn ensemble_diagnostics(chains: &[Vec<f64>], walkers: usize) -> Diagnostics {
     assert!(
         walkers > 0 && chains.len().is_multiple_of(walkers),

@@ -24,9 +24,9 @@
 //! for emcee: at stationarity the ensemble targets the product `pi^W`, so each walker's
 //! sequence has the target as marginal and the walkers at one step are independent.
 //! Within an ensemble, walker `j` at step `t+1` depends on walker `i` at step `t`
-//! through the proposal; Stan's ESS ignores such lagged cross-correlations, and
-//! replicate runs showed the resulting Monte Carlo errors to be accurate to 10-30%
-//! (conservative). R-hat treats every *ensemble* as a chain (its walkers pooled, split
+//! through the proposal; Stan's ESS ignores such lagged cross-correlations, yet over
+//! 100 replicate runs on a correlated 10-D Gaussian the ESS-based standard errors
+//! matched the spread of the estimates (ratios 0.95 and 1.03; `tests/mcmc_thorough.rs`). R-hat treats every *ensemble* as a chain (its walkers pooled, split
 //! in time): walker chains are short after burn-in and thinning, which biases split
 //! R-hat upward (see [`ensemble_diagnostics`]), while `K >= 4` independent ensembles
 //! still expose an ensemble that sits elsewhere. Stuck single walkers show in the
