@@ -24,6 +24,8 @@ enum Command {
     Repro(cli::repro::ReproArgs),
     /// Run an experiment file (experiments/<name>.toml).
     Run(cli::repro::RunArgs),
+    /// Sample the posterior of masses, stiffnesses and damping given a campaign's FRFs.
+    Sample(cli::sample::Args),
     /// Simulate a campaign with known truth from a model file.
     Simulate(cli::simulate::Args),
 }
@@ -36,6 +38,7 @@ fn main() -> std::process::ExitCode {
         Command::Modes(a) => cli::modes::run(a),
         Command::Repro(a) => cli::repro::repro(a),
         Command::Run(a) => cli::repro::run(a),
+        Command::Sample(a) => cli::sample::run(a),
         Command::Simulate(a) => cli::simulate::run(a),
     };
     match result {
