@@ -60,7 +60,10 @@ pub struct Problem {
     weights: Vec<f64>,
     options: ObjectiveOptions,
     n_modes: usize,
-    has_sigma: bool,
+    /// The caller's `|H^E|` and sigmas, kept so the problem can be written out
+    /// exactly ([`Problem::spec`]).
+    measured: Vec<f64>,
+    sigma: Option<Vec<f64>>,
 }
 
 /// Per-thread scratch memory of a [`Problem`].
@@ -166,7 +169,7 @@ impl Problem {
         let target = if log {
             data.magnitude.iter().map(|v| v.ln()).collect()
         } else {
-            data.magnitude
+            data.magnitude.clone()
         };
         Ok(Problem {
             model,
@@ -176,7 +179,8 @@ impl Problem {
             weights,
             options,
             n_modes,
-            has_sigma: data.sigma.is_some(),
+            measured: data.magnitude,
+            sigma: data.sigma,
         })
     }
 
@@ -202,7 +206,15 @@ impl Problem {
     }
     /// True when the caller gave per-point sigmas (residuals are then standardised).
     pub fn is_weighted(&self) -> bool {
-        self.has_sigma
+        self.sigma.is_some()
+    }
+    /// The measured magnitudes `|H^E|` as given (long-vector order).
+    pub fn measured(&self) -> &[f64] {
+        &self.measured
+    }
+    /// The per-point sigmas as given, if any.
+    pub fn sigma(&self) -> Option<&[f64]> {
+        self.sigma.as_deref()
     }
     /// Per-point factor the raw difference is multiplied by (`1/sigma_k`, or
     /// `1/RMS(|H^E|)` for unweighted magnitude residuals, or 1).
