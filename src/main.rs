@@ -20,6 +20,8 @@ enum Command {
     Frf(cli::frf::Args),
     /// Print the nominal natural frequencies and mode shapes of a campaign's model.
     Modes(cli::modes::Args),
+    /// Timed multistart updating of saved problems (ProblemSpec JSON files).
+    Multistart(cli::multistart::Args),
     /// Simulate a campaign with known truth from a model file.
     Simulate(cli::simulate::Args),
 }
@@ -30,6 +32,7 @@ fn main() -> std::process::ExitCode {
         Command::Check(a) => cli::check::run(a),
         Command::Frf(a) => cli::frf::run(a),
         Command::Modes(a) => cli::modes::run(a),
+        Command::Multistart(a) => cli::multistart::run(a),
         Command::Simulate(a) => cli::simulate::run(a),
     };
     match result {

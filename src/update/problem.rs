@@ -350,8 +350,10 @@ impl Problem {
             let f = if log { w / *h } else { w };
             *h = if f.is_finite() { f } else { 0.0 };
         }
-        for c in columns.iter().flatten() {
-            for (x, f) in jac.column_mut(*c).iter_mut().zip(mag.iter()) {
+        let n_rows = jac.nrows();
+        for &c in columns.iter().flatten() {
+            let col = &mut jac.as_mut_slice()[c * n_rows..(c + 1) * n_rows];
+            for (x, f) in col.iter_mut().zip(mag.iter()) {
                 *x *= f;
             }
         }
@@ -401,9 +403,12 @@ impl LeastSquaresProblem for Problem {
         self.variables.from_internal(z, &mut ws.theta);
         self.jacobian_into(&ws.theta, &ws.columns, &mut ws.sens, &mut ws.mag, jac)?;
         self.variables.chain_factors(&ws.theta, &mut ws.factors);
+        let n_rows = jac.nrows();
         for (c, &f) in ws.factors.iter().enumerate() {
             if f != 1.0 {
-                jac.column_mut(c).scale_mut(f);
+                for x in &mut jac.as_mut_slice()[c * n_rows..(c + 1) * n_rows] {
+                    *x *= f;
+                }
             }
         }
         Ok(())

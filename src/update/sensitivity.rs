@@ -23,7 +23,6 @@ use crate::frf::{Excitation, FrfBlock};
 use crate::modal::Modes;
 use crate::model::{Damping, StructuralModel};
 use nalgebra::{DMatrix, DVector};
-use num_complex::Complex64;
 
 /// Relative gap below which two eigenvalues count as repeated (derivatives of the
 /// modes are then undefined).
@@ -35,13 +34,23 @@ pub(crate) struct SensitivityWorkspace {
     dlam: Vec<f64>,
     dphi: Vec<f64>,
     dgam: Vec<f64>,
-    poles: Vec<Complex64>,
-    poles2: Vec<Complex64>,
+    /// `1 / D_i` and `1 / D_i^2` per block, mode-major (`i * nw + k`).
+    pole_re: Vec<f64>,
+    pole_im: Vec<f64>,
+    pole2_re: Vec<f64>,
+    pole2_im: Vec<f64>,
     coef: Vec<f64>,
     dcoef: Vec<f64>,
     c: Vec<f64>,
     dc_dlam: Vec<f64>,
-    b: Vec<Complex64>,
+    /// Per pair and frequency: `g = omega^p conj(S) / |S|`.
+    g_re: Vec<f64>,
+    g_im: Vec<f64>,
+    /// Per pair, mode-major: `u = Re(g / D)`, `x = Re(g / D^2) - dc/dlambda y`,
+    /// `y = omega Im(g / D^2)`.
+    u: Vec<f64>,
+    x: Vec<f64>,
+    y: Vec<f64>,
 }
 
 /// Mode-shape, eigenvalue and participation derivatives for every structural variable
@@ -121,6 +130,13 @@ fn eigen_derivatives(
 /// `modes` are all modes at `(alpha, beta)` (from `Modes::solve(.., None)`), of which
 /// the first `m` enter the sums; `mass` is `M(beta)`. Column `columns[v]` of `jac`
 /// receives `d|H|/d theta_v` (variables mapped to `None` are skipped).
+///
+/// With `g = omega^p conj(S) / |S|`, `d|H| = Re(g dS)` splits into real per-mode
+/// frequency arrays, so every column is a short sum of contiguous `axpy`s:
+/// - structural `p`: `sum_i da_pi Re(g/D_i) - dlambda_pi a_i [Re(g/D_i^2) -
+///   dc_i/dlambda_i omega Im(g/D_i^2)]`;
+/// - damping `d`: `sum_i a_i dc_i/dd omega Im(g/D_i^2)` (from `dS = -j omega sum_i a_i
+///   dc_i / D_i^2`, and `Re(-j z) = Im(z)`).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn magnitude_jacobian(
     model: &StructuralModel,
@@ -148,17 +164,38 @@ pub(crate) fn magnitude_jacobian(
             .dc_dlam
             .extend(omega_n.iter().zip(xi).map(|(w, x)| x / w)),
     }
+    let n_rows = jac.nrows();
     let n_d = columns.len() - n_s;
     let mut row = 0;
     for block in blocks {
-        let nw = block.omega_rad_s.len();
-        ws.poles.clear();
-        ws.poles2.clear();
-        for &w in &block.omega_rad_s {
-            for (wn, c) in omega_n.iter().zip(&ws.c) {
-                let p = Complex64::new(wn * wn - w * w, c * w).inv();
-                ws.poles.push(p);
-                ws.poles2.push(p * p);
+        let omega = &block.omega_rad_s[..];
+        let nw = omega.len();
+        for v in [
+            &mut ws.pole_re,
+            &mut ws.pole_im,
+            &mut ws.pole2_re,
+            &mut ws.pole2_im,
+            &mut ws.u,
+            &mut ws.x,
+            &mut ws.y,
+        ] {
+            v.resize(m * nw, 0.0);
+        }
+        ws.g_re.resize(nw, 0.0);
+        ws.g_im.resize(nw, 0.0);
+        for (i, (&wn, &c)) in omega_n.iter().zip(&ws.c).enumerate() {
+            let range = i * nw..(i + 1) * nw;
+            let (pr, pi) = (&mut ws.pole_re[range.clone()], &mut ws.pole_im[range.clone()]);
+            let (qr, qi) = (&mut ws.pole2_re[range.clone()], &mut ws.pole2_im[range]);
+            for k in 0..nw {
+                let w = omega[k];
+                let (re, im) = (wn * wn - w * w, c * w);
+                let inv = 1.0 / (re * re + im * im);
+                let (a, b) = (re * inv, -im * inv);
+                pr[k] = a;
+                pi[k] = b;
+                qr[k] = a * a - b * b;
+                qi[k] = 2.0 * a * b;
             }
         }
         for pair in &block.pairs {
@@ -186,59 +223,85 @@ pub(crate) fn magnitude_jacobian(
                     };
                 }
             }
-            let power = pair.kind.power();
-            for k in 0..nw {
-                let w = block.omega_rad_s[k];
-                let poles = &ws.poles[k * m..(k + 1) * m];
-                let poles2 = &ws.poles2[k * m..(k + 1) * m];
-                let mut s = Complex64::new(0.0, 0.0);
-                for (p, &a) in poles.iter().zip(&ws.coef) {
-                    s += p * a;
+            // S = sum_i a_i / D_i, |H| = omega^p |S|, g = omega^p conj(S) / |S|.
+            let (g_re, g_im) = (&mut ws.g_re[..nw], &mut ws.g_im[..nw]);
+            g_re.fill(0.0);
+            g_im.fill(0.0);
+            for (i, &a) in ws.coef.iter().enumerate() {
+                let (pr, pi) = (&ws.pole_re[i * nw..(i + 1) * nw], &ws.pole_im[i * nw..(i + 1) * nw]);
+                for k in 0..nw {
+                    g_re[k] += a * pr[k];
+                    g_im[k] += a * pi[k];
                 }
-                let fac = w.powi(power);
-                let s_abs = s.norm();
-                mag[row] = fac * s_abs;
-                // d|H| = Re(g dS) with g = omega^p conj(S) / |S|.
-                let g = if s_abs > 0.0 {
-                    s.conj() * (fac / s_abs)
-                } else {
-                    Complex64::new(0.0, 0.0)
-                };
-                // B_i = a_i / D_i^2 (1 + j omega dc_i/dlambda_i).
-                ws.b.clear();
-                for ((q, a), dc) in poles2.iter().zip(&ws.coef).zip(&ws.dc_dlam) {
-                    ws.b.push(q * a * Complex64::new(1.0, w * dc));
-                }
-                for (p, col) in columns[..n_s].iter().enumerate() {
-                    let Some(col) = *col else { continue };
-                    let (dcoef, dlam) =
-                        (&ws.dcoef[p * m..(p + 1) * m], &ws.dlam[p * m..(p + 1) * m]);
-                    let mut ds = Complex64::new(0.0, 0.0);
-                    for (((pole, b), da), dl) in poles.iter().zip(&ws.b).zip(dcoef).zip(dlam) {
-                        ds += pole * da - b * dl;
-                    }
-                    jac[(row, col)] = (g * ds).re;
-                }
-                // Damping variables: dS = -sum_i a_i / D_i^2 j omega dc_i/dd.
-                for (d, col) in columns[n_s..].iter().enumerate().take(n_d) {
-                    let Some(col) = *col else { continue };
-                    let ds = match damping {
-                        Damping::Rayleigh { .. } => {
-                            let mut acc = Complex64::new(0.0, 0.0);
-                            for ((q, a), wn) in poles2.iter().zip(&ws.coef).zip(omega_n) {
-                                let dc = if d == 0 { 1.0 } else { wn * wn };
-                                acc += q * (a * dc);
-                            }
-                            acc
-                        }
-                        Damping::Caughey { .. } => poles2[d] * (ws.coef[d] * 2.0 * omega_n[d]),
-                    };
-                    // -j omega ds
-                    let ds = Complex64::new(0.0, -w) * ds;
-                    jac[(row, col)] = (g * ds).re;
-                }
-                row += 1;
             }
+            let power = pair.kind.power();
+            let out = &mut mag[row..row + nw];
+            for k in 0..nw {
+                let fac = match power {
+                    0 => 1.0,
+                    1 => omega[k],
+                    _ => omega[k] * omega[k],
+                };
+                let s_abs = (g_re[k] * g_re[k] + g_im[k] * g_im[k]).sqrt();
+                out[k] = fac * s_abs;
+                let h = if s_abs > 0.0 { fac / s_abs } else { 0.0 };
+                g_re[k] *= h;
+                g_im[k] *= -h;
+            }
+            for i in 0..m {
+                let range = i * nw..(i + 1) * nw;
+                let (pr, pi) = (&ws.pole_re[range.clone()], &ws.pole_im[range.clone()]);
+                let (qr, qi) = (&ws.pole2_re[range.clone()], &ws.pole2_im[range.clone()]);
+                let dc = ws.dc_dlam[i];
+                let (u, x, y) = (
+                    &mut ws.u[range.clone()],
+                    &mut ws.x[range.clone()],
+                    &mut ws.y[range],
+                );
+                for k in 0..nw {
+                    let (gr, gi) = (g_re[k], g_im[k]);
+                    u[k] = gr * pr[k] - gi * pi[k];
+                    let yk = omega[k] * (gr * qi[k] + gi * qr[k]);
+                    x[k] = gr * qr[k] - gi * qi[k] - dc * yk;
+                    y[k] = yk;
+                }
+            }
+            for (p, col) in columns[..n_s].iter().enumerate() {
+                let Some(col) = *col else { continue };
+                let dst = &mut jac.as_mut_slice()[col * n_rows + row..col * n_rows + row + nw];
+                dst.fill(0.0);
+                for i in 0..m {
+                    let cu = ws.dcoef[p * m + i];
+                    let cx = -ws.dlam[p * m + i] * ws.coef[i];
+                    let (u, x) = (&ws.u[i * nw..(i + 1) * nw], &ws.x[i * nw..(i + 1) * nw]);
+                    for k in 0..nw {
+                        dst[k] += cu * u[k] + cx * x[k];
+                    }
+                }
+            }
+            for (d, col) in columns[n_s..].iter().enumerate().take(n_d) {
+                let Some(col) = *col else { continue };
+                let dst = &mut jac.as_mut_slice()[col * n_rows + row..col * n_rows + row + nw];
+                dst.fill(0.0);
+                // dc_i / d(damping variable d).
+                let modes_d = match damping {
+                    Damping::Rayleigh { .. } => 0..m,
+                    Damping::Caughey { .. } => d..d + 1,
+                };
+                for i in modes_d {
+                    let dc = match damping {
+                        Damping::Rayleigh { .. } if d == 0 => 1.0,
+                        Damping::Rayleigh { .. } => omega_n[i] * omega_n[i],
+                        Damping::Caughey { .. } => 2.0 * omega_n[i],
+                    };
+                    let cy = ws.coef[i] * dc;
+                    let y = &ws.y[i * nw..(i + 1) * nw];
+                    for k in 0..nw {
+                        dst[k] += cy * y[k];
+                    }
+                }
+            }
+            row += nw;
         }
     }
     Ok(())

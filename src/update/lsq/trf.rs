@@ -5,7 +5,7 @@
 //! trust-region step, its reflection off the first bound hit, and the scaled
 //! steepest-descent step. Iterates stay strictly inside the box.
 
-use super::linalg::{householder_qr, norm, solve_trust_region, svd_descending};
+use super::linalg::{dot, householder_qr, norm, solve_trust_region, svd_descending};
 use super::step::{
     check_termination, cl_scaling, make_strictly_feasible, select_step, update_radius, Scratch,
 };
@@ -383,14 +383,19 @@ impl Trf {
     ) -> Result<()> {
         problem.jacobian(&st.x, ws, &mut st.jac)?;
         st.n_jacobians += 1;
-        if st.jac.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Numerical("Jacobian is not finite".into()));
-        }
+        let m = st.jac.nrows();
         for (j, g) in st.g.iter_mut().enumerate() {
-            let col = st.jac.column(j);
-            *g = col.iter().zip(&st.f).map(|(a, b)| a * b).sum();
+            let col = &st.jac.as_slice()[j * m..(j + 1) * m];
+            // A non-finite entry makes the sum of squares non-finite.
+            let cn2 = dot(col, col);
+            if !cn2.is_finite() {
+                return Err(Error::Numerical(format!(
+                    "Jacobian column {j} is not finite (or its norm overflows)"
+                )));
+            }
+            *g = dot(col, &st.f);
             if self.options.x_scale == XScale::Jacobian {
-                let cn = col.norm();
+                let cn = cn2.sqrt();
                 let inv = if st.n_jacobians == 1 {
                     cn
                 } else {
