@@ -2,7 +2,7 @@
 //! analytical and measured FRF magnitudes over the long vector (Eqs. 18-19, 23), with
 //! the eigen-constraint (22b) enforced by solving the modes at every evaluation.
 
-use super::sensitivity::{magnitude_jacobian, SensitivityWorkspace};
+use super::sensitivity::{magnitude_jacobian, RowScale, SensitivityWorkspace};
 use super::variables::{DampingModel, Variables, VariablesConfig};
 use crate::error::{Error, Result};
 use crate::frf::{FrfBlock, ModalFrf};
@@ -332,6 +332,10 @@ impl Problem {
     ) -> Result<()> {
         let (modes, mass) = self.modes(theta)?;
         let (_, _, damping) = self.variables.split(theta);
+        let rows = RowScale {
+            weights: &self.weights,
+            log: self.options.residual == ResidualForm::LogMagnitude,
+        };
         magnitude_jacobian(
             &self.model,
             &mass,
@@ -339,24 +343,12 @@ impl Problem {
             self.n_modes,
             &damping,
             self.frf.blocks(),
+            rows,
             columns,
             sens,
             mag,
             jac,
         )?;
-        // Row factors dr_k/d|H_k|, written over the magnitudes.
-        let log = self.options.residual == ResidualForm::LogMagnitude;
-        for (h, &w) in mag.iter_mut().zip(&self.weights) {
-            let f = if log { w / *h } else { w };
-            *h = if f.is_finite() { f } else { 0.0 };
-        }
-        let n_rows = jac.nrows();
-        for &c in columns.iter().flatten() {
-            let col = &mut jac.as_mut_slice()[c * n_rows..(c + 1) * n_rows];
-            for (x, f) in col.iter_mut().zip(mag.iter()) {
-                *x *= f;
-            }
-        }
         Ok(())
     }
 

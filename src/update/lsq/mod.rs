@@ -15,6 +15,7 @@
 
 mod linalg;
 mod multistart;
+mod qr;
 mod step;
 mod trf;
 

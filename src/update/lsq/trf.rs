@@ -5,7 +5,8 @@
 //! trust-region step, its reflection off the first bound hit, and the scaled
 //! steepest-descent step. Iterates stay strictly inside the box.
 
-use super::linalg::{dot, householder_qr, norm, solve_trust_region, svd_descending};
+use super::linalg::{norm, solve_trust_region, svd_descending};
+use super::qr::{dot, householder_qr};
 use super::step::{
     check_termination, cl_scaling, make_strictly_feasible, select_step, update_radius, Scratch,
 };
@@ -383,17 +384,21 @@ impl Trf {
     ) -> Result<()> {
         problem.jacobian(&st.x, ws, &mut st.jac)?;
         st.n_jacobians += 1;
-        let m = st.jac.nrows();
+        st.f_work.copy_from_slice(&st.f);
+        householder_qr(&mut st.jac, &mut st.f_work, &mut st.r, &mut st.qtf);
+        // J = Q R: the columns of J and R have the same norms, and J^T f = R^T (Q^T f)
+        // over R's n rows. A non-finite Jacobian entry spreads into R.
+        let n = st.r.nrows();
         for (j, g) in st.g.iter_mut().enumerate() {
-            let col = &st.jac.as_slice()[j * m..(j + 1) * m];
-            // A non-finite entry makes the sum of squares non-finite.
+            // Column j of the upper-triangular R (n x n): rows 0..=j.
+            let col = &st.r.as_slice()[j * n..j * n + j + 1];
             let cn2 = dot(col, col);
-            if !cn2.is_finite() {
+            *g = dot(col, &st.qtf);
+            if !(cn2.is_finite() && g.is_finite()) {
                 return Err(Error::Numerical(format!(
                     "Jacobian column {j} is not finite (or its norm overflows)"
                 )));
             }
-            *g = dot(col, &st.f);
             if self.options.x_scale == XScale::Jacobian {
                 let cn = cn2.sqrt();
                 let inv = if st.n_jacobians == 1 {
@@ -405,8 +410,6 @@ impl Trf {
                 st.scale[j] = 1.0 / st.scale_inv[j];
             }
         }
-        st.f_work.copy_from_slice(&st.f);
-        householder_qr(&mut st.jac, &mut st.f_work, &mut st.r, &mut st.qtf);
         Ok(())
     }
 
