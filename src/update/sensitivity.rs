@@ -218,9 +218,11 @@ fn combine(dst: &mut [f64], scale: &[f64], cu: &[f64], u: &[f64], cx: &[f64], x:
                 acc[t] += a * ui[t] + b * xi[t];
             }
         }
-        for ((d, a), sc) in dst[k..k + W].iter_mut().zip(&acc).zip(&scale[k..k + W]) {
-            *d = a * sc;
+        let sc = &scale[k..k + W];
+        for t in 0..W {
+            acc[t] *= sc[t];
         }
+        dst[k..k + W].copy_from_slice(&acc);
         k += W;
     }
     for (kk, d) in dst.iter_mut().enumerate().skip(k) {
