@@ -65,10 +65,17 @@ fn problem_file_round_trip_is_exact() {
         ..Default::default()
     };
     for theta in start_points(&p, &opts).unwrap() {
-        let (a, b) = (p.residuals_at(&theta).unwrap(), q.residuals_at(&theta).unwrap());
+        let (a, b) = (
+            p.residuals_at(&theta).unwrap(),
+            q.residuals_at(&theta).unwrap(),
+        );
         assert!(a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()));
     }
-    std::fs::write(&path, "{\"format\": \"frfbayes-problem/1\",\n \"model\": 3}").unwrap();
+    std::fs::write(
+        &path,
+        "{\"format\": \"frfbayes-problem/1\",\n \"model\": 3}",
+    )
+    .unwrap();
     let e = ProblemSpec::read(&path).unwrap_err().to_string();
     assert!(e.contains("p.json") && e.contains("line 2"), "{e}");
 }
@@ -110,10 +117,9 @@ fn multistart_command_reports_update_and_exports_its_starts() {
     };
     for r in reports {
         let name = r["name"].as_str().unwrap();
-        let p = Problem::from_spec(
-            &ProblemSpec::read(&problems.join(format!("{name}.json"))).unwrap(),
-        )
-        .unwrap();
+        let p =
+            Problem::from_spec(&ProblemSpec::read(&problems.join(format!("{name}.json"))).unwrap())
+                .unwrap();
         // The reported best is a point of this objective with this cost.
         let theta: Vec<f64> = serde_json::from_value(r["theta"].clone()).unwrap();
         let cost = r["best_cost"].as_f64().unwrap();
@@ -121,12 +127,10 @@ fn multistart_command_reports_update_and_exports_its_starts() {
         assert!(r["n_at_best"].as_u64().unwrap() >= 1);
         // The exported starts are update()'s, with residuals of this objective.
         let starts: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(dir.path().join(format!("out/{name}.starts.json")))
-                .unwrap(),
+            &std::fs::read_to_string(dir.path().join(format!("out/{name}.starts.json"))).unwrap(),
         )
         .unwrap();
-        let theta0: Vec<Vec<f64>> =
-            serde_json::from_value(starts["starts_theta"].clone()).unwrap();
+        let theta0: Vec<Vec<f64>> = serde_json::from_value(starts["starts_theta"].clone()).unwrap();
         assert_eq!(theta0, start_points(&p, &opts).unwrap());
         let check = &starts["checks"][1];
         let t: Vec<f64> = serde_json::from_value(check["theta"].clone()).unwrap();
@@ -135,7 +139,8 @@ fn multistart_command_reports_update_and_exports_its_starts() {
     }
     // Start files in the problem folder are not problems.
     std::fs::copy(
-        dir.path().join("out/hammer-receptance-rayleigh.starts.json"),
+        dir.path()
+            .join("out/hammer-receptance-rayleigh.starts.json"),
         problems.join("hammer-receptance-rayleigh.starts.json"),
     )
     .unwrap();
@@ -159,7 +164,10 @@ fn multistart_command_reports_update_and_exports_its_starts() {
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success() && stderr.contains("zz.json"), "{stderr}");
+    assert!(
+        !out.status.success() && stderr.contains("zz.json"),
+        "{stderr}"
+    );
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
 

@@ -13,6 +13,13 @@
 //! frfbayes multistart --problems results/paper_repro/problems --starts 64 --seed 0 \
 //!     --out results/paper_repro/speed/rust.json
 //! ```
+//!
+//! The side-by-side speed comparison with scipy runs this command itself:
+//!
+//! ```text
+//! python3 paper_repro/scipy_multistart.py --problems results/paper_repro/problems \
+//!     --starts 64 --seed 0 --report results/paper_repro/speed/scipy_vs_rust
+//! ```
 
 use anyhow::Context;
 use frfbayes::update::{
@@ -121,7 +128,9 @@ fn problem_files(dir: &Path, skip: Option<&Path>) -> anyhow::Result<Vec<PathBuf>
     let skip = skip.and_then(|p| p.canonicalize().ok());
     let mut files = Vec::new();
     for e in entries {
-        let path = e.with_context(|| format!("cannot list {}", dir.display()))?.path();
+        let path = e
+            .with_context(|| format!("cannot list {}", dir.display()))?
+            .path();
         let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("");
         if !name.ends_with(".json") || name.ends_with(".starts.json") {
             continue;
@@ -227,7 +236,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("{}: updating failed", file.display()))?;
         let wall_s = t.elapsed().as_secs_f64();
 
-        let fits: Vec<_> = result.starts.iter().filter_map(|s| s.fit.as_ref().ok()).collect();
+        let fits: Vec<_> = result
+            .starts
+            .iter()
+            .filter_map(|s| s.fit.as_ref().ok())
+            .collect();
         reports.push(ProblemReport {
             name,
             file: file.clone(),
@@ -269,7 +282,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             for r in &report.problems {
                 println!(
                     "{:<28} {:>7} {:>4} {:>9.3} {:>12.5e} {:>5}/{}",
-                    r.name, r.n_residuals, r.n_free, r.wall_s, r.best_cost, r.n_at_best, args.starts
+                    r.name,
+                    r.n_residuals,
+                    r.n_free,
+                    r.wall_s,
+                    r.best_cost,
+                    r.n_at_best,
+                    args.starts
                 );
             }
             println!(

@@ -180,7 +180,9 @@ pub(crate) fn magnitude_jacobian(
             )
         };
     }
-    magnitude_jacobian_body(model, mass, modes, m, damping, blocks, rows, columns, ws, mag, jac)
+    magnitude_jacobian_body(
+        model, mass, modes, m, damping, blocks, rows, columns, ws, mag, jac,
+    )
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -199,7 +201,9 @@ unsafe fn magnitude_jacobian_avx2(
     mag: &mut [f64],
     jac: &mut DMatrix<f64>,
 ) -> Result<()> {
-    magnitude_jacobian_body(model, mass, modes, m, damping, blocks, rows, columns, ws, mag, jac)
+    magnitude_jacobian_body(
+        model, mass, modes, m, damping, blocks, rows, columns, ws, mag, jac,
+    )
 }
 
 /// `dst[k] = scale_k sum_i (cu_i u[i nw + k] + cx_i x[i nw + k])` with `nw =
@@ -289,7 +293,10 @@ fn magnitude_jacobian_body(
         ws.rf.resize(nw, 0.0);
         for (i, (&wn, &c)) in omega_n.iter().zip(&ws.c).enumerate() {
             let range = i * nw..(i + 1) * nw;
-            let (pr, pi) = (&mut ws.pole_re[range.clone()], &mut ws.pole_im[range.clone()]);
+            let (pr, pi) = (
+                &mut ws.pole_re[range.clone()],
+                &mut ws.pole_im[range.clone()],
+            );
             let (qr, qi) = (&mut ws.pole2_re[range.clone()], &mut ws.pole2_im[range]);
             for k in 0..nw {
                 let w = omega[k];
@@ -332,7 +339,10 @@ fn magnitude_jacobian_body(
             g_re.fill(0.0);
             g_im.fill(0.0);
             for (i, &a) in ws.coef.iter().enumerate() {
-                let (pr, pi) = (&ws.pole_re[i * nw..(i + 1) * nw], &ws.pole_im[i * nw..(i + 1) * nw]);
+                let (pr, pi) = (
+                    &ws.pole_re[i * nw..(i + 1) * nw],
+                    &ws.pole_im[i * nw..(i + 1) * nw],
+                );
                 for k in 0..nw {
                     g_re[k] += a * pr[k];
                     g_im[k] += a * pi[k];
@@ -381,7 +391,14 @@ fn magnitude_jacobian_body(
                 for ((cx, dl), a) in ws.cx.iter_mut().zip(&ws.dlam[p * m..]).zip(&ws.coef) {
                     *cx = -dl * a;
                 }
-                combine(dst, &ws.rf[..nw], &ws.dcoef[p * m..(p + 1) * m], u, &ws.cx, x);
+                combine(
+                    dst,
+                    &ws.rf[..nw],
+                    &ws.dcoef[p * m..(p + 1) * m],
+                    u,
+                    &ws.cx,
+                    x,
+                );
             }
             for (d, col) in columns[n_s..].iter().enumerate().take(n_d) {
                 let Some(col) = *col else { continue };
@@ -419,7 +436,10 @@ mod tests {
     fn vector_paths_agree_bit_for_bit() {
         let model =
             StructuralModel::shear_frame(&[4.64, 4.7, 4.6], &[1019.0, 1217.0, 1420.0]).unwrap();
-        let (k, mass) = (model.stiffness(&[0.05, -0.02, 0.1]), model.mass(&[0.01, 0.0, -0.03]));
+        let (k, mass) = (
+            model.stiffness(&[0.05, -0.02, 0.1]),
+            model.mass(&[0.01, 0.0, -0.03]),
+        );
         let modes = Modes::solve(&k, &mass, model.ground_influence(), None).unwrap();
         // 37 frequencies: four 8-wide chunks and a remainder.
         let omega_rad_s = (1..=37).map(|i| 1.3 * i as f64).collect();
@@ -441,8 +461,7 @@ mod tests {
                 xi: vec![0.01, 0.02, 0.005],
             },
         ] {
-            let columns: Vec<Option<usize>> =
-                (0..6 + damping.n_params()).map(Some).collect();
+            let columns: Vec<Option<usize>> = (0..6 + damping.n_params()).map(Some).collect();
             let run = |dispatched: bool| {
                 let mut ws = SensitivityWorkspace::default();
                 let mut mag = vec![0.0; 74];
@@ -458,15 +477,18 @@ mod tests {
                     log: true,
                 };
                 f(
-                    &model, &mass, &modes, 3, &damping, &blocks, rows, &columns, &mut ws,
-                    &mut mag, &mut jac,
+                    &model, &mass, &modes, 3, &damping, &blocks, rows, &columns, &mut ws, &mut mag,
+                    &mut jac,
                 )
                 .unwrap();
                 (mag, jac)
             };
             let ((m1, j1), (m2, j2)) = (run(true), run(false));
             assert!(m1.iter().zip(&m2).all(|(a, b)| a.to_bits() == b.to_bits()));
-            assert!(j1.iter().zip(j2.iter()).all(|(a, b)| a.to_bits() == b.to_bits()));
+            assert!(j1
+                .iter()
+                .zip(j2.iter())
+                .all(|(a, b)| a.to_bits() == b.to_bits()));
             assert!(j1.iter().all(|v| v.is_finite()) && j1.amax() > 0.0);
         }
     }

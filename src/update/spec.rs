@@ -351,7 +351,11 @@ mod tests {
         let len = 2 * 40 + 35;
         // Irrational-looking values so every float exercises the round trip.
         let magnitude: Vec<f64> = (0..len).map(|k| (1.0 + k as f64).sqrt() / 7.0).collect();
-        let sigma = sigma.then(|| (0..len).map(|k| 0.01 + (k as f64).sin().abs() / 3.0).collect());
+        let sigma = sigma.then(|| {
+            (0..len)
+                .map(|k| 0.01 + (k as f64).sin().abs() / 3.0)
+                .collect()
+        });
         let mut config = VariablesConfig::default();
         config.fixed.insert("m1".into(), 1.0 / 30.0);
         config.initial.insert("k2".into(), 0.1 / 3.0);
@@ -377,7 +381,10 @@ mod tests {
         let starts = start_points(a, &opts).unwrap();
         assert_eq!(starts, start_points(b, &opts).unwrap());
         for theta in &starts {
-            let (ra, rb) = (a.residuals_at(theta).unwrap(), b.residuals_at(theta).unwrap());
+            let (ra, rb) = (
+                a.residuals_at(theta).unwrap(),
+                b.residuals_at(theta).unwrap(),
+            );
             assert!(ra.iter().zip(&rb).all(|(x, y)| x.to_bits() == y.to_bits()));
         }
         assert_eq!(a.variables().variables(), b.variables().variables());

@@ -3,8 +3,8 @@
 //! MINPACK and scipy's `solve_lsq_trust_region`), and the one-dimensional helpers of the
 //! reflective step selection. Everything after the QR works on `n x n` data.
 
-use crate::error::{Error, Result};
 use super::qr::dot;
+use crate::error::{Error, Result};
 use nalgebra::{DMatrix, SVD};
 
 /// Thin SVD of a small matrix, singular values descending: returns `(s, U, V)` with
@@ -116,7 +116,6 @@ fn mat_vec_scaled(v: &DMatrix<f64>, coef: impl Fn(usize) -> f64, out: &mut [f64]
 pub(crate) fn norm(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
 }
-
 
 /// Largest `t >= 0` keeping `x + t s` inside the box, and for each variable whether
 /// that bound is the one hit (sign of `s`), like scipy's `step_size_to_bound`.

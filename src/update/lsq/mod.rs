@@ -20,8 +20,8 @@ mod step;
 mod trf;
 
 pub use multistart::{
-    latin_hypercube, multistart, multistart_from, start_points, MultistartOptions, MultistartResult,
-    StartOutcome,
+    latin_hypercube, multistart, multistart_from, start_points, MultistartOptions,
+    MultistartResult, StartOutcome,
 };
 pub use trf::{Solution, Termination, Trf, TrfOptions, TrfState, XScale};
 

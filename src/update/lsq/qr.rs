@@ -233,7 +233,9 @@ pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn dot_avx2(a: &[f64], b: &[f64]) -> f64 {
-    use std::arch::x86_64::{_mm256_add_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_setzero_pd, _mm256_storeu_pd};
+    use std::arch::x86_64::{
+        _mm256_add_pd, _mm256_loadu_pd, _mm256_mul_pd, _mm256_setzero_pd, _mm256_storeu_pd,
+    };
     const LANES: usize = 16;
     let n = a.len().min(b.len());
     let chunks = n / LANES;
@@ -298,7 +300,10 @@ mod tests {
         for (m, n) in [(103, 7), (1500, 7)] {
             let (a0, f0) = tall(m, n);
             let ((r1, q1), (r2, q2)) = (qr(&a0, &f0, true), qr(&a0, &f0, false));
-            assert!(r1.iter().zip(r2.iter()).all(|(x, y)| x.to_bits() == y.to_bits()));
+            assert!(r1
+                .iter()
+                .zip(r2.iter())
+                .all(|(x, y)| x.to_bits() == y.to_bits()));
             assert!(q1.iter().zip(&q2).all(|(x, y)| x.to_bits() == y.to_bits()));
         }
         let (_, f0) = tall(1001, 1);
@@ -335,7 +340,11 @@ mod tests {
             .unwrap();
         let atf = a0.transpose() * DVector::from_vec(f0.clone());
         let x_ne = ata.lu().solve(&(-atf)).unwrap();
-        assert!((&x_qr - &x_ne).amax() < 1e-11 * x_ne.amax(), "{}", (x_qr - x_ne).amax());
+        assert!(
+            (&x_qr - &x_ne).amax() < 1e-11 * x_ne.amax(),
+            "{}",
+            (x_qr - x_ne).amax()
+        );
         // ||f||^2 = ||qtf||^2 + ||residual||^2 at the minimiser.
         let res = &a0 * &x_qr + DVector::from_vec(f0.clone());
         let lhs: f64 = f0.iter().map(|v| v * v).sum();
@@ -387,5 +396,4 @@ mod tests {
         assert_eq!(qtf[2], 0.0);
         assert!((qtf[0].powi(2) + qtf[1].powi(2) - 2.0).abs() < 1e-12);
     }
-
 }
