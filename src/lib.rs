@@ -28,6 +28,7 @@
 
 pub mod discrepancy;
 pub mod error;
+pub mod experiment;
 pub mod frf;
 pub mod io;
 pub mod mcmc;

@@ -97,14 +97,19 @@ pub fn modal_frf(modes: &Modes, modal_c: &[f64], pair: &FrfPair, omega_rad_s: f6
 }
 
 /// Fast modal-sum evaluator for a fixed set of blocks (the long vectors of Eqs. 18-19).
-/// Holds its scratch buffers, so evaluation does not allocate.
+/// Holds its scratch buffers, so evaluation does not allocate after the first call.
+///
+/// Layout for speed: the pole table `1 / (omega_i^2 - omega_k^2 + j c_i omega_k)` is
+/// stored mode-major as separate real and imaginary arrays, and each pair's modal sum
+/// accumulates over modes into per-frequency arrays, so the inner loops vectorise.
 #[derive(Debug, Clone)]
 pub struct ModalFrf {
     blocks: Vec<FrfBlock>,
     len: usize,
-    /// `1 / (omega_i^2 - omega_k^2 + j c_i omega_k)`, frequency-major.
-    poles: Vec<Complex64>,
-    coef: Vec<f64>,
+    pole_re: Vec<f64>,
+    pole_im: Vec<f64>,
+    acc_re: Vec<f64>,
+    acc_im: Vec<f64>,
 }
 
 impl ModalFrf {
@@ -118,8 +123,10 @@ impl ModalFrf {
         ModalFrf {
             blocks,
             len,
-            poles: Vec::new(),
-            coef: Vec::new(),
+            pole_re: Vec::new(),
+            pole_im: Vec::new(),
+            acc_re: Vec::new(),
+            acc_im: Vec::new(),
         }
     }
 
@@ -169,41 +176,50 @@ impl ModalFrf {
         Ok(())
     }
 
-    /// Visits every block with its pole table filled, calling `emit(block, pair, k, h)`
-    /// with the receptance-type modal sum (before the `(j omega)^p` factor).
+    /// Visits every pair of every block with its receptance-type modal sum (before the
+    /// `(j omega)^p` factor) in `acc_re`/`acc_im`, calling `emit(offset, pair, omega, re, im)`.
     #[inline]
     fn for_each(
         &mut self,
         modes: &Modes,
         modal_c: &[f64],
-        mut emit: impl FnMut(usize, &FrfPair, usize, f64, Complex64),
+        mut emit: impl FnMut(usize, &FrfPair, &[f64], &[f64], &[f64]),
     ) {
         let m = modes.n_modes();
         let mut offset = 0;
         for block in &self.blocks {
-            let nw = block.omega_rad_s.len();
-            self.poles.clear();
-            for &w in &block.omega_rad_s {
-                for (&wn, &c) in modes.omega_rad_s.iter().zip(modal_c) {
+            let omega = &block.omega_rad_s;
+            let nw = omega.len();
+            self.pole_re.resize(m * nw, 0.0);
+            self.pole_im.resize(m * nw, 0.0);
+            self.acc_re.resize(nw, 0.0);
+            self.acc_im.resize(nw, 0.0);
+            for (i, (&wn, &c)) in modes.omega_rad_s.iter().zip(modal_c).enumerate() {
+                let pre = &mut self.pole_re[i * nw..(i + 1) * nw];
+                let pim = &mut self.pole_im[i * nw..(i + 1) * nw];
+                for ((pr, pi), &w) in pre.iter_mut().zip(pim.iter_mut()).zip(omega) {
                     let re = wn * wn - w * w;
                     let im = c * w;
                     let inv = 1.0 / (re * re + im * im);
-                    self.poles.push(Complex64::new(re * inv, -im * inv));
+                    *pr = re * inv;
+                    *pi = -im * inv;
                 }
             }
             for pair in &block.pairs {
-                self.coef.clear();
-                self.coef
-                    .extend((0..m).map(|i| modal_coefficient(modes, pair, i)));
-                for (k, &w) in block.omega_rad_s.iter().enumerate() {
-                    let poles = &self.poles[k * m..(k + 1) * m];
-                    let mut h = Complex64::new(0.0, 0.0);
-                    for (p, &c) in poles.iter().zip(&self.coef) {
-                        h.re += c * p.re;
-                        h.im += c * p.im;
+                self.acc_re.fill(0.0);
+                self.acc_im.fill(0.0);
+                for i in 0..m {
+                    let c = modal_coefficient(modes, pair, i);
+                    let pre = &self.pole_re[i * nw..(i + 1) * nw];
+                    let pim = &self.pole_im[i * nw..(i + 1) * nw];
+                    for (a, p) in self.acc_re.iter_mut().zip(pre) {
+                        *a += c * p;
                     }
-                    emit(offset, pair, k, w, h);
+                    for (a, p) in self.acc_im.iter_mut().zip(pim) {
+                        *a += c * p;
+                    }
                 }
+                emit(offset, pair, omega, &self.acc_re, &self.acc_im);
                 offset += nw;
             }
         }
@@ -212,8 +228,11 @@ impl ModalFrf {
     /// Complex FRFs into `out` (length [`Self::len`]).
     pub fn complex(&mut self, modes: &Modes, modal_c: &[f64], out: &mut [Complex64]) -> Result<()> {
         self.check(modes, modal_c, out.len())?;
-        self.for_each(modes, modal_c, |offset, pair, k, w, h| {
-            out[offset + k] = h * pair.kind.factor(w);
+        self.for_each(modes, modal_c, |offset, pair, omega, re, im| {
+            let dst = &mut out[offset..offset + omega.len()];
+            for (((o, &w), &r), &i) in dst.iter_mut().zip(omega).zip(re).zip(im) {
+                *o = Complex64::new(r, i) * pair.kind.factor(w);
+            }
         });
         Ok(())
     }
@@ -221,8 +240,17 @@ impl ModalFrf {
     /// FRF magnitudes (Eq. 17) into `out` (length [`Self::len`]).
     pub fn magnitudes(&mut self, modes: &Modes, modal_c: &[f64], out: &mut [f64]) -> Result<()> {
         self.check(modes, modal_c, out.len())?;
-        self.for_each(modes, modal_c, |offset, pair, k, w, h| {
-            out[offset + k] = h.norm() * w.powi(pair.kind.power());
+        self.for_each(modes, modal_c, |offset, pair, omega, re, im| {
+            let dst = &mut out[offset..offset + omega.len()];
+            let p = pair.kind.power();
+            for (((o, &w), &r), &i) in dst.iter_mut().zip(omega).zip(re).zip(im) {
+                let scale = match p {
+                    0 => 1.0,
+                    1 => w,
+                    _ => w * w,
+                };
+                *o = (r * r + i * i).sqrt() * scale;
+            }
         });
         Ok(())
     }

@@ -2,6 +2,7 @@
 //! atomic output files, and result tables.
 
 pub mod atomic;
+pub mod bundled;
 mod campaign;
 pub mod frf_csv;
 mod types;

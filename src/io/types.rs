@@ -114,4 +114,7 @@ pub struct Campaign {
     pub title: String,
     pub nominal: NominalModel,
     pub tests: Vec<Test>,
+    /// What the reader ignored (unknown keys, stray files), one message each, naming the
+    /// file relative to `root`. Empty when built in memory.
+    pub warnings: Vec<String>,
 }

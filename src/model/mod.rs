@@ -277,11 +277,14 @@ fn story_matrix(n: usize, r: usize, k: f64) -> DMatrix<f64> {
 }
 
 fn check_symmetric(what: &str, m: &DMatrix<f64>) -> Result<()> {
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Model(format!("{what} has non-finite entries")));
+    }
     let scale = m.amax().max(f64::MIN_POSITIVE);
     for i in 0..m.nrows() {
         for j in 0..i {
             let d = (m[(i, j)] - m[(j, i)]).abs();
-            if !(d <= SYMMETRY_RTOL * scale) {
+            if d > SYMMETRY_RTOL * scale {
                 return Err(Error::Model(format!(
                     "{what} is not symmetric: entry ({},{}) = {} but ({},{}) = {}",
                     i + 1,
@@ -293,9 +296,6 @@ fn check_symmetric(what: &str, m: &DMatrix<f64>) -> Result<()> {
                 )));
             }
         }
-    }
-    if m.iter().any(|v| !v.is_finite()) {
-        return Err(Error::Model(format!("{what} has non-finite entries")));
     }
     Ok(())
 }

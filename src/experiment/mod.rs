@@ -1,0 +1,13 @@
+//! Experiments as configuration files: one TOML in `experiments/` per study, run by
+//! `frfbayes run experiments/<name>.toml`; `frfbayes repro` is
+//! `experiments/paper_repro.toml` with its defaults.
+
+pub mod config;
+pub mod pipeline;
+pub mod runinfo;
+pub mod tables;
+
+pub use config::ExperimentConfig;
+pub mod figures;
+pub mod report;
+pub mod driver;

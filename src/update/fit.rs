@@ -1,0 +1,104 @@
+//! Multistart updating of a [`Problem`] (the paper's MATLAB `MultiStart` +
+//! `lsqnonlin`), reported in physical variables.
+
+use super::lsq::{multistart, Active, MultistartOptions, Termination};
+use super::problem::Problem;
+use crate::error::Result;
+
+/// One local fit in physical variables.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fit {
+    /// `theta` (full layout; fixed variables at their values).
+    pub theta: Vec<f64>,
+    /// Physical values for the tables: k (N/m), m (kg), damping as is.
+    pub physical: Vec<f64>,
+    /// `0.5 ||r||^2` of the problem's residuals.
+    pub cost: f64,
+    /// Per variable of `theta`: which bound it ends on (`Free` for fixed variables).
+    pub active: Vec<Active>,
+    pub termination: Termination,
+    pub n_evaluations: usize,
+    pub n_jacobians: usize,
+    pub n_iterations: usize,
+}
+
+/// One start of a multistart run.
+#[derive(Debug)]
+pub struct StartFit {
+    /// Start point `theta`.
+    pub start: Vec<f64>,
+    pub fit: Result<Fit>,
+}
+
+/// The result of [`update`].
+#[derive(Debug)]
+pub struct UpdateResult {
+    /// Variable names in `theta` order.
+    pub names: Vec<String>,
+    /// Units of [`Fit::physical`].
+    pub units: Vec<String>,
+    /// Index of the best start.
+    pub best_index: usize,
+    /// The best fit.
+    pub best: Fit,
+    /// Starts that reached the best minimum (see [`MultistartOptions::best_cost_rtol`]).
+    pub n_at_best: usize,
+    /// Every start, in order (the first from the variables' start values).
+    pub starts: Vec<StartFit>,
+}
+
+impl UpdateResult {
+    /// Names of the variables the best fit ends on a bound, with the side.
+    pub fn on_bounds(&self) -> Vec<(&str, Active)> {
+        self.names
+            .iter()
+            .zip(&self.best.active)
+            .filter(|(_, a)| **a != Active::Free)
+            .map(|(n, a)| (n.as_str(), *a))
+            .collect()
+    }
+}
+
+/// Updates the model: `options.n_starts` bounded least-squares solves, the first from
+/// the variables' start values, the others from a seeded Latin hypercube over the box
+/// (damping on its log scale), in parallel; deterministic for a given seed.
+pub fn update(problem: &Problem, options: &MultistartOptions) -> Result<UpdateResult> {
+    let vars = problem.variables();
+    let z0 = vars.to_internal(&vars.initial());
+    let bounds = vars.internal_bounds();
+    let ms = multistart(problem, &bounds, Some(&z0), options)?;
+    let to_fit = |s: &super::lsq::Solution| {
+        let theta = vars.theta(&s.x);
+        let mut active = vec![Active::Free; vars.len()];
+        for (&i, &a) in vars.free().iter().zip(&s.active) {
+            active[i] = a;
+        }
+        Fit {
+            physical: vars.physical(problem.model(), &theta),
+            theta,
+            cost: s.cost,
+            active,
+            termination: s.termination,
+            n_evaluations: s.n_evaluations,
+            n_jacobians: s.n_jacobians,
+            n_iterations: s.n_iterations,
+        }
+    };
+    let best = to_fit(&ms.best);
+    let starts = ms
+        .starts
+        .into_iter()
+        .map(|s| StartFit {
+            start: vars.theta(&s.start),
+            fit: s.solution.map(|sol| to_fit(&sol)),
+        })
+        .collect();
+    Ok(UpdateResult {
+        names: vars.names().iter().map(|s| s.to_string()).collect(),
+        units: vars.physical_units(problem.model()),
+        best_index: ms.best_index,
+        best,
+        n_at_best: ms.n_at_best,
+        starts,
+    })
+}
