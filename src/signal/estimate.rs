@@ -485,6 +485,7 @@ mod tests {
                 story_stiffness_n_per_m: vec![1.0],
             },
             tests: vec![test.clone()],
+            warnings: Vec::new(),
         };
         let est = estimate_campaign(&campaign, &EstimateOptions::default()).unwrap();
         assert_eq!(est.len(), 1);
