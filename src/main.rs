@@ -22,6 +22,10 @@ enum Command {
     Modes(cli::modes::Args),
     /// Timed multistart updating of saved problems (ProblemSpec JSON files).
     Multistart(cli::multistart::Args),
+    /// Reproduce the paper (Tables 1-2, Figures 4, 5, 8, 9) on the bundled campaign.
+    Repro(cli::repro::ReproArgs),
+    /// Run an experiment file (experiments/<name>.toml).
+    Run(cli::repro::RunArgs),
     /// Simulate a campaign with known truth from a model file.
     Simulate(cli::simulate::Args),
 }
@@ -33,6 +37,8 @@ fn main() -> std::process::ExitCode {
         Command::Frf(a) => cli::frf::run(a),
         Command::Modes(a) => cli::modes::run(a),
         Command::Multistart(a) => cli::multistart::run(a),
+        Command::Repro(a) => cli::repro::repro(a),
+        Command::Run(a) => cli::repro::run(a),
         Command::Simulate(a) => cli::simulate::run(a),
     };
     match result {

@@ -1,10 +1,76 @@
-//! `frfbayes frf` (under construction).
+//! `frfbayes frf`: FRF estimates of every test of a campaign, as CSV and plots.
+
+use frfbayes::experiment::figures::estimate_figures;
+use frfbayes::io::{read_campaign, StagedDir};
+use frfbayes::signal::{estimate_test, EstimateOptions, ExpWindow};
+use indicatif::ProgressBar;
+use std::path::PathBuf;
 
 /// Arguments of `frfbayes frf`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Campaign folder.
+    pub campaign: PathBuf,
+    /// Output folder: `<out>/<test>/frf.csv` and plots (replaced only when complete).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Half-power band factor for the frequency-point selection.
+    #[arg(long, default_value_t = 1.0)]
+    pub band_factor: f64,
+    /// Exponential window time constant on impact blocks, s (0: no window).
+    #[arg(long, default_value_t = 20.0)]
+    pub exp_window_tau_s: f64,
+    /// Highest frequency kept, Hz.
+    #[arg(long, default_value_t = 25.0)]
+    pub freq_max_hz: f64,
+}
 
-/// Runs the command.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("`frfbayes frf` is not built yet")
+/// Estimates, writes and plots.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(args.band_factor > 0.0, "--band-factor must be positive");
+    anyhow::ensure!(
+        args.exp_window_tau_s >= 0.0,
+        "--exp-window-tau-s must not be negative"
+    );
+    let campaign = read_campaign(&args.campaign)?;
+    for w in &campaign.warnings {
+        eprintln!("warning: {w}");
+    }
+    let mut opts = EstimateOptions::default();
+    opts.bands.band_factor = args.band_factor;
+    opts.freq_max_hz = Some(args.freq_max_hz);
+    opts.hammer.exp_window = if args.exp_window_tau_s > 0.0 {
+        ExpWindow::TauS(args.exp_window_tau_s)
+    } else {
+        ExpWindow::None
+    };
+    let staged = StagedDir::new(&args.out)?;
+    let pb = ProgressBar::new(campaign.tests.len() as u64);
+    for test in &campaign.tests {
+        pb.set_message(test.name.clone());
+        let frf = estimate_test(test, &opts)?;
+        let dir = staged.path().join(&test.name);
+        frfbayes::io::frf_csv::write_frf_csv(&dir.join("frf.csv"), &frf)?;
+        estimate_figures(&frf, &dir)?;
+        let peaks: Vec<String> = frf
+            .bands
+            .iter()
+            .map(|b| format!("{:.3}", b.peak_hz))
+            .collect();
+        pb.suspend(|| {
+            println!(
+                "{}: {} responses, {} averages, peaks at [{}] Hz, {} selected points",
+                test.name,
+                frf.responses.len(),
+                frf.n_averages,
+                peaks.join(", "),
+                frf.selected.len()
+            )
+        });
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let out = staged.commit()?;
+    println!("wrote {}", out.display());
+    Ok(())
 }

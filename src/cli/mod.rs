@@ -5,4 +5,5 @@ pub mod check;
 pub mod frf;
 pub mod modes;
 pub mod multistart;
+pub mod repro;
 pub mod simulate;

@@ -2,5 +2,12 @@
 //! `frfbayes run experiments/<name>.toml`; `frfbayes repro` is
 //! `experiments/paper_repro.toml` with its defaults.
 
-pub mod tables;
+pub mod config;
+pub mod pipeline;
 pub mod runinfo;
+pub mod tables;
+
+pub use config::ExperimentConfig;
+pub mod driver;
+pub mod figures;
+pub mod report;

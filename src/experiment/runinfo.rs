@@ -39,7 +39,11 @@ impl RunInfo {
             command: std::env::args().collect(),
             frfbayes_version: env!("CARGO_PKG_VERSION"),
             rustc: option_env!("RUSTC_VERSION"),
-            profile: if cfg!(debug_assertions) { "debug" } else { "release" },
+            profile: if cfg!(debug_assertions) {
+                "debug"
+            } else {
+                "release"
+            },
             threads: rayon::current_num_threads(),
             seed,
             config,
@@ -56,13 +60,15 @@ impl RunInfo {
     pub fn time<T>(&mut self, stage: &str, f: impl FnOnce() -> T) -> T {
         let t0 = Instant::now();
         let out = f();
-        self.timings_s.push((stage.to_string(), t0.elapsed().as_secs_f64()));
+        self.timings_s
+            .push((stage.to_string(), t0.elapsed().as_secs_f64()));
         out
     }
 
     /// Writes `dir/run.json` atomically.
     pub fn write(&self, dir: &Path) -> Result<()> {
-        let json = serde_json::to_vec_pretty(self).map_err(|e| crate::Error::Numerical(e.to_string()))?;
+        let json =
+            serde_json::to_vec_pretty(self).map_err(|e| crate::Error::Numerical(e.to_string()))?;
         write_atomic(&dir.join("run.json"), &json)
     }
 }

@@ -4,6 +4,7 @@
 pub mod atomic;
 pub mod bundled;
 mod campaign;
+pub mod frf_csv;
 mod types;
 mod writer;
 

@@ -1,1 +1,71 @@
-//! (under construction)
+//! Affine-invariant ensemble MCMC (Goodman & Weare 2010; emcee 3, Foreman-Mackey et al.
+//! 2013), independent of the FRF code: it samples any [`LogDensity`].
+//!
+//! - [`Move`]s only propose; the sampler owns the red-blue split and the accept step.
+//!   Built in: [`Stretch`], [`DifferentialEvolution`], [`Snooker`], [`Walk`], mixed by
+//!   weight with [`Moves`].
+//! - [`Sampler`] runs `K >= 4` independent ensembles until emcee's stopping rule
+//!   (chain longer than 50 tau, tau stable within 1%) or a step cap, with an optional
+//!   progress callback and periodic checkpoints; [`Sampler::resume`] continues
+//!   bit-identically.
+//! - Diagnostics: emcee's integrated autocorrelation time ([`integrated_time`]) and the
+//!   rank-normalised split R-hat and bulk/tail ESS of Vehtari et al. (2021)
+//!   ([`diagnostics`]).
+//!
+//! ## Reproducibility
+//! All randomness comes from one ChaCha8 key derived from `SamplerConfig::seed`: walker
+//! `w` of ensemble `k` owns stream `k << 32 | w` (initial ball, proposals, accept
+//! uniforms); ensemble `k`'s move choice and split shuffle use stream
+//! `k << 32 | 0xFFFF_FFFF`. Results are bit-identical for a seed whatever the number of
+//! threads (rayon parallelises over ensembles and over the walkers of a split).
+//!
+//! ## Chains for R-hat and ESS
+//! ESS (bulk and tail) treats every walker of every ensemble as a chain, as ArviZ does
+//! for emcee: at stationarity the ensemble targets the product `pi^W`, so each walker's
+//! sequence has the target as marginal and the walkers at one step are independent.
+//! Within an ensemble, walker `j` at step `t+1` depends on walker `i` at step `t`
+//! through the proposal; Stan's ESS ignores such lagged cross-correlations, yet over
+//! 100 replicate runs on a correlated 10-D Gaussian the ESS-based standard errors
+//! matched the spread of the estimates (ratios 0.95 and 1.03; `tests/mcmc_thorough.rs`). R-hat treats every *ensemble* as a chain (its walkers pooled, split
+//! in time): walker chains are short after burn-in and thinning, which biases split
+//! R-hat upward (see [`ensemble_diagnostics`]), while `K >= 4` independent ensembles
+//! still expose an ensemble that sits elsewhere. Stuck single walkers show in the
+//! per-walker acceptance fractions ([`Sampler::acceptance_fractions`]).
+//!
+//! ```
+//! use frfbayes::mcmc::{Ball, Burn, DensityFn, Moves, Sampler, SamplerConfig, Start};
+//! let density = DensityFn::new(2, |x: &[f64]| Ok(-0.5 * (x[0] * x[0] + x[1] * x[1])));
+//! let mut config = SamplerConfig::new(8, 42);
+//! config.max_steps = 200;
+//! let start = Start::Ball(Ball { center: vec![0.0; 2], scale: vec![0.1; 2] });
+//! let mut sampler = Sampler::new(&density, Moves::default(), config, start).unwrap();
+//! let summary = sampler.run(None).unwrap();
+//! assert_eq!(summary.steps, 200);
+//! let draws = sampler.draws(Burn::Steps { discard: 100, thin: 1 }).unwrap();
+//! assert_eq!((draws.n_chains, draws.n_draws, draws.dim), (32, 100, 2));
+//! ```
+
+mod autocorr;
+mod checkpoint;
+mod convergence;
+mod density;
+mod draws;
+mod ensemble;
+mod moves;
+mod rng;
+mod sampler;
+mod spec;
+
+pub use autocorr::{autocorrelation, integrated_time, TauEstimate};
+pub use convergence::{
+    diagnostics, ensemble_diagnostics, ess_basic, ess_bulk, ess_mean, ess_tail, mcse_mean,
+    rank_normalize, rhat, rhat_basic, split_chains, Diagnostics,
+};
+pub use density::{DensityFn, LogDensity};
+pub use draws::{Draws, ParamSummary};
+pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};
+pub use sampler::{
+    Ball, Burn, CheckpointConfig, Progress, ProgressFn, RunSummary, Sampler, SamplerConfig, Start,
+    StopReason, TauCheck, MIN_DRAWS_PER_WALKER, MIN_ENSEMBLES,
+};
+pub use spec::{MoveSpec, WeightedMove};

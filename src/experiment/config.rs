@@ -1,0 +1,178 @@
+//! The experiment file: one TOML per study in `experiments/`.
+//!
+//! ```toml
+//! name = "paper_repro"
+//! description = "..."
+//! data = "bundled:four-story"      # or a campaign folder (relative to the working directory)
+//! out = "results/paper_repro"
+//! seed = 20240917
+//!
+//! [estimate]                       # FRF estimation (see frfbayes::signal::EstimateOptions)
+//! exp_window_tau_s = 20.0          # common exponential window of impact blocks (s); omit for none
+//! band_factor = 1.0                # selected points: band_factor x the half-power band of each peak
+//!
+//! [update]
+//! starts = 64                      # multistart local solves per variant
+//! residual = "magnitude"           # or "log_magnitude"
+//! weighting = "none"               # or "coherence" (Bendat & Piersol sigma per point)
+//! [update.variables]               # bounds, start values, fixed values (frfbayes::update::VariablesConfig)
+//! beta = [-0.1, 0.111]
+//!
+//! [[figure]]                       # like the paper's Figures 4, 5, 8, 9
+//! table = "table1"                 # table1 = hammer tests, table2 = shake-table test
+//! damping = "rayleigh"
+//! response_floor = 4
+//! excited_floor = 1                # hammer only
+//! ```
+
+use crate::error::{Error, Result};
+use crate::signal::{EstimateOptions, ExpWindow};
+use crate::update::{DampingModel, ResidualForm, VariablesConfig};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole experiment.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentConfig {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    /// `bundled:four-story` or a campaign folder.
+    #[serde(default = "default_data")]
+    pub data: String,
+    /// Output folder.
+    pub out: PathBuf,
+    #[serde(default)]
+    pub seed: u64,
+    #[serde(default)]
+    pub estimate: EstimateSection,
+    #[serde(default)]
+    pub update: UpdateSection,
+    #[serde(default, rename = "figure")]
+    pub figures: Vec<FigureSpec>,
+}
+
+fn default_data() -> String {
+    "bundled:four-story".into()
+}
+
+/// FRF estimation settings of an experiment.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EstimateSection {
+    /// Time constant of the exponential window on impact blocks, s; `None`: no window.
+    /// One common value keeps the added damping the same for every hammer test, so it can
+    /// be removed from the updated damping exactly (see [`crate::signal::windows`]).
+    pub exp_window_tau_s: Option<f64>,
+    /// Half-power band factor of the frequency-point selection (paper section 3.1).
+    pub band_factor: f64,
+    /// Upper frequency of the estimates, Hz.
+    pub freq_max_hz: Option<f64>,
+}
+
+impl Default for EstimateSection {
+    fn default() -> Self {
+        EstimateSection {
+            exp_window_tau_s: Some(20.0),
+            band_factor: 1.0,
+            freq_max_hz: Some(25.0),
+        }
+    }
+}
+
+impl EstimateSection {
+    /// The estimator options these settings stand for.
+    pub fn options(&self) -> EstimateOptions {
+        let mut o = EstimateOptions::default();
+        o.hammer.exp_window = match self.exp_window_tau_s {
+            Some(t) => ExpWindow::TauS(t),
+            None => ExpWindow::None,
+        };
+        o.bands.band_factor = self.band_factor;
+        o.freq_max_hz = self.freq_max_hz;
+        o
+    }
+}
+
+/// How measured points are weighted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Weighting {
+    /// The paper's plain least squares.
+    #[default]
+    None,
+    /// Divide each residual by the Bendat & Piersol standard deviation of the point.
+    Coherence,
+}
+
+/// Model-updating settings of an experiment.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct UpdateSection {
+    /// Local solves per variant.
+    pub starts: usize,
+    pub residual: ResidualForm,
+    pub weighting: Weighting,
+    pub variables: VariablesConfig,
+    /// Bounds etc. for the shake-table table only (overrides `variables`).
+    pub variables_shake_table: Option<VariablesConfig>,
+}
+
+impl Default for UpdateSection {
+    fn default() -> Self {
+        UpdateSection {
+            starts: 64,
+            residual: ResidualForm::Magnitude,
+            weighting: Weighting::None,
+            variables: VariablesConfig::default(),
+            variables_shake_table: None,
+        }
+    }
+}
+
+/// One comparison figure (initial / experimental / updated, receptance and accelerance).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FigureSpec {
+    /// `table1` (hammer tests) or `table2` (shake-table test).
+    pub table: String,
+    pub damping: DampingModel,
+    pub response_floor: usize,
+    #[serde(default)]
+    pub excited_floor: Option<usize>,
+}
+
+impl ExperimentConfig {
+    /// Reads an experiment file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let cfg: ExperimentConfig =
+            toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))?;
+        cfg.validate().map_err(|e| Error::invalid(path, e))?;
+        Ok(cfg)
+    }
+
+    /// The paper reproduction shipped in the repository (`experiments/paper_repro.toml`).
+    pub fn paper_repro() -> Result<Self> {
+        Self::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/paper_repro.toml"))
+    }
+
+    fn validate(&self) -> std::result::Result<(), String> {
+        if self.update.starts == 0 {
+            return Err("update.starts must be at least 1".into());
+        }
+        if self.estimate.band_factor.is_nan() || self.estimate.band_factor <= 0.0 {
+            return Err("estimate.band_factor must be positive".into());
+        }
+        for f in &self.figures {
+            if f.table != "table1" && f.table != "table2" {
+                return Err(format!(
+                    "figure.table must be \"table1\" or \"table2\", got {:?}",
+                    f.table
+                ));
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,204 @@
+//! Runs an experiment file end to end: read the campaign, estimate FRFs, update every
+//! variant, and write tables, figures, `comparison.md`, `summary.json` and `run.json`
+//! into the output folder, which replaces an existing one only when complete.
+
+use super::config::ExperimentConfig;
+use super::figures::{comparison_figure, estimate_figures};
+use super::pipeline::{run_variant, TableId, Variant, VariantRun};
+use super::report::comparison_markdown;
+use super::runinfo::RunInfo;
+use super::tables::{PaperTables, ParamTable};
+use crate::error::{Error, Result};
+use crate::io::{read_campaign, write_atomic, Campaign, StagedDir};
+use crate::signal::{estimate_campaign, TestFrf};
+use crate::update::DampingModel;
+use std::path::{Path, PathBuf};
+
+/// Where the data of an experiment come from: `bundled:four-story` or a folder.
+pub fn resolve_data(spec: &str) -> Result<PathBuf> {
+    match spec {
+        "bundled:four-story" => crate::io::bundled::bundled_four_story(),
+        s if s.starts_with("bundled:") => Err(Error::Usage(format!(
+            "unknown bundled dataset {s:?} (have: bundled:four-story)"
+        ))),
+        s => Ok(PathBuf::from(s)),
+    }
+}
+
+/// Progress of a run: `(stage, done, total)`.
+pub type Progress<'a> = &'a (dyn Fn(&str, usize, usize) + Sync);
+
+/// What a run produced.
+#[derive(Debug)]
+pub struct Outcome {
+    pub out: PathBuf,
+    pub campaign: Campaign,
+    pub frfs: Vec<TestFrf>,
+    pub runs: Vec<VariantRun>,
+    pub info: RunInfo,
+}
+
+fn table_from_runs(
+    id: TableId,
+    runs: &[VariantRun],
+    cfg: &ExperimentConfig,
+    campaign: &Campaign,
+) -> Option<ParamTable> {
+    let mine: Vec<&VariantRun> = runs.iter().filter(|r| r.variant.table == id).collect();
+    if mine.is_empty() {
+        return None;
+    }
+    let n = campaign.nominal.n_floors();
+    let mut t = ParamTable {
+        rows: ParamTable::paper_rows(n),
+        ..Default::default()
+    };
+    for (i, m) in campaign.nominal.floor_mass_kg.iter().enumerate() {
+        t.initial.insert(format!("m{}", i + 1), *m);
+    }
+    for (i, k) in campaign.nominal.story_stiffness_n_per_m.iter().enumerate() {
+        t.initial.insert(format!("k{}", i + 1), *k);
+    }
+    let v = &cfg.update.variables;
+    t.initial.insert("a0".into(), v.initial_a0_per_s);
+    t.initial.insert("a1".into(), v.initial_a1_s);
+    for i in 1..=n {
+        t.initial.insert(format!("xi{i}"), v.initial_xi);
+    }
+    for r in mine {
+        t.columns
+            .insert(r.variant.column(), r.corrected.iter().cloned().collect());
+    }
+    Some(t)
+}
+
+fn summary_json(runs: &[VariantRun]) -> serde_json::Value {
+    let variants: Vec<serde_json::Value> = runs
+        .iter()
+        .map(|r| {
+            serde_json::json!({
+                "table": r.variant.table.key(),
+                "variant": r.variant.column(),
+                "n_points": r.n_points,
+                "cost": r.result.best.cost,
+                "starts": r.result.starts.len(),
+                "starts_at_best": r.result.n_at_best,
+                "termination": format!("{:?}", r.result.best.termination),
+                "on_bounds": r.on_bounds(),
+                "fitted": r.fitted.iter().map(|(n, v)| (n.clone(), *v)).collect::<std::collections::BTreeMap<_, _>>(),
+                "window_corrected": r.corrected.iter().map(|(n, v)| (n.clone(), *v)).collect::<std::collections::BTreeMap<_, _>>(),
+                "window_tau_s": r.window_tau_s,
+                "fdac": r.fdac.iter().map(|(l, a, b)| serde_json::json!({"frf": l, "initial": a, "updated": b})).collect::<Vec<_>>(),
+                "wall_s": r.wall_s,
+            })
+        })
+        .collect();
+    serde_json::json!({ "variants": variants })
+}
+
+/// Paper figure number of a figure spec (4, 5, 8, 9), for file names.
+fn figure_name(table: &str, damping: DampingModel) -> String {
+    let (n, what) = match (table, damping) {
+        ("table1", DampingModel::Rayleigh) => (4, "hammer_rayleigh"),
+        ("table1", DampingModel::Caughey) => (5, "hammer_caughey"),
+        (_, DampingModel::Rayleigh) => (8, "shake_table_rayleigh"),
+        (_, DampingModel::Caughey) => (9, "shake_table_caughey"),
+    };
+    format!("fig{n}_{what}")
+}
+
+/// Runs the experiment and writes its output folder.
+pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outcome> {
+    let config_json = serde_json::to_value(cfg).map_err(|e| Error::Usage(e.to_string()))?;
+    let mut info = RunInfo::start(cfg.seed, config_json, cfg.data.clone());
+    let root = resolve_data(&cfg.data)?;
+    progress("reading campaign", 0, 1);
+    let campaign = info.time("read_campaign", || read_campaign(&root))?;
+    let model = campaign.nominal.structural_model()?;
+    progress("estimating FRFs", 0, 1);
+    let frfs = info.time("estimate_frfs", || {
+        estimate_campaign(&campaign, &cfg.estimate.options())
+    })?;
+    let variants: Vec<Variant> = Variant::all()
+        .into_iter()
+        .filter(|v| frfs.iter().any(|f| v.table.includes(f)))
+        .collect();
+    let mut runs = Vec::new();
+    let t_update = std::time::Instant::now();
+    for (i, v) in variants.iter().enumerate() {
+        progress(
+            &format!("updating {} {}", v.table.key(), v.column()),
+            i,
+            variants.len(),
+        );
+        runs.push(run_variant(&model, &frfs, *v, cfg, cfg.seed)?);
+    }
+    progress("updating", variants.len(), variants.len());
+    info.timings_s.push((
+        "update_all_variants".into(),
+        t_update.elapsed().as_secs_f64(),
+    ));
+
+    let staged = StagedDir::new(&cfg.out)?;
+    let dir = staged.path().to_path_buf();
+    let paper = PaperTables::bundled()?;
+    let t1 = table_from_runs(TableId::Table1, &runs, cfg, &campaign);
+    let t2 = table_from_runs(TableId::Table2, &runs, cfg, &campaign);
+    if let Some(t) = &t1 {
+        t.write(
+            &dir,
+            "table1",
+            "Table 1. Model updating results from impact hammer tests (ours)",
+        )?;
+    }
+    if let Some(t) = &t2 {
+        t.write(
+            &dir,
+            "table2",
+            "Table 2. Model updating results from ground excitation (ours)",
+        )?;
+    }
+    let tau = runs.iter().find_map(|r| r.window_tau_s);
+    let md = comparison_markdown(
+        t1.as_ref(),
+        t2.as_ref(),
+        &paper.table1,
+        &paper.table2,
+        &runs,
+        tau,
+    );
+    write_atomic(&dir.join("comparison.md"), md.as_bytes())?;
+    let summary =
+        serde_json::to_vec_pretty(&summary_json(&runs)).map_err(|e| Error::Usage(e.to_string()))?;
+    write_atomic(&dir.join("summary.json"), &summary)?;
+    info.time("figures", || -> Result<()> {
+        for (i, f) in cfg.figures.iter().enumerate() {
+            progress("figures", i, cfg.figures.len());
+            comparison_figure(f, &runs, &frfs, &dir.join(figure_name(&f.table, f.damping)))?;
+        }
+        for frf in &frfs {
+            let d = dir.join("frf").join(&frf.test);
+            crate::io::frf_csv::write_frf_csv(&d.join("frf.csv"), frf)?;
+            estimate_figures(frf, &d)?;
+        }
+        Ok(())
+    })?;
+    info.write(&dir)?;
+    let out = staged.commit()?;
+    Ok(Outcome {
+        out,
+        campaign,
+        frfs,
+        runs,
+        info,
+    })
+}
+
+/// The output folder of an experiment relative to `base` when it is relative.
+pub fn output_dir(base: &Path, out: &Path) -> PathBuf {
+    if out.is_absolute() {
+        out.to_path_buf()
+    } else {
+        base.join(out)
+    }
+}

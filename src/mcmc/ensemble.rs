@@ -1,0 +1,265 @@
+//! One ensemble of walkers: its state, its initialisation and one red-blue step.
+//!
+//! Step (emcee's `RedBlueMove.propose`): pick a move with the ensemble stream; assign
+//! walker `i` to split `i mod n_splits`, shuffled with the ensemble stream when
+//! `randomize_split`; for each split in turn, every walker of the split proposes from
+//! the other walkers (the complement, fixed during the split) and is accepted when
+//! `ln u < ln_factor + ln p(q) - ln p(x)`. Proposal, density and `u` use only the
+//! walker's own stream, so the walkers of a split run in parallel (rayon) with results
+//! independent of the thread count.
+
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use rayon::prelude::*;
+
+use super::density::{checked_ln_density, LogDensity};
+use super::moves::{Complement, Moves};
+use super::rng::{ensemble_rng, walker_rng};
+use crate::error::{Error, Result};
+
+/// State of one ensemble. Positions are row-major (walker, parameter).
+#[derive(Debug, Clone)]
+pub(crate) struct Ensemble {
+    pub dim: usize,
+    pub n_pointwise: usize,
+    pub positions: Vec<f64>,
+    pub ln_p: Vec<f64>,
+    /// Pointwise log-likelihood of the current states (walker, term); empty if unused.
+    pub pointwise: Vec<f64>,
+    pub walker_rngs: Vec<ChaCha8Rng>,
+    pub rng: ChaCha8Rng,
+    /// Accepted proposals per walker.
+    pub accepted: Vec<u64>,
+    /// Stored states (stored step, walker, parameter), ln p (stored step, walker) and
+    /// pointwise terms (stored step, walker, term).
+    pub chain: Vec<f64>,
+    pub chain_ln_p: Vec<f64>,
+    pub chain_pointwise: Vec<f64>,
+}
+
+/// Outcome of one walker's proposal.
+struct Outcome {
+    accept: bool,
+    proposal: Vec<f64>,
+    ln_p: f64,
+    pointwise: Vec<f64>,
+}
+
+impl Ensemble {
+    /// Builds ensemble `index` from explicit positions (walker-major, `dim` each),
+    /// evaluates them and checks the ensemble is usable: all log densities finite and
+    /// the walkers' covariance of full rank.
+    pub fn from_positions<D: LogDensity + ?Sized>(
+        density: &D,
+        key: [u8; 32],
+        index: usize,
+        positions: Vec<f64>,
+        walker_rngs: Vec<ChaCha8Rng>,
+        store_pointwise: bool,
+    ) -> Result<Self> {
+        let dim = density.dim();
+        let n_walkers = walker_rngs.len();
+        let n_pointwise = if store_pointwise {
+            density.n_pointwise()
+        } else {
+            0
+        };
+        if let Some(i) = positions.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Usage(format!(
+                "ensemble {index}: initial walker {} has a non-finite coordinate {}",
+                i / dim,
+                i % dim
+            )));
+        }
+        check_full_rank(index, &positions, n_walkers, dim)?;
+        let evals: Vec<Result<(f64, Vec<f64>)>> = positions
+            .par_chunks(dim)
+            .map(|theta| {
+                let mut pw = vec![0.0; n_pointwise];
+                checked_ln_density(density, theta, &mut pw).map(|lp| (lp, pw))
+            })
+            .collect();
+        let mut ln_p = Vec::with_capacity(n_walkers);
+        let mut pointwise = Vec::with_capacity(n_walkers * n_pointwise);
+        for (w, e) in evals.into_iter().enumerate() {
+            let (lp, pw) = e?;
+            if !lp.is_finite() {
+                return Err(Error::Usage(format!(
+                    "ensemble {index}: initial walker {w} at {:?} has log density {lp}; \
+                     start inside the support (smaller ball or a better center)",
+                    &positions[w * dim..(w + 1) * dim]
+                )));
+            }
+            ln_p.push(lp);
+            pointwise.extend(pw);
+        }
+        Ok(Ensemble {
+            dim,
+            n_pointwise,
+            positions,
+            ln_p,
+            pointwise,
+            walker_rngs,
+            rng: ensemble_rng(key, index),
+            accepted: vec![0; n_walkers],
+            chain: Vec::new(),
+            chain_ln_p: Vec::new(),
+            chain_pointwise: Vec::new(),
+        })
+    }
+
+    /// Builds ensemble `index` as `center + scale ⊙ N(0, I)` per walker, each walker
+    /// drawing from its own stream.
+    pub fn from_ball<D: LogDensity + ?Sized>(
+        density: &D,
+        key: [u8; 32],
+        index: usize,
+        n_walkers: usize,
+        center: &[f64],
+        scale: &[f64],
+        store_pointwise: bool,
+    ) -> Result<Self> {
+        let dim = density.dim();
+        if center.len() != dim || scale.len() != dim {
+            return Err(Error::Usage(format!(
+                "initial ball: center has {} and scale {} entries, the density has {dim} \
+                 parameters",
+                center.len(),
+                scale.len()
+            )));
+        }
+        if let Some(i) = scale.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(Error::Usage(format!(
+                "initial ball: scale of parameter {i} is {}; it must be positive and finite",
+                scale[i]
+            )));
+        }
+        let mut rngs: Vec<ChaCha8Rng> = (0..n_walkers).map(|w| walker_rng(key, index, w)).collect();
+        let mut positions = Vec::with_capacity(n_walkers * dim);
+        for rng in rngs.iter_mut() {
+            for (c, s) in center.iter().zip(scale) {
+                let n: f64 = rng.sample(StandardNormal);
+                positions.push(c + s * n);
+            }
+        }
+        Self::from_positions(density, key, index, positions, rngs, store_pointwise)
+    }
+
+    pub fn n_walkers(&self) -> usize {
+        self.ln_p.len()
+    }
+
+    /// One red-blue step with a move picked from `moves`.
+    pub fn step<D: LogDensity + ?Sized>(
+        &mut self,
+        density: &D,
+        moves: &Moves,
+        randomize_split: bool,
+    ) -> Result<()> {
+        let n_walkers = self.n_walkers();
+        let dim = self.dim;
+        let mv = moves.select(&mut self.rng);
+        let n_splits = mv.n_splits();
+        let mut split_of: Vec<usize> = (0..n_walkers).map(|i| i % n_splits).collect();
+        if randomize_split {
+            for i in (1..n_walkers).rev() {
+                let j = self.rng.random_range(0..=i);
+                split_of.swap(i, j);
+            }
+        }
+        for split in 0..n_splits {
+            let outcomes: Vec<Result<Outcome>> = {
+                let comp_refs: Vec<&[f64]> = self
+                    .positions
+                    .chunks(dim)
+                    .zip(&split_of)
+                    .filter(|(_, &s)| s != split)
+                    .map(|(x, _)| x)
+                    .collect();
+                let complement = Complement::new(&comp_refs);
+                let members: Vec<(usize, &mut ChaCha8Rng)> = self
+                    .walker_rngs
+                    .iter_mut()
+                    .enumerate()
+                    .filter(|(i, _)| split_of[*i] == split)
+                    .collect();
+                let positions = &self.positions;
+                let ln_p = &self.ln_p;
+                let n_pointwise = self.n_pointwise;
+                members
+                    .into_par_iter()
+                    .map(|(w, rng)| {
+                        let x = &positions[w * dim..(w + 1) * dim];
+                        let mut q = vec![0.0; dim];
+                        let ln_factor = mv.propose(x, &complement, rng, &mut q);
+                        let mut pw = vec![0.0; n_pointwise];
+                        let lp = checked_ln_density(density, &q, &mut pw)?;
+                        let u: f64 = rng.random();
+                        let accept = ln_factor + lp - ln_p[w] > u.ln();
+                        Ok(Outcome {
+                            accept,
+                            proposal: q,
+                            ln_p: lp,
+                            pointwise: pw,
+                        })
+                    })
+                    .collect()
+            };
+            let members = (0..n_walkers).filter(|&i| split_of[i] == split);
+            for (w, outcome) in members.zip(outcomes) {
+                let o = outcome?;
+                if o.accept {
+                    self.positions[w * dim..(w + 1) * dim].copy_from_slice(&o.proposal);
+                    self.ln_p[w] = o.ln_p;
+                    let np = self.n_pointwise;
+                    self.pointwise[w * np..(w + 1) * np].copy_from_slice(&o.pointwise);
+                    self.accepted[w] += 1;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Appends the current state to the stored chain.
+    pub fn store(&mut self) {
+        self.chain.extend_from_slice(&self.positions);
+        self.chain_ln_p.extend_from_slice(&self.ln_p);
+        self.chain_pointwise.extend_from_slice(&self.pointwise);
+    }
+
+    /// Number of stored states.
+    pub fn n_stored(&self) -> usize {
+        self.chain_ln_p.len() / self.n_walkers()
+    }
+}
+
+/// Errors unless the walkers span all `dim` directions: every parameter must vary, and
+/// the smallest eigenvalue of the walkers' correlation matrix must exceed
+/// `1e-10` times the largest (a flat ensemble would stay flat under affine moves).
+fn check_full_rank(index: usize, positions: &[f64], n_walkers: usize, dim: usize) -> Result<()> {
+    let x = nalgebra::DMatrix::from_row_slice(n_walkers, dim, positions);
+    let mean = x.row_mean();
+    let mut centred = x.clone();
+    for mut row in centred.row_iter_mut() {
+        row -= &mean;
+    }
+    let cov = centred.transpose() * &centred / (n_walkers as f64 - 1.0);
+    let sd: Vec<f64> = (0..dim).map(|i| cov[(i, i)].sqrt()).collect();
+    if let Some(i) = sd.iter().position(|s| s.is_nan() || *s <= 0.0) {
+        return Err(Error::Usage(format!(
+            "ensemble {index}: all initial walkers have the same value of parameter {i}; \
+             give it a positive spread"
+        )));
+    }
+    let corr = nalgebra::DMatrix::from_fn(dim, dim, |i, j| cov[(i, j)] / (sd[i] * sd[j]));
+    let eig = corr.symmetric_eigenvalues();
+    let (lo, hi) = (eig.min(), eig.max());
+    if lo.is_nan() || lo <= 1e-10 * hi {
+        return Err(Error::Usage(format!(
+            "ensemble {index}: the initial walkers are degenerate (correlation eigenvalues \
+             from {lo:.3e} to {hi:.3e}); they must span all {dim} dimensions"
+        )));
+    }
+    Ok(())
+}

@@ -1,0 +1,366 @@
+//! Coherence when there are few blocks: a local rational model of the FRF.
+//!
+//! The ordinary coherence `|Gfy|^2 / (Gff Gyy)` needs many blocks: with one block it is 1
+//! by construction, with two it is biased high (`E[gamma^2] >= 1/2` even for unrelated
+//! signals). Impact tests here have 2 impacts and the shake-table test is a single
+//! transient, so coherence is estimated from the *frequency* neighbourhood instead.
+//!
+//! Plain frequency smoothing of the spectra (averaging `Gfy`, `Gff`, `Gyy` over adjacent
+//! bins) is biased low at lightly damped peaks, because H itself changes across the
+//! smoothing window (a 0.2 % mode at 5.7 Hz is 3 bins wide in a 130 s record). We
+//! therefore fit, around each bin `k`, a local rational model of the FRF
+//! (Local Rational Method, McKelvey & Guérin 2012; Pintelon et al. 2010)
+//!
+//! `Y_b(k + r) = (a0 + a1 u + a2 u^2) / (1 + b1 u) F_b(k + r) + e_b(k + r)`, `u = r / m`,
+//! `r = -m..=m`, for every block `b`,
+//!
+//! which represents one resonance (pole) plus a smooth background exactly enough over a
+//! few bins, whatever the peak's width. It is solved by weighted linear least squares
+//! with Sanathanan-Koerner re-weighting (3 passes). Its linearisation puts the noisy `Y`
+//! among the regressors, so at low signal-to-noise ratio the free pole chases the noise and
+//! the residual underestimates it (measured: 2x in variance). So the local *polynomial*
+//! model (`b1 = 0`, 3 parameters; Local Polynomial Method, Pintelon et al. 2010), which is
+//! unbiased when H is smooth over the window, is used unless the rational model reduces
+//! the residual significantly (F test at 1 %, 2 and `2 dof` real degrees of freedom),
+//! which happens where a resonance is sharper than the window.
+//!
+//! The residual variance `sigma_k^2 = RSS / (K (2m+1) - p)` estimates the per-block noise
+//! power of `Y` at bin `k` (output noise plus `|H|^2` times input noise), and
+//!
+//! `gamma_k^2 = S_k / (S_k + sigma_k^2)`, `S_k = |H1_k|^2 Gff_k / K - sigma_k^2 / K`
+//!
+//! (the second term removes the noise's own contribution to `E|H1|^2`; `S` is floored at
+//! 0) is the coherence of the underlying signals. It is exactly what the Bendat & Piersol
+//! random-error formula needs with `n = K` blocks in the average of H1:
+//! `var(H1) / |H|^2 = sigma^2 / (Gff |H|^2) = (1 - gamma^2) / (gamma^2 K)` (complex),
+//! i.e. `std(|H1|) / |H1| = sqrt((1 - gamma^2) / (2 gamma^2 n))` ([`bendat_piersol_rel_std`]).
+//!
+//! Windows (force, exponential) and zero padding correlate neighbouring bins; the local
+//! model then absorbs part of the noise and `sigma^2` is underestimated. Zero padding is
+//! handled by spacing the window by the padding factor (`step`); the exponential window's
+//! kernel is about `ln(1/end_level) / (2 pi)` bins wide (0.5 bins at the default 5 %).
+//!
+//! Calibration (`tests/signal_noise.rs`: exactly simulated frame, sensor noise of the
+//! campaign's size, 4 realisations): the mean of `z^2 = ((|H1| - |H|) / (s |H1|))^2`, `s`
+//! the Bendat & Piersol relative error from this coherence, is 0.76 (hammer, 2 impacts,
+//! gamma^2 >= 0.99), 0.73 (0.9-0.99), 0.59 (0.5-0.9) and 0.91 (shake table, one block,
+//! gamma^2 >= 0.99): the predicted standard deviation is right to -30 %..+20 %, on the
+//! safe side where it errs (the hammer's second block also carries the first impact's
+//! ring-down, which is error but not noise). The ordinary coherence of the same two blocks
+//! gives 7.7, i.e. it underpredicts the scatter 2.8x.
+
+use crate::error::{Error, Result};
+use num_complex::Complex64;
+
+/// How the coherence reported with an estimate is obtained.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CoherenceMethod {
+    /// Ordinary block-averaged coherence `|Gfy|^2 / (Gff Gyy)`. Right with many blocks;
+    /// identically 1 with one block.
+    Ordinary,
+    /// Local rational model over `2 half_width_bins + 1` bins (see the module docs).
+    LocalRational { half_width_bins: usize },
+}
+
+impl Default for CoherenceMethod {
+    fn default() -> Self {
+        CoherenceMethod::LocalRational { half_width_bins: 4 }
+    }
+}
+
+/// Number of complex parameters of the local rational model.
+const N_PARAMS: usize = 4;
+/// Significance level of the F test that prefers the rational to the polynomial model.
+const RATIONAL_TEST_LEVEL: f64 = 0.01;
+
+/// Local-rational noise and coherence estimate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocalNoise {
+    /// Per-block noise power of the output at each bin (same scale as `|Y_b,k|^2`).
+    pub noise_power: Vec<f64>,
+    /// `gamma^2 = S / (S + sigma^2)` at each bin.
+    pub coherence: Vec<f64>,
+    /// Complex degrees of freedom of each noise estimate: `K (2m + 1) - 4` (rational
+    /// model; one more where the polynomial model is used).
+    pub dof: usize,
+}
+
+/// Estimates the noise power and coherence at every bin from the block spectra
+/// (`f_blocks[b][k]`, `y_blocks[b][k]`) and the H1 estimate at each bin. `step` is the
+/// spacing of the local window in bins (the zero-padding factor, 1 without padding).
+pub fn local_rational_noise(
+    f_blocks: &[Vec<Complex64>],
+    y_blocks: &[Vec<Complex64>],
+    h1: &[Complex64],
+    half_width_bins: usize,
+    step: usize,
+) -> Result<LocalNoise> {
+    let n_blocks = f_blocks.len();
+    let n_bins = h1.len();
+    if n_blocks == 0
+        || y_blocks.len() != n_blocks
+        || f_blocks.iter().chain(y_blocks).any(|b| b.len() != n_bins)
+    {
+        return Err(Error::Usage(
+            "local rational model: block spectra and H1 differ in count or length".into(),
+        ));
+    }
+    let m = half_width_bins;
+    let width = 2 * m + 1;
+    let rows = n_blocks * width;
+    if m == 0 || step == 0 || rows <= N_PARAMS || (width - 1) * step >= n_bins {
+        return Err(Error::Usage(format!(
+            "local rational model needs half_width >= 1 and more than {N_PARAMS} rows \
+             within {n_bins} bins (half_width {m}, step {step}, {n_blocks} blocks)"
+        )));
+    }
+    let dof = rows - N_PARAMS;
+    // RSS_poly / RSS_rat above this: the rational model's extra complex parameter is
+    // significant (F(2, 2 dof) at RATIONAL_TEST_LEVEL)
+    let f_crit = statrs::distribution::FisherSnedecor::new(2.0, 2.0 * dof as f64)
+        .map(|d| {
+            use statrs::distribution::ContinuousCDF;
+            d.inverse_cdf(1.0 - RATIONAL_TEST_LEVEL)
+        })
+        .map_err(|e| Error::Numerical(format!("F distribution: {e}")))?;
+    let ratio_crit = 1.0 + f_crit * 2.0 / (2.0 * dof as f64);
+    let mut noise_power = vec![0.0; n_bins];
+    let mut coherence = vec![0.0; n_bins];
+    let mut a = vec![[Complex64::new(0.0, 0.0); N_PARAMS]; rows];
+    let mut y = vec![Complex64::new(0.0, 0.0); rows];
+    let mut u = vec![0.0; rows];
+    for k in 0..n_bins {
+        // window bins k + (i - c) step, i = 0..=2m, with the centre index c = m except
+        // near the ends of the band, where the window slides inwards (on k's grid)
+        let c = m
+            .min(k / step)
+            .max((2 * m).saturating_sub((n_bins - 1 - k) / step));
+        if c > k / step || k + (2 * m - c) * step >= n_bins {
+            noise_power[k] = f64::NAN;
+            coherence[k] = 0.0;
+            continue;
+        }
+        let first = k - c * step;
+        let mut row = 0;
+        for b in 0..n_blocks {
+            for i in 0..width {
+                let j = first + i * step;
+                let r = j as f64 - k as f64;
+                let uu = r / (m * step) as f64;
+                let f = f_blocks[b][j];
+                let yy = y_blocks[b][j];
+                a[row] = [f, f * uu, f * (uu * uu), -yy * uu];
+                y[row] = yy;
+                u[row] = uu;
+                row += 1;
+            }
+        }
+        let rss_poly = polynomial_residual_power(&a, &y);
+        let rss_rat = rational_residual_power(&a, &y, &u);
+        let sigma2 = if rss_poly > ratio_crit * rss_rat {
+            rss_rat / dof as f64
+        } else {
+            rss_poly / (dof + 1) as f64
+        };
+        let s = (h1[k].norm_sqr() * f_blocks.iter().map(|fb| fb[k].norm_sqr()).sum::<f64>()
+            - sigma2)
+            / n_blocks as f64;
+        noise_power[k] = sigma2;
+        coherence[k] = if s > 0.0 && sigma2.is_finite() {
+            s / (s + sigma2)
+        } else if sigma2 == 0.0 && s >= 0.0 && h1[k].norm_sqr() > 0.0 {
+            1.0
+        } else {
+            0.0
+        };
+    }
+    Ok(LocalNoise {
+        noise_power,
+        coherence,
+        dof,
+    })
+}
+
+/// Sum of squared residuals of the local polynomial fit `Y = (a0 + a1 u + a2 u^2) F`.
+fn polynomial_residual_power(a: &[[Complex64; N_PARAMS]], y: &[Complex64]) -> f64 {
+    let mut nm = [[Complex64::new(0.0, 0.0); 3]; 3];
+    let mut rhs = [Complex64::new(0.0, 0.0); 3];
+    for (row, &yy) in a.iter().zip(y) {
+        for i in 0..3 {
+            let ci = row[i].conj();
+            for j in 0..3 {
+                nm[i][j] += ci * row[j];
+            }
+            rhs[i] += ci * yy;
+        }
+    }
+    let Some(theta) = solve(nm, rhs) else {
+        return f64::NAN;
+    };
+    a.iter()
+        .zip(y)
+        .map(|(row, &yy)| (yy - (0..3).map(|i| row[i] * theta[i]).sum::<Complex64>()).norm_sqr())
+        .sum()
+}
+
+/// Sum of squared residuals of the local rational fit, Sanathanan-Koerner iterations.
+fn rational_residual_power(a: &[[Complex64; N_PARAMS]], y: &[Complex64], u: &[f64]) -> f64 {
+    let mut beta = Complex64::new(0.0, 0.0);
+    let mut theta = [Complex64::new(0.0, 0.0); N_PARAMS];
+    for _pass in 0..3 {
+        let mut nm = [[Complex64::new(0.0, 0.0); N_PARAMS]; N_PARAMS];
+        let mut rhs = [Complex64::new(0.0, 0.0); N_PARAMS];
+        for ((row, &yy), &uu) in a.iter().zip(y).zip(u) {
+            let d = (Complex64::new(1.0, 0.0) + beta * uu).norm_sqr();
+            let w = if d > 1e-12 { 1.0 / d } else { 1e12 };
+            for i in 0..N_PARAMS {
+                let ci = row[i].conj() * w;
+                for j in 0..N_PARAMS {
+                    nm[i][j] += ci * row[j];
+                }
+                rhs[i] += ci * yy;
+            }
+        }
+        match solve(nm, rhs) {
+            Some(t) => theta = t,
+            None => break,
+        }
+        beta = theta[3];
+    }
+    a.iter()
+        .zip(y)
+        .zip(u)
+        .map(|((row, &yy), &uu)| {
+            let e = yy - (0..N_PARAMS).map(|i| row[i] * theta[i]).sum::<Complex64>();
+            let d = Complex64::new(1.0, 0.0) + theta[3] * uu;
+            // e = Y (1 + b u) - A(u) F; the model error on Y is e / (1 + b u)
+            if d.norm_sqr() > 1e-12 {
+                (e / d).norm_sqr()
+            } else {
+                e.norm_sqr()
+            }
+        })
+        .sum()
+}
+
+/// Solves the Hermitian positive (semi-)definite `N x N` system with a tiny ridge
+/// (`1e-12` of the mean diagonal: noise-free data with a constant FRF make the columns
+/// dependent) by Gaussian elimination with partial pivoting.
+fn solve<const N: usize>(
+    mut m: [[Complex64; N]; N],
+    mut b: [Complex64; N],
+) -> Option<[Complex64; N]> {
+    let trace: f64 = (0..N).map(|i| m[i][i].re).sum();
+    if trace.is_nan() || trace <= 0.0 {
+        return None;
+    }
+    let ridge = 1e-12 * trace / N as f64;
+    for (i, row) in m.iter_mut().enumerate() {
+        row[i] += ridge;
+    }
+    for c in 0..N {
+        let p = (c..N).max_by(|&i, &j| m[i][c].norm().total_cmp(&m[j][c].norm()))?;
+        if m[p][c].norm() == 0.0 {
+            return None;
+        }
+        m.swap(c, p);
+        b.swap(c, p);
+        let pivot = m[c];
+        for r in c + 1..N {
+            let f = m[r][c] / pivot[c];
+            for (x, &p) in m[r][c..].iter_mut().zip(&pivot[c..]) {
+                *x -= f * p;
+            }
+            let v = b[c];
+            b[r] -= f * v;
+        }
+    }
+    let mut x = [Complex64::new(0.0, 0.0); N];
+    for c in (0..N).rev() {
+        let s: Complex64 = (c + 1..N).map(|k| m[c][k] * x[k]).sum();
+        x[c] = (b[c] - s) / m[c][c];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// Bendat & Piersol normalised random error of an FRF magnitude estimated from `n`
+/// averages with coherence `gamma2`: `std(|H|) / |H| = sqrt((1 - gamma^2) / (2 gamma^2 n))`.
+/// Infinite for `gamma2 <= 0`.
+pub fn bendat_piersol_rel_std(gamma2: f64, n_averages: usize) -> f64 {
+    if gamma2 <= 0.0 || n_averages == 0 {
+        return f64::INFINITY;
+    }
+    let g = gamma2.min(1.0);
+    ((1.0 - g) / (2.0 * g * n_averages as f64)).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sdof(k: usize, n: usize) -> Complex64 {
+        // a pole half a bin from bin n/3, residue 1: H = 1 / (j (k - k0) + 0.5)
+        let k0 = n as f64 / 3.0 + 0.3;
+        Complex64::new(1.0, 0.0) / Complex64::new(0.5, k as f64 - k0)
+    }
+
+    #[test]
+    fn noise_free_sharp_peak_has_coherence_one() {
+        // one block, input varying, FRF a pole narrower than one bin plus background
+        let n = 300;
+        let f: Vec<Complex64> = (0..n)
+            .map(|k| Complex64::from_polar(1.0 + 0.2 * (k as f64 * 0.1).sin(), k as f64 * 1.3))
+            .collect();
+        let y: Vec<Complex64> = (0..n)
+            .map(|k| (sdof(k, n) + Complex64::new(0.01 * k as f64, 0.0)) * f[k])
+            .collect();
+        let h1: Vec<Complex64> = (0..n).map(|k| y[k] / f[k]).collect();
+        let est = local_rational_noise(&[f], &[y], &h1, 4, 1).unwrap();
+        assert_eq!(est.dof, 5);
+        for k in 0..n {
+            assert!(
+                est.coherence[k] > 1.0 - 1e-9,
+                "bin {k}: {}",
+                est.coherence[k]
+            );
+        }
+    }
+
+    #[test]
+    fn step_keeps_window_on_the_padding_grid() {
+        let n = 200;
+        let f: Vec<Complex64> = (0..n)
+            .map(|k| Complex64::new(1.0, 0.01 * k as f64))
+            .collect();
+        let y: Vec<Complex64> = f.iter().map(|&v| v * 2.0).collect();
+        let h1 = vec![Complex64::new(2.0, 0.0); n];
+        for step in [1, 2, 4] {
+            let est = local_rational_noise(
+                std::slice::from_ref(&f),
+                std::slice::from_ref(&y),
+                &h1,
+                3,
+                step,
+            )
+            .unwrap();
+            assert!(est.coherence.iter().all(|&g| g > 1.0 - 1e-9));
+        }
+        assert!(local_rational_noise(
+            std::slice::from_ref(&f),
+            std::slice::from_ref(&y),
+            &h1,
+            0,
+            1
+        )
+        .is_err());
+        assert!(local_rational_noise(&[f], &[y], &h1, 150, 1).is_err());
+    }
+
+    #[test]
+    fn bendat_piersol_formula() {
+        assert!((bendat_piersol_rel_std(0.5, 2) - 0.5).abs() < 1e-15);
+        assert_eq!(bendat_piersol_rel_std(1.0, 3), 0.0);
+        assert!(bendat_piersol_rel_std(0.0, 3).is_infinite());
+    }
+}

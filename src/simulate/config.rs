@@ -1,0 +1,503 @@
+//! The simulation model file (TOML), its parsing and its validation. The format is
+//! documented with an example in the [module docs](super).
+
+use super::effects::EffectSpec;
+use super::sensor_effects::SensorEffect;
+use crate::error::{Error, Result};
+use crate::io::NominalModel;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole simulation model: the true system, the tests to run, the instruments.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimModel {
+    /// Campaign title written to `campaign.toml`.
+    pub title: String,
+    /// Seed of the sensor noise; `--seed` overrides it.
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// The true structure.
+    pub structure: StructureSpec,
+    /// The true damping.
+    pub damping: DampingSpec,
+    /// What the engineer believes (written to `campaign.toml`); the true structure when
+    /// absent.
+    #[serde(default)]
+    pub nominal: Option<NominalSpec>,
+    /// Output rate and anti-aliasing.
+    pub sampling: SamplingSpec,
+    /// Sensor noise per quantity; zero when absent.
+    #[serde(default)]
+    pub noise: NoiseSpec,
+    /// The tests, written in this order (the campaign sorts them by name).
+    #[serde(rename = "test")]
+    pub tests: Vec<TestSpec>,
+    /// Changes of the physics, applied in order to the built structure.
+    #[serde(default, rename = "effect", skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<EffectSpec>,
+    /// Instrument effects on named channels, applied in order before anti-aliasing.
+    #[serde(
+        default,
+        rename = "sensor_effect",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub sensor_effects: Vec<SensorEffect>,
+}
+
+/// The true structure.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum StructureSpec {
+    /// Lumped floor masses joined by story springs; floor f is DOF f-1.
+    ShearFrame {
+        floor_mass_kg: Vec<f64>,
+        story_stiffness_n_per_m: Vec<f64>,
+    },
+}
+
+impl StructureSpec {
+    /// Number of floors.
+    pub fn n_floors(&self) -> usize {
+        match self {
+            StructureSpec::ShearFrame { floor_mass_kg, .. } => floor_mass_kg.len(),
+        }
+    }
+}
+
+/// The true damping of the structure.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
+pub enum DampingSpec {
+    /// `C = a0 M + a1 K` (paper Eq. 2).
+    Rayleigh { a0_per_s: f64, a1_s: f64 },
+    /// Caughey series (Eq. 8) with as many terms as ratios, fitted so that the first
+    /// `xi.len()` modes have ratios `xi` (Eq. 9); higher modes follow the series.
+    Caughey { xi: Vec<f64> },
+    /// Modal damping, one ratio per mode: `C = M Phi diag(2 xi_i omega_i) Phi^T M`.
+    Modal { xi: Vec<f64> },
+}
+
+/// The nominal model written to `campaign.toml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NominalSpec {
+    pub floor_mass_kg: Vec<f64>,
+    pub story_stiffness_n_per_m: Vec<f64>,
+}
+
+/// Output rate and the internal (simulation) rate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SamplingSpec {
+    /// Rate of the written samples.
+    pub output_rate_hz: f64,
+    /// Internal rate = `oversampling * output_rate_hz` (1..=100); 1 means no
+    /// anti-aliasing filter.
+    pub oversampling: usize,
+    /// Anti-aliasing pass-band edge as a fraction of the output Nyquist frequency.
+    #[serde(default = "default_passband_fraction")]
+    pub passband_fraction: f64,
+    /// Anti-aliasing stop-band attenuation (from the output Nyquist frequency up), dB.
+    #[serde(default = "default_attenuation_db")]
+    pub stopband_attenuation_db: f64,
+}
+
+fn default_passband_fraction() -> f64 {
+    0.8
+}
+fn default_attenuation_db() -> f64 {
+    100.0
+}
+
+impl SamplingSpec {
+    /// Internal simulation rate.
+    pub fn internal_rate_hz(&self) -> f64 {
+        self.output_rate_hz * self.oversampling as f64
+    }
+}
+
+/// Standard deviation of the Gaussian white sensor noise per quantity, at the output rate.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseSpec {
+    #[serde(default)]
+    pub force_n: f64,
+    #[serde(default)]
+    pub ground_acceleration_m_per_s2: f64,
+    #[serde(default)]
+    pub acceleration_m_per_s2: f64,
+    #[serde(default)]
+    pub displacement_m: f64,
+}
+
+/// One test to simulate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum TestSpec {
+    /// Impacts at one floor, base fixed.
+    Hammer {
+        name: String,
+        excited_floor: usize,
+        /// Record length.
+        duration_s: f64,
+        /// Duration of each half-sine force pulse.
+        pulse_duration_s: f64,
+        impacts: Vec<ImpactSpec>,
+    },
+    /// Base driven by a shake table with a tapered linear chirp, then left to ring down.
+    ShakeTable {
+        name: String,
+        chirp: ChirpSpec,
+        /// Zero-input record after the sweep.
+        ring_down_s: f64,
+    },
+}
+
+impl TestSpec {
+    /// Folder name of the test.
+    pub fn name(&self) -> &str {
+        match self {
+            TestSpec::Hammer { name, .. } | TestSpec::ShakeTable { name, .. } => name,
+        }
+    }
+
+    /// Record length.
+    pub fn duration_s(&self) -> f64 {
+        match self {
+            TestSpec::Hammer { duration_s, .. } => *duration_s,
+            TestSpec::ShakeTable {
+                chirp, ring_down_s, ..
+            } => chirp.start_s + chirp.sweep_duration_s + ring_down_s,
+        }
+    }
+}
+
+/// One hammer impact: a half-sine pulse starting at `time_s`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImpactSpec {
+    pub time_s: f64,
+    pub peak_force_n: f64,
+}
+
+/// A linear chirp of ground acceleration with raised-cosine tapers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChirpSpec {
+    pub f0_hz: f64,
+    pub f1_hz: f64,
+    /// Start of the sweep in the record (zero input before).
+    #[serde(default)]
+    pub start_s: f64,
+    pub sweep_duration_s: f64,
+    /// Length of each raised-cosine taper at the start and end of the sweep.
+    pub taper_s: f64,
+    pub amplitude_m_per_s2: f64,
+}
+
+impl SimModel {
+    /// Reads and validates a model file.
+    pub fn from_path(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::from_toml(&text, path)
+    }
+
+    /// Parses and validates model text; `path` names the file in errors.
+    pub fn from_toml(text: &str, path: &Path) -> Result<Self> {
+        let model: SimModel =
+            toml::from_str(text).map_err(|e| Error::invalid(path, e.to_string()))?;
+        model.validate(path)?;
+        Ok(model)
+    }
+
+    /// The nominal model for `campaign.toml` (the true structure when none is given).
+    pub fn nominal_model(&self) -> NominalModel {
+        let (m, k) = match (&self.nominal, &self.structure) {
+            (Some(n), _) => (&n.floor_mass_kg, &n.story_stiffness_n_per_m),
+            (
+                None,
+                StructureSpec::ShearFrame {
+                    floor_mass_kg,
+                    story_stiffness_n_per_m,
+                },
+            ) => (floor_mass_kg, story_stiffness_n_per_m),
+        };
+        NominalModel {
+            structure: "shear_frame".into(),
+            floor_mass_kg: m.clone(),
+            story_stiffness_n_per_m: k.clone(),
+        }
+    }
+
+    /// Checks everything that can be checked without building matrices (those are checked
+    /// when the system is built). Errors name `path` and the offending key.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        let bad = |what: String| Err(Error::invalid(path, what));
+        let n = self.structure.n_floors();
+        let StructureSpec::ShearFrame {
+            floor_mass_kg,
+            story_stiffness_n_per_m,
+        } = &self.structure;
+        check_shear_frame("structure", floor_mass_kg, story_stiffness_n_per_m, path)?;
+        if let Some(nom) = &self.nominal {
+            check_shear_frame(
+                "nominal",
+                &nom.floor_mass_kg,
+                &nom.story_stiffness_n_per_m,
+                path,
+            )?;
+            if nom.floor_mass_kg.len() != n {
+                return bad(format!(
+                    "nominal has {} floors but the structure has {n}",
+                    nom.floor_mass_kg.len()
+                ));
+            }
+        }
+        match &self.damping {
+            DampingSpec::Rayleigh { a0_per_s, a1_s } => {
+                if !(*a0_per_s >= 0.0 && *a1_s >= 0.0 && a0_per_s.is_finite() && a1_s.is_finite()) {
+                    return bad(format!(
+                        "damping: a0_per_s and a1_s must be finite and >= 0 (got {a0_per_s}, {a1_s})"
+                    ));
+                }
+            }
+            DampingSpec::Caughey { xi } | DampingSpec::Modal { xi } => {
+                if xi.is_empty() || xi.len() > n {
+                    return bad(format!(
+                        "damping: give 1..={n} damping ratios xi (got {})",
+                        xi.len()
+                    ));
+                }
+                if matches!(self.damping, DampingSpec::Modal { .. }) && xi.len() != n {
+                    return bad(format!(
+                        "damping: modal damping needs one ratio per mode ({n}), got {}",
+                        xi.len()
+                    ));
+                }
+                if let Some(x) = xi.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+                    return bad(format!("damping: ratio {x} must be finite and >= 0"));
+                }
+            }
+        }
+        let s = &self.sampling;
+        if !(s.output_rate_hz.is_finite() && s.output_rate_hz > 0.0) {
+            return bad(format!(
+                "sampling.output_rate_hz must be positive (got {})",
+                s.output_rate_hz
+            ));
+        }
+        if !(1..=100).contains(&s.oversampling) {
+            return bad(format!(
+                "sampling.oversampling must be in 1..=100 (got {})",
+                s.oversampling
+            ));
+        }
+        if !(s.passband_fraction > 0.0 && s.passband_fraction < 1.0) {
+            return bad(format!(
+                "sampling.passband_fraction must be in (0, 1) (got {})",
+                s.passband_fraction
+            ));
+        }
+        if !(s.stopband_attenuation_db >= 21.0 && s.stopband_attenuation_db <= 200.0) {
+            return bad(format!(
+                "sampling.stopband_attenuation_db must be in [21, 200] (got {})",
+                s.stopband_attenuation_db
+            ));
+        }
+        let z = &self.noise;
+        for (key, v) in [
+            ("force_n", z.force_n),
+            (
+                "ground_acceleration_m_per_s2",
+                z.ground_acceleration_m_per_s2,
+            ),
+            ("acceleration_m_per_s2", z.acceleration_m_per_s2),
+            ("displacement_m", z.displacement_m),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("noise.{key} must be finite and >= 0 (got {v})"));
+            }
+        }
+        if self.tests.is_empty() {
+            return bad("no [[test]] given".into());
+        }
+        let internal_step_s = 1.0 / s.internal_rate_hz();
+        for (i, t) in self.tests.iter().enumerate() {
+            let name = t.name();
+            if name.is_empty()
+                || name.starts_with('.')
+                || !name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+            {
+                return bad(format!(
+                    "test {}: name {name:?} must be a plain folder name (letters, digits, - _ .)",
+                    i + 1
+                ));
+            }
+            if self.tests[..i].iter().any(|u| u.name() == name) {
+                return bad(format!("test name {name:?} is used twice"));
+            }
+            let duration_s = t.duration_s();
+            if !(duration_s.is_finite() && duration_s * s.output_rate_hz >= 2.0) {
+                return bad(format!(
+                    "test {name}: the record must hold at least 2 samples (duration {duration_s} s)"
+                ));
+            }
+            match t {
+                TestSpec::Hammer {
+                    excited_floor,
+                    pulse_duration_s,
+                    impacts,
+                    ..
+                } => {
+                    if *excited_floor == 0 || *excited_floor > n {
+                        return bad(format!(
+                            "test {name}: excited_floor must be in 1..={n} (got {excited_floor})"
+                        ));
+                    }
+                    if !(pulse_duration_s.is_finite() && *pulse_duration_s >= 2.0 * internal_step_s)
+                    {
+                        return bad(format!(
+                            "test {name}: pulse_duration_s {pulse_duration_s} is shorter than two internal samples ({:e} s); raise sampling.oversampling",
+                            2.0 * internal_step_s
+                        ));
+                    }
+                    if impacts.is_empty() {
+                        return bad(format!("test {name}: no impacts"));
+                    }
+                    for imp in impacts {
+                        if !(imp.time_s >= 0.0 && imp.time_s + pulse_duration_s <= duration_s) {
+                            return bad(format!(
+                                "test {name}: impact at {} s does not fit in the record [0, {duration_s}] s",
+                                imp.time_s
+                            ));
+                        }
+                        if !imp.peak_force_n.is_finite() {
+                            return bad(format!("test {name}: peak_force_n must be finite"));
+                        }
+                    }
+                }
+                TestSpec::ShakeTable {
+                    chirp, ring_down_s, ..
+                } => {
+                    let c = chirp;
+                    let nyquist_hz = 0.5 * s.output_rate_hz;
+                    let finite = [
+                        c.f0_hz,
+                        c.f1_hz,
+                        c.start_s,
+                        c.sweep_duration_s,
+                        c.taper_s,
+                        c.amplitude_m_per_s2,
+                        *ring_down_s,
+                    ]
+                    .iter()
+                    .all(|v| v.is_finite());
+                    if !finite {
+                        return bad(format!("test {name}: chirp values must be finite"));
+                    }
+                    if c.f0_hz < 0.0 || c.f1_hz < 0.0 || c.f0_hz.max(c.f1_hz) >= nyquist_hz {
+                        return bad(format!(
+                            "test {name}: chirp frequencies must be in [0, {nyquist_hz}) Hz (output Nyquist)"
+                        ));
+                    }
+                    if c.start_s < 0.0 || *ring_down_s < 0.0 || c.sweep_duration_s <= 0.0 {
+                        return bad(format!(
+                            "test {name}: start_s and ring_down_s must be >= 0, sweep_duration_s > 0"
+                        ));
+                    }
+                    if c.taper_s < 0.0 || 2.0 * c.taper_s > c.sweep_duration_s {
+                        return bad(format!(
+                            "test {name}: taper_s must be in [0, sweep_duration_s / 2]"
+                        ));
+                    }
+                }
+            }
+        }
+        for (i, e) in self.effects.iter().enumerate() {
+            e.check(n)
+                .or_else(|what| bad(format!("effect {}: {what}", i + 1)))?;
+        }
+        for (i, e) in self.sensor_effects.iter().enumerate() {
+            e.check()
+                .or_else(|what| bad(format!("sensor_effect {}: {what}", i + 1)))?;
+            if matches!(e, SensorEffect::TimeOffset(_)) && s.oversampling < 4 {
+                return bad(format!(
+                    "sensor_effect {}: a time offset needs sampling.oversampling >= 4 (band-limited interpolation)",
+                    i + 1
+                ));
+            }
+            if let Some(t) = e
+                .tests()
+                .into_iter()
+                .flatten()
+                .find(|t| !self.tests.iter().any(|u| u.name() == t.as_str()))
+            {
+                return bad(format!("sensor_effect {}: no test named {t:?}", i + 1));
+            }
+            for c in e.channels() {
+                let known = self
+                    .tests
+                    .iter()
+                    .filter(|t| {
+                        e.tests()
+                            .is_none_or(|names| names.iter().any(|n| n == t.name()))
+                    })
+                    .any(|t| channel_names(t, n).iter().any(|k| k == c));
+                if !known {
+                    return bad(format!(
+                        "sensor_effect {}: no channel {c:?} in its tests (channels are force or ground_acc, acc1..{n}, disp1..{n})",
+                        i + 1
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Names of the channels a test records on a structure of `n_floors` floors: the input
+/// (`force` or `ground_acc`), then `acc1..n`, then `disp1..n`.
+pub fn channel_names(test: &TestSpec, n_floors: usize) -> Vec<String> {
+    let mut names = vec![match test {
+        TestSpec::Hammer { .. } => "force".to_string(),
+        TestSpec::ShakeTable { .. } => "ground_acc".to_string(),
+    }];
+    names.extend((1..=n_floors).map(|f| format!("acc{f}")));
+    names.extend((1..=n_floors).map(|f| format!("disp{f}")));
+    names
+}
+
+fn check_shear_frame(key: &str, m: &[f64], k: &[f64], path: &Path) -> Result<()> {
+    let err = |what: String| Err(Error::invalid(PathBuf::from(path), what));
+    if m.is_empty() || m.len() != k.len() {
+        return err(format!(
+            "{key}: floor_mass_kg and story_stiffness_n_per_m need the same, non-zero length (got {} and {})",
+            m.len(),
+            k.len()
+        ));
+    }
+    if let Some((i, v)) = m
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v > 0.0))
+    {
+        return err(format!(
+            "{key}: floor {} mass must be positive (got {v})",
+            i + 1
+        ));
+    }
+    if let Some((i, v)) = k
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v > 0.0))
+    {
+        return err(format!(
+            "{key}: story {} stiffness must be positive (got {v})",
+            i + 1
+        ));
+    }
+    Ok(())
+}

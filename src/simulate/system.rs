@@ -1,0 +1,264 @@
+//! The simulated linear system: general `M`, `K`, `C` matrices, a map from floors to
+//! DOFs (extra DOFs allowed, for attached oscillators or a flexible base), and the
+//! ground-motion influence vector. Effects that change the physics transform a
+//! [`LinearSystem`] through [`SystemEffect`].
+
+use super::config::{DampingSpec, StructureSpec};
+use crate::error::{Error, Result};
+use crate::modal::Modes;
+use crate::model::{caughey_coefficients, caughey_damping_matrix, rayleigh_damping_matrix};
+use nalgebra::{DMatrix, DVector};
+
+/// `M x'' + C x' + K x = f(t) - M iota a_g(t)`, with `x` relative to the ground.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearSystem {
+    /// Mass matrix, kg (symmetric positive definite).
+    pub mass_kg: DMatrix<f64>,
+    /// Stiffness matrix, N/m (symmetric positive semi-definite).
+    pub stiffness_n_per_m: DMatrix<f64>,
+    /// Viscous damping matrix, N s/m (any; non-proportional allowed).
+    pub damping_n_s_per_m: DMatrix<f64>,
+    /// DOF (0-based) of floor f at index f-1.
+    pub floor_dof: Vec<usize>,
+    /// Rigid-body influence vector `iota` of ground motion (paper Eq. 13).
+    pub ground_influence: DVector<f64>,
+}
+
+/// One transformation of the simulated physics (an added damper, an attached
+/// oscillator, a flexible base, ...). Effects are applied in order after the structure
+/// and its damping are built.
+pub trait SystemEffect: std::fmt::Debug + Send + Sync {
+    /// Changes `system` in place; may add DOFs (then extends `ground_influence` too).
+    fn apply(&self, system: &mut LinearSystem) -> Result<()>;
+}
+
+impl LinearSystem {
+    /// Builds the structure with its damping.
+    pub fn from_spec(structure: &StructureSpec, damping: &DampingSpec) -> Result<Self> {
+        let StructureSpec::ShearFrame {
+            floor_mass_kg,
+            story_stiffness_n_per_m,
+        } = structure;
+        let model =
+            crate::model::StructuralModel::shear_frame(floor_mass_kg, story_stiffness_n_per_m)?;
+        let m = model.mass(&model.beta_zero());
+        let k = model.stiffness(&model.alpha_zero());
+        let iota = model.ground_influence().clone();
+        let c = damping_matrix(&m, &k, &iota, damping)?;
+        let n = m.nrows();
+        let system = LinearSystem {
+            mass_kg: m,
+            stiffness_n_per_m: k,
+            damping_n_s_per_m: c,
+            floor_dof: (0..n).collect(),
+            ground_influence: iota,
+        };
+        system.validate()?;
+        Ok(system)
+    }
+
+    /// Number of DOFs.
+    pub fn n_dof(&self) -> usize {
+        self.mass_kg.nrows()
+    }
+
+    /// Number of floors.
+    pub fn n_floors(&self) -> usize {
+        self.floor_dof.len()
+    }
+
+    /// DOF of floor `floor` (1-based).
+    pub fn dof_of_floor(&self, floor: usize) -> Result<usize> {
+        floor
+            .checked_sub(1)
+            .and_then(|i| self.floor_dof.get(i).copied())
+            .ok_or_else(|| {
+                Error::Usage(format!(
+                    "floor {floor} is outside 1..={} of the simulated structure",
+                    self.n_floors()
+                ))
+            })
+    }
+
+    /// Applies effects in order.
+    pub fn with_effects<E: SystemEffect>(mut self, effects: &[E]) -> Result<Self> {
+        for e in effects {
+            e.apply(&mut self)?;
+            self.validate()?;
+        }
+        Ok(self)
+    }
+
+    /// Shapes agree, M is positive definite, all entries finite, floors map to DOFs.
+    pub fn validate(&self) -> Result<()> {
+        let n = self.n_dof();
+        for (what, a) in [
+            ("K", &self.stiffness_n_per_m),
+            ("C", &self.damping_n_s_per_m),
+            ("M", &self.mass_kg),
+        ] {
+            if a.nrows() != n || a.ncols() != n {
+                return Err(Error::Model(format!(
+                    "{what} is {}x{}, expected {n}x{n}",
+                    a.nrows(),
+                    a.ncols()
+                )));
+            }
+            if a.iter().any(|v| !v.is_finite()) {
+                return Err(Error::Model(format!("{what} has non-finite entries")));
+            }
+        }
+        if self.ground_influence.len() != n {
+            return Err(Error::Model(format!(
+                "ground influence has {} entries for {n} DOFs",
+                self.ground_influence.len()
+            )));
+        }
+        if let Some(d) = self.floor_dof.iter().find(|&&d| d >= n) {
+            return Err(Error::Model(format!("floor mapped to DOF {d} of {n}")));
+        }
+        if self.mass_kg.clone().cholesky().is_none() {
+            return Err(Error::Model("M is not positive definite".into()));
+        }
+        Ok(())
+    }
+
+    /// Undamped modes (ascending) of the system.
+    pub fn modes(&self) -> Result<Modes> {
+        Modes::solve(
+            &self.stiffness_n_per_m,
+            &self.mass_kg,
+            &self.ground_influence,
+            None,
+        )
+    }
+
+    /// Modal damping ratios `xi_i = (Phi^T C Phi)_ii / (2 omega_i)`; exact for
+    /// proportional damping, the diagonal approximation otherwise.
+    pub fn modal_damping_ratios(&self) -> Result<Vec<f64>> {
+        let modes = self.modes()?;
+        let cm = modes.phi.transpose() * &self.damping_n_s_per_m * &modes.phi;
+        Ok(modes
+            .omega_rad_s
+            .iter()
+            .enumerate()
+            .map(|(i, w)| cm[(i, i)] / (2.0 * w))
+            .collect())
+    }
+}
+
+/// Damping matrix of a structure with mass `m`, stiffness `k`.
+pub fn damping_matrix(
+    m: &DMatrix<f64>,
+    k: &DMatrix<f64>,
+    iota: &DVector<f64>,
+    spec: &DampingSpec,
+) -> Result<DMatrix<f64>> {
+    let c = match spec {
+        DampingSpec::Rayleigh { a0_per_s, a1_s } => rayleigh_damping_matrix(m, k, *a0_per_s, *a1_s),
+        DampingSpec::Caughey { xi } => {
+            let modes = Modes::solve(k, m, iota, None)?;
+            let a = caughey_coefficients(&modes.omega_rad_s[..xi.len()], xi)?;
+            let c = caughey_damping_matrix(m, k, &a)?;
+            // Modes beyond xi.len() follow the series, which may make them negative.
+            let cm = modes.phi.transpose() * &c * &modes.phi;
+            for (i, w) in modes.omega_rad_s.iter().enumerate() {
+                if cm[(i, i)] < -1e-12 * c.amax() {
+                    return Err(Error::Model(format!(
+                        "Caughey damping with {} ratios gives mode {} the negative ratio {:.3e}; give more ratios",
+                        xi.len(),
+                        i + 1,
+                        cm[(i, i)] / (2.0 * w)
+                    )));
+                }
+            }
+            c
+        }
+        DampingSpec::Modal { xi } => {
+            let modes = Modes::solve(k, m, iota, None)?;
+            if xi.len() != modes.n_modes() {
+                return Err(Error::Model(format!(
+                    "modal damping needs {} ratios, got {}",
+                    modes.n_modes(),
+                    xi.len()
+                )));
+            }
+            // Phi^T M Phi = I, so M Phi diagonalises back: C = (M Phi) D (M Phi)^T.
+            let m_phi = m * &modes.phi;
+            let d = DMatrix::from_diagonal(&DVector::from_iterator(
+                xi.len(),
+                xi.iter().zip(&modes.omega_rad_s).map(|(x, w)| 2.0 * x * w),
+            ));
+            &m_phi * d * m_phi.transpose()
+        }
+    };
+    Ok(c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame() -> StructureSpec {
+        StructureSpec::ShearFrame {
+            floor_mass_kg: vec![5.0, 4.0, 4.5],
+            story_stiffness_n_per_m: vec![1200.0, 1300.0, 2500.0],
+        }
+    }
+
+    #[test]
+    fn every_damping_model_gives_its_ratios() {
+        let xi = vec![0.02, 0.01, 0.005];
+        for spec in [
+            DampingSpec::Modal { xi: xi.clone() },
+            DampingSpec::Caughey { xi: xi.clone() },
+        ] {
+            let s = LinearSystem::from_spec(&frame(), &spec).unwrap();
+            let got = s.modal_damping_ratios().unwrap();
+            for (g, x) in got.iter().zip(&xi) {
+                assert!((g - x).abs() < 1e-12, "{spec:?}: {got:?}");
+            }
+            // Proportional: Phi^T C Phi is diagonal.
+            let modes = s.modes().unwrap();
+            let cm = modes.phi.transpose() * &s.damping_n_s_per_m * &modes.phi;
+            for i in 0..3 {
+                for j in 0..3 {
+                    if i != j {
+                        assert!(cm[(i, j)].abs() < 1e-12 * cm.amax());
+                    }
+                }
+            }
+        }
+        let s = LinearSystem::from_spec(
+            &frame(),
+            &DampingSpec::Rayleigh {
+                a0_per_s: 0.3,
+                a1_s: 1e-4,
+            },
+        )
+        .unwrap();
+        let modes = s.modes().unwrap();
+        for (g, w) in s
+            .modal_damping_ratios()
+            .unwrap()
+            .iter()
+            .zip(&modes.omega_rad_s)
+        {
+            assert!((g - (0.3 + 1e-4 * w * w) / (2.0 * w)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn caughey_with_few_ratios_rejects_negative_damping() {
+        // Two ratios decreasing with frequency: the series a0 M + a1 K has a1 < 0, so the
+        // third mode would get negative damping.
+        let e = LinearSystem::from_spec(
+            &frame(),
+            &DampingSpec::Caughey {
+                xi: vec![0.05, 0.001],
+            },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("negative ratio"), "{e}");
+    }
+}
