@@ -137,6 +137,7 @@ pub mod config;
 pub mod discrete;
 pub mod effects;
 pub mod excitation;
+pub mod nonlinear;
 pub mod sensor;
 pub mod sensor_effects;
 pub mod system;
@@ -146,8 +147,9 @@ pub use config::{
     ChirpSpec, DampingSpec, ImpactSpec, NoiseSpec, NominalSpec, SamplingSpec, SimModel,
     StructureSpec, TestSpec,
 };
-pub use discrete::{Drive, Foh, OutputMap, Response, StateSpace};
-pub use effects::{Dashpot, EffectSpec, Oscillator};
+pub use discrete::{polynomial_hold, Drive, Foh, OutputMap, Response, StateSpace};
+pub use effects::{BaseFlexibility, Dashpot, EffectSpec, Oscillator, StiffnessNonlinearity};
+pub use nonlinear::{CubicSpring, NonlinearFoh};
 pub use sensor::{Decimate, GaussianNoise, SensorStage, Signal};
 pub use sensor_effects::{LowPass, SensorEffect, TimeOffset};
 pub use system::{LinearSystem, SystemEffect};
