@@ -176,27 +176,25 @@ impl NonlinearFoh {
             }
             None => vec![0.0; ns],
         };
-        // Force and its derivative of each spring at the current state.
-        let force = |s: &CubicSpring, (d, v): (f64, f64)| -> (f64, f64) {
-            (-s.k3_n_per_m3 * d * d * d, -3.0 * s.k3_n_per_m3 * d * d * v)
-        };
-        let mut qk: Vec<(f64, f64)> = self
-            .springs
-            .iter()
-            .map(|s| force(s, drift(s, &z)))
-            .collect();
+        // Forces and their derivatives (q_s, q'_s) at the current state, flat.
+        let mut qk = vec![0.0; 2 * m];
+        for (s, sp) in self.springs.iter().enumerate() {
+            let (d, v) = drift(sp, &z);
+            (qk[2 * s], qk[2 * s + 1]) = sp.force(d, v);
+        }
         let mut z_star = vec![0.0; ns];
+        let mut a = vec![0.0; 2 * m];
         let mut u = vec![0.0; ni];
         let mut y_out: Vec<Vec<f64>> = (0..no).map(|_| Vec::with_capacity(n_steps)).collect();
-        let mut newton = Newton::new(2 * m);
+        let mut newton = Newton::new(m);
         const CHUNK: usize = 1 << 14;
         let mut reported = 0;
         for k in 0..n_steps {
             for (j, uj) in u.iter_mut().take(ne).enumerate() {
                 *uj = inputs[j][k];
             }
-            for (s, q) in qk.iter().enumerate() {
-                u[ne + s] = q.0;
+            for s in 0..m {
+                u[ne + s] = qk[2 * s];
             }
             for (r, yr) in y_out.iter_mut().enumerate() {
                 yr.push(dot(&oc[r * ns..(r + 1) * ns], &z) + dot(&od[r * ni..(r + 1) * ni], &u));
@@ -210,38 +208,36 @@ impl NonlinearFoh {
                 for j in 0..ne {
                     v += gamma0[i * ne + j] * inputs[j][k] + gamma1[i * ne + j] * inputs[j][k + 1];
                 }
-                for (c, q) in cols.iter().zip(&qk) {
-                    v += c.kq[i] * q.0 + c.kp[i] * q.1;
+                for (s, c) in cols.iter().enumerate() {
+                    v += c.kq[i] * qk[2 * s] + c.kp[i] * qk[2 * s + 1];
                 }
                 *zi = v;
             }
-            let a: Vec<(f64, f64)> = self.springs.iter().map(|s| drift(s, &z_star)).collect();
-            newton
-                .solve(&self.springs, &a, &b, &qk, &force)
-                .map_err(|what| {
-                    Error::Numerical(format!(
-                        "cubic spring step at t = {:.6} s: {what}",
-                        (k + 1) as f64 * h
-                    ))
-                })?;
+            for (s, sp) in self.springs.iter().enumerate() {
+                (a[2 * s], a[2 * s + 1]) = drift(sp, &z_star);
+            }
+            let t_s = (k + 1) as f64 * h;
+            newton.solve(&self.springs, &a, &b, &qk).map_err(|what| {
+                Error::Numerical(format!("cubic spring step at t = {t_s:.6} s: {what}"))
+            })?;
             for (s, c) in cols.iter().enumerate() {
-                let (q, p) = newton.forces[s];
+                let (q, p) = (newton.forces[2 * s], newton.forces[2 * s + 1]);
                 for (zi, (cq, cp)) in z_star.iter_mut().zip(c.uq.iter().zip(&c.up)) {
                     *zi += cq * q + cp * p;
                 }
             }
             std::mem::swap(&mut z, &mut z_star);
             qk.copy_from_slice(&newton.forces);
-            for (s, &(d, _)) in self.springs.iter().zip(&newton.y) {
-                if s.linear_stiffness_n_per_m + 3.0 * s.k3_n_per_m3 * d * d <= 0.0 {
+            for (s, sp) in self.springs.iter().enumerate() {
+                let d = newton.y[2 * s];
+                if sp.linear_stiffness_n_per_m + 3.0 * sp.k3_n_per_m3 * d * d <= 0.0 {
                     return Err(Error::Numerical(format!(
-                        "softening spring at DOF {} lost its stiffness (drift {d:.3e} m at t = {:.3} s); lower |k3| or the excitation",
-                        s.upper_dof,
-                        (k + 1) as f64 * h
+                        "softening spring at DOF {} lost its stiffness (drift {d:.3e} m at t = {t_s:.3} s); lower |k3| or the excitation",
+                        sp.upper_dof,
                     )));
                 }
             }
-            if (k + 1) % CHUNK == 0 {
+            if (k + 1).is_multiple_of(CHUNK) {
                 progress(CHUNK as u64);
                 reported += CHUNK;
             }
@@ -254,95 +250,93 @@ impl NonlinearFoh {
     }
 }
 
-/// Newton's method for the spring unknowns `y = (d_1, v_1, ..., d_m, v_m)` of the new
-/// state: `y = a + B g(y)` with `g = (q_1, q'_1, ...)` the spring forces of `y`.
+impl CubicSpring {
+    /// Force on the upper DOF, `q = -k3 d^3`, and its rate `q' = -3 k3 d^2 v`, for the
+    /// drift `d` and drift velocity `v`.
+    pub fn force(&self, d: f64, v: f64) -> (f64, f64) {
+        let k3 = self.k3_n_per_m3;
+        (-k3 * d * d * d, -3.0 * k3 * d * d * v)
+    }
+}
+
+/// Newton's method for the spring unknowns of the new state, flat as
+/// `y = (d_1, v_1, ..., d_m, v_m)`: `y = a + B g(y)` with `g = (q_1, q'_1, ...)` the
+/// spring forces of `y` and `B` (`2m x 2m`, row-major) their effect on `y`.
 struct Newton {
-    /// Converged `(d, v)` per spring.
-    y: Vec<(f64, f64)>,
-    /// Converged `(q, q')` per spring.
-    forces: Vec<(f64, f64)>,
+    /// Converged `y`.
+    y: Vec<f64>,
+    /// Converged `g(y)`.
+    forces: Vec<f64>,
     jac: Vec<f64>,
     res: Vec<f64>,
+    scale: Vec<f64>,
 }
 
 impl Newton {
-    fn new(dim: usize) -> Self {
+    fn new(n_springs: usize) -> Self {
+        let dim = 2 * n_springs;
         Newton {
-            y: vec![(0.0, 0.0); dim / 2],
-            forces: vec![(0.0, 0.0); dim / 2],
+            y: vec![0.0; dim],
+            forces: vec![0.0; dim],
             jac: vec![0.0; dim * dim],
             res: vec![0.0; dim],
+            scale: vec![0.0; dim],
+        }
+    }
+
+    fn update_forces(&mut self, springs: &[CubicSpring]) {
+        for (s, sp) in springs.iter().enumerate() {
+            (self.forces[2 * s], self.forces[2 * s + 1]) =
+                sp.force(self.y[2 * s], self.y[2 * s + 1]);
         }
     }
 
     fn solve(
         &mut self,
         springs: &[CubicSpring],
-        a: &[(f64, f64)],
+        a: &[f64],
         b: &[f64],
-        q_prev: &[(f64, f64)],
-        force: &dyn Fn(&CubicSpring, (f64, f64)) -> (f64, f64),
+        g_prev: &[f64],
     ) -> std::result::Result<(), String> {
-        let m = springs.len();
-        let dim = 2 * m;
+        let dim = 2 * springs.len();
         // Predictor: the spring forces held at their last values.
-        let flat = |v: &[(f64, f64)], i: usize| if i % 2 == 0 { v[i / 2].0 } else { v[i / 2].1 };
-        for j in 0..dim {
-            let bg: f64 = (0..dim).map(|i| b[j * dim + i] * flat(q_prev, i)).sum();
-            let v = flat(a, j) + bg;
-            if j % 2 == 0 {
-                self.y[j / 2].0 = v;
-            } else {
-                self.y[j / 2].1 = v;
-            }
+        for (j, yj) in self.y.iter_mut().enumerate() {
+            *yj = a[j] + dot(&b[j * dim..(j + 1) * dim], g_prev);
         }
         for _ in 0..MAX_NEWTON {
-            for (s, sp) in springs.iter().enumerate() {
-                self.forces[s] = force(sp, self.y[s]);
-            }
-            // Residual r = y - a - B g and Jacobian I - B Dg.
-            let mut scale = vec![0.0; dim];
+            self.update_forces(springs);
+            // Residual r = y - a - B g, the size of its terms, and the Jacobian I - B Dg.
             for j in 0..dim {
-                let mut bg = 0.0;
-                let mut bg_abs = 0.0;
-                for i in 0..dim {
-                    let t = b[j * dim + i] * flat(&self.forces, i);
-                    bg += t;
-                    bg_abs += t.abs();
-                }
-                let (yj, aj) = (flat(&self.y, j), flat(a, j));
-                self.res[j] = yj - aj - bg;
-                scale[j] = yj.abs() + aj.abs() + bg_abs;
-            }
-            for j in 0..dim {
-                for i in 0..dim {
-                    self.jac[j * dim + i] = f64::from(i == j);
+                let row = &b[j * dim..(j + 1) * dim];
+                let bg = dot(row, &self.forces);
+                let bg_abs: f64 = row
+                    .iter()
+                    .zip(&self.forces)
+                    .map(|(x, g)| (x * g).abs())
+                    .sum();
+                self.res[j] = self.y[j] - a[j] - bg;
+                self.scale[j] = self.y[j].abs() + a[j].abs() + bg_abs;
+                let jac = &mut self.jac[j * dim..(j + 1) * dim];
+                for (i, v) in jac.iter_mut().enumerate() {
+                    *v = f64::from(i == j);
                 }
                 for (s, sp) in springs.iter().enumerate() {
-                    let (d, v) = self.y[s];
+                    let (d, v) = (self.y[2 * s], self.y[2 * s + 1]);
                     let k3 = sp.k3_n_per_m3;
                     // Dg: dq/dd = -3 k3 d^2, dq'/dd = -6 k3 d v, dq'/dv = -3 k3 d^2.
-                    let (bq, bp) = (b[j * dim + 2 * s], b[j * dim + 2 * s + 1]);
-                    self.jac[j * dim + 2 * s] -=
-                        bq * (-3.0 * k3 * d * d) + bp * (-6.0 * k3 * d * v);
-                    self.jac[j * dim + 2 * s + 1] -= bp * (-3.0 * k3 * d * d);
+                    let (bq, bp) = (row[2 * s], row[2 * s + 1]);
+                    jac[2 * s] -= bq * (-3.0 * k3 * d * d) + bp * (-6.0 * k3 * d * v);
+                    jac[2 * s + 1] -= bp * (-3.0 * k3 * d * d);
                 }
             }
             solve_in_place(&mut self.jac, &mut self.res, dim)?;
             let mut done = true;
-            for j in 0..dim {
-                let step = self.res[j];
-                done &= step.abs() <= NEWTON_RTOL * scale[j];
-                if j % 2 == 0 {
-                    self.y[j / 2].0 -= step;
-                } else {
-                    self.y[j / 2].1 -= step;
-                }
+            for ((yj, step), scale) in self.y.iter_mut().zip(&self.res).zip(&self.scale) {
+                done &= step.abs() <= NEWTON_RTOL * scale;
+                *yj -= step;
             }
             if done {
-                for (s, sp) in springs.iter().enumerate() {
-                    self.forces[s] = force(sp, self.y[s]);
-                }
+                self.update_forces(springs);
                 return Ok(());
             }
         }
@@ -359,7 +353,8 @@ fn solve_in_place(a: &mut [f64], r: &mut [f64], dim: usize) -> std::result::Resu
         let p = (c..dim)
             .max_by(|&i, &j| a[i * dim + c].abs().total_cmp(&a[j * dim + c].abs()))
             .unwrap_or(c);
-        if !(a[p * dim + c].abs() > 0.0) {
+        let pivot = a[p * dim + c];
+        if pivot == 0.0 || !pivot.is_finite() {
             return Err("singular Newton matrix".into());
         }
         if p != c {

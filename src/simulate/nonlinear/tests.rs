@@ -195,7 +195,7 @@ fn zero_k3_reproduces_the_linear_recursion() {
         .unwrap()
         .simulate(
             &ss.output_map(&responses).unwrap(),
-            &[u.clone()],
+            std::slice::from_ref(&u),
             None,
             &|_| {},
         )
