@@ -183,6 +183,9 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         }
         Ok(())
     })?;
+    info.time("identifiability", || {
+        super::identifiability_report::write_identifiability(&runs, &frfs, &dir)
+    })?;
     info.write(&dir)?;
     let out = staged.commit()?;
     Ok(Outcome {
