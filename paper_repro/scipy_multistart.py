@@ -24,7 +24,7 @@ ratios, best costs, machine and versions) and keeps the Rust outputs in
 The command (run from the repository root; ``frfbayes repro`` writes the problems)::
 
     python3 paper_repro/scipy_multistart.py --problems results/paper_repro/problems \\
-        --starts 64 --seed 0 --report results/paper_repro/speed/scipy_vs_rust
+        --starts 64 --seed 0 --report results/speed/scipy_vs_rust
 
 The binary is ``--frfbayes PATH`` if given, else it is built with
 ``cargo build --release`` and copied from ``$CARGO_TARGET_DIR/release`` (or

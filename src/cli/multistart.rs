@@ -11,14 +11,14 @@
 //!
 //! ```text
 //! frfbayes multistart --problems results/paper_repro/problems --starts 64 --seed 0 \
-//!     --out results/paper_repro/speed/rust.json
+//!     --out results/speed/rust.json
 //! ```
 //!
 //! The side-by-side speed comparison with scipy runs this command itself:
 //!
 //! ```text
 //! python3 paper_repro/scipy_multistart.py --problems results/paper_repro/problems \
-//!     --starts 64 --seed 0 --report results/paper_repro/speed/scipy_vs_rust
+//!     --starts 64 --seed 0 --report results/speed/scipy_vs_rust
 //! ```
 
 use anyhow::Context;
