@@ -20,6 +20,8 @@ enum Command {
     Frf(cli::frf::Args),
     /// Print the nominal natural frequencies and mode shapes of a campaign's model.
     Modes(cli::modes::Args),
+    /// Timed multistart updating of saved problems (ProblemSpec JSON files).
+    Multistart(cli::multistart::Args),
     /// Reproduce the paper (Tables 1-2, Figures 4, 5, 8, 9) on the bundled campaign.
     Repro(cli::repro::ReproArgs),
     /// Run an experiment file (experiments/<name>.toml).
@@ -36,6 +38,7 @@ fn main() -> std::process::ExitCode {
         Command::Check(a) => cli::check::run(a),
         Command::Frf(a) => cli::frf::run(a),
         Command::Modes(a) => cli::modes::run(a),
+        Command::Multistart(a) => cli::multistart::run(a),
         Command::Repro(a) => cli::repro::repro(a),
         Command::Run(a) => cli::repro::run(a),
         Command::Sample(a) => cli::sample::run(a),
