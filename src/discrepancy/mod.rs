@@ -3,6 +3,20 @@
 //! likelihood and held-out prediction, and decide (issue 5).
 
 pub mod benchmark;
+pub mod data;
+pub mod fit;
+pub mod forward;
+pub mod hypotheses;
+pub mod hypothesis;
+pub mod location;
+pub mod posterior;
 pub mod verdict;
 
+pub use data::{ChannelData, DataOptions, DiagnosisData, SegmentData};
+pub use fit::{effect_starts, fit_map, frame_starts, nominal_start, MapFit, MapOptions};
+pub use forward::{frame_system, BaseParams, ExtendedModel};
+pub use hypotheses::{all_hypotheses, hypothesis_by_name};
+pub use hypothesis::{Coordinate, EffectParam, Hypothesis};
+pub use location::Location;
+pub use posterior::{ModelPosterior, PhysicalValue};
 pub use verdict::{decide, Candidate, Decision, DiagnosisRecord, EffectSummary, FitQuality};

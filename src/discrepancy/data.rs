@@ -1,0 +1,760 @@
+//! The data of a diagnosis: complex FRF estimates of every *segment* (a shake-table test,
+//! or one impact of a hammer test) at a selected set of frequencies, each with its
+//! Bendat & Piersol relative random error, plus what amplitude-dependent models need
+//! (the effective mean-square story drift of each segment).
+//!
+//! # What is measured
+//! Each value is the exact ratio *channel / input channel* as recorded (see DIAGNOSE.md):
+//! hammer: displacement / force (receptance), absolute acceleration / force
+//! (accelerance); shake table: displacement (relative to the table) / ground
+//! acceleration, **absolute** acceleration / ground acceleration (the estimator's relative
+//! accelerance plus 1, exact for H1). So a time offset or a sensor filter on one channel
+//! is a factor on exactly that channel. Hammer estimates carry the exponential window:
+//! they are the transfer function at `s = j omega + 1/tau`.
+//!
+//! # Segments
+//! With [`DataOptions::per_impact`] every impact of a hammer test is its own segment
+//! (one block, H1 = Y/F), so that impacts of different levels can disagree. All hammer
+//! blocks of a campaign are cut to one common length, so they share one frequency grid
+//! and one window time constant (the forward model then factorises each `s` once for all
+//! hammer segments). Each record is cut just before the next impact's pre-trigger, with
+//! up to 1 s of the preceding record as the quiet part that sets the sensor offsets.
+//!
+//! # Frequencies
+//! Per group of segments sharing a grid (all hammer blocks; each shake-table test): all
+//! bins within `band_factor` half-power half-widths of every resonance found in any
+//! segment of the group (at most `max_band_points` per band), plus `off_band_points`
+//! log-spaced bins, all within `freq_range_rel` times the nominal model's lowest and
+//! highest natural frequencies and where every segment's input is within
+//! `min_input_db` of its maximum. A channel keeps a point only where its coherence is at
+//! least `min_coherence` (below it H1 is noise-dominated and its error model poor).
+//!
+//! # Amplitude
+//! For story `r` with displacement channels on floors `r - 1` (or the ground) and `r`,
+//! the drift `d(t)` over the analysed part of the record (the hammer block with its
+//! exponential window `w`, or the whole shake-table record), its local mean square
+//! `ms(t)` over one period of the nominal first mode, and the energy-weighted effective
+//! mean square `m_eff = sum (w d)^2 ms / sum (w d)^2` (the response's spectral centroid
+//! sits at the energy-weighted mean of the instantaneous frequency).
+
+use crate::error::{Error, Result};
+use crate::frf::FrfKind;
+use crate::io::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
+use crate::modal::Modes;
+use crate::signal::hammer::detect_impacts;
+use crate::signal::{
+    bendat_piersol_rel_std, estimate_test, Band, EstimateOptions, InputKind, TestFrf,
+};
+use num_complex::Complex64;
+use serde::{Deserialize, Serialize};
+
+/// How the data of a diagnosis are extracted from a campaign.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DataOptions {
+    /// FRF estimation (windows, coherence, band search).
+    pub estimate: EstimateOptions,
+    /// One segment per hammer impact (default true); false averages the impacts of a test.
+    pub per_impact: bool,
+    /// Dense points within this many half-power half-widths of each peak (default 3).
+    pub band_factor: f64,
+    /// At most this many points per resonance band (default 30).
+    pub max_band_points: usize,
+    /// Log-spaced points over the analysed range (default 80).
+    pub off_band_points: usize,
+    /// Analysed range as multiples of the nominal model's lowest and highest natural
+    /// frequencies (default 0.25 and 4).
+    pub freq_range_rel: (f64, f64),
+    /// A channel keeps a point only where its coherence is at least this (default 0.5).
+    pub min_coherence: f64,
+    /// Peaks searched beyond the nominal number of modes (extra modes; default 2).
+    pub extra_peaks: usize,
+}
+
+impl Default for DataOptions {
+    fn default() -> Self {
+        DataOptions {
+            estimate: EstimateOptions::default(),
+            per_impact: true,
+            band_factor: 3.0,
+            max_band_points: 30,
+            off_band_points: 80,
+            freq_range_rel: (0.25, 4.0),
+            min_coherence: 0.5,
+            extra_peaks: 2,
+        }
+    }
+}
+
+/// The measured FRF of one response channel in one segment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChannelData {
+    pub channel: Channel,
+    /// Receptance (displacement) or accelerance (acceleration; absolute in shake-table
+    /// tests).
+    pub kind: FrfKind,
+    /// Index into the segment's `freq_hz` of each point.
+    pub freq_index: Vec<usize>,
+    /// Resonance band (index into the segment's `bands`) of each point, `None` off-band.
+    pub band: Vec<Option<usize>>,
+    /// Measured ratio channel / input at each point.
+    pub h: Vec<Complex64>,
+    /// Bendat & Piersol relative random error `eps` of each point: `std(Re) = std(Im) =
+    /// eps |h|`.
+    pub rel_err: Vec<f64>,
+}
+
+impl ChannelData {
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.h.len()
+    }
+    /// True without points.
+    pub fn is_empty(&self) -> bool {
+        self.h.is_empty()
+    }
+}
+
+/// One segment: a shake-table test, or one impact (or all impacts) of a hammer test.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SegmentData {
+    /// `test` or `test/impact<k>` (1-based).
+    pub name: String,
+    pub test: String,
+    /// Impact index within the test (0-based) when the segment is one impact.
+    pub impact: Option<usize>,
+    /// Peak force of the impact(s), N (hammer).
+    pub peak_force_n: Option<f64>,
+    pub input: InputKind,
+    /// The input channel.
+    pub input_channel: Channel,
+    /// Exponential window time constant, s (hammer); the data are at `s = j omega + 1/tau`.
+    pub exp_window_tau_s: Option<f64>,
+    /// Selected frequencies, Hz (ascending).
+    pub freq_hz: Vec<f64>,
+    /// Resonance bands found in this segment.
+    pub bands: Vec<Band>,
+    pub channels: Vec<ChannelData>,
+    /// Effective mean-square drift of each story (index `r - 1`), m^2, where the
+    /// displacement channels allow it (see the module docs).
+    pub story_drift_ms_m2: Vec<Option<f64>>,
+}
+
+impl SegmentData {
+    /// The Laplace variable of each frequency: `j omega + 1/tau` (`j omega` unwindowed).
+    pub fn laplace(&self) -> Vec<Complex64> {
+        let eps = self.exp_window_tau_s.map_or(0.0, |t| 1.0 / t);
+        self.freq_hz
+            .iter()
+            .map(|f| Complex64::new(eps, 2.0 * std::f64::consts::PI * f))
+            .collect()
+    }
+
+    /// True for a shake-table (ground-excited) segment.
+    pub fn is_ground(&self) -> bool {
+        matches!(self.input, InputKind::Ground { .. })
+    }
+
+    /// Number of complex points over all channels.
+    pub fn n_points(&self) -> usize {
+        self.channels.iter().map(ChannelData::len).sum()
+    }
+}
+
+/// All data of a diagnosis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnosisData {
+    pub title: String,
+    pub nominal: NominalModel,
+    /// Undamped natural frequencies of the nominal model, Hz (ascending).
+    pub nominal_freq_hz: Vec<f64>,
+    pub segments: Vec<SegmentData>,
+    pub options: DataOptions,
+}
+
+impl DiagnosisData {
+    /// Estimates and selects the data of `campaign` (see the module docs).
+    pub fn from_campaign(campaign: &Campaign, options: &DataOptions) -> Result<Self> {
+        check_options(options)?;
+        let nominal = campaign.nominal.clone();
+        let nominal_freq_hz = nominal_frequencies(&nominal)?;
+        let n_floors = nominal.n_floors();
+        let mut est = options.estimate;
+        est.bands.n_peaks = Some(n_floors + options.extra_peaks);
+        let f1 = nominal_freq_hz[0];
+        let range = (
+            options.freq_range_rel.0 * f1,
+            options.freq_range_rel.1 * nominal_freq_hz[nominal_freq_hz.len() - 1],
+        );
+
+        // Hammer blocks: a common length over all impacts of all hammer tests.
+        let pre = est.hammer.pretrigger_s;
+        let mut plans: Vec<(usize, Vec<(usize, usize)>)> = Vec::new(); // test, (start, end)
+        for (ti, t) in campaign.tests.iter().enumerate() {
+            if let TestKind::Hammer { .. } = t.kind {
+                let fi = t.find(Quantity::Force).ok_or_else(|| {
+                    Error::invalid(
+                        test_path(campaign, t),
+                        "hammer test without a force channel",
+                    )
+                })?;
+                let impacts = detect_impacts(&t.data[fi], t.sample_rate_hz, &est.hammer);
+                if impacts.is_empty() {
+                    return Err(Error::invalid(
+                        test_path(campaign, t),
+                        "no impact found in the force channel",
+                    ));
+                }
+                let p = (pre * t.sample_rate_hz).round() as usize;
+                let starts: Vec<usize> = impacts
+                    .iter()
+                    .map(|i| i.trigger.saturating_sub(p))
+                    .collect();
+                let mut spans: Vec<(usize, usize)> = starts
+                    .iter()
+                    .enumerate()
+                    .map(|(b, &s)| (s, starts.get(b + 1).copied().unwrap_or(t.n_samples())))
+                    .collect();
+                let longest = spans.iter().map(|(s, e)| e - s).max().unwrap_or(0);
+                // As the hammer estimator does: a last block shorter than half the longest
+                // is dropped.
+                if spans.len() > 1 {
+                    if let Some(&(s, e)) = spans.last() {
+                        if 2 * (e - s) < longest {
+                            spans.pop();
+                        }
+                    }
+                }
+                plans.push((ti, spans));
+            }
+        }
+        let common_len = plans
+            .iter()
+            .flat_map(|(_, s)| s.iter().map(|(a, b)| b - a))
+            .min();
+
+        // Estimates: (segment skeleton, estimate, the test record it came from, block
+        // start within that record).
+        let mut raw: Vec<RawSegment> = Vec::new();
+        for (ti, spans) in &plans {
+            let t = &campaign.tests[*ti];
+            let len = common_len.unwrap_or(0);
+            let quiet_max = (t.sample_rate_hz.round() as usize).max(64);
+            if options.per_impact {
+                for (b, &(start, _)) in spans.iter().enumerate() {
+                    let quiet = start.min(quiet_max);
+                    let lo = start - quiet;
+                    let hi = start + len;
+                    let slice = slice_test(t, lo, hi);
+                    let frf = estimate_test(&slice, &est).map_err(|e| with_root(campaign, e))?;
+                    raw.push(RawSegment {
+                        name: format!("{}/impact{}", t.name, b + 1),
+                        impact: Some(b),
+                        frf,
+                        record: slice,
+                        block_start: quiet,
+                        block_len: len,
+                    });
+                }
+            } else {
+                let mut e = est;
+                e.hammer.max_block_s = Some(len as f64 / t.sample_rate_hz);
+                let frf = estimate_test(t, &e).map_err(|e| with_root(campaign, e))?;
+                raw.push(RawSegment {
+                    name: t.name.clone(),
+                    impact: None,
+                    frf,
+                    record: t.clone(),
+                    block_start: spans[0].0,
+                    block_len: len,
+                });
+            }
+        }
+        for t in &campaign.tests {
+            if t.kind == TestKind::ShakeTable {
+                let frf = estimate_test(t, &est).map_err(|e| with_root(campaign, e))?;
+                raw.push(RawSegment {
+                    name: t.name.clone(),
+                    impact: None,
+                    frf,
+                    record: t.clone(),
+                    block_start: 0,
+                    block_len: t.n_samples(),
+                });
+            }
+        }
+        if raw.is_empty() {
+            return Err(Error::Usage("the campaign has no tests to diagnose".into()));
+        }
+
+        // Groups of segments on one grid: all hammer blocks share one; each shake-table
+        // test is its own.
+        let mut group_of: Vec<usize> = Vec::with_capacity(raw.len());
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        for (i, r) in raw.iter().enumerate() {
+            let key = (
+                r.frf.freq_hz.len(),
+                r.frf.exp_window_tau_s.map(f64::to_bits),
+            );
+            let found = groups.iter().position(|g| {
+                let o = &raw[g[0]];
+                o.frf.exp_window_tau_s.is_some()
+                    && (
+                        o.frf.freq_hz.len(),
+                        o.frf.exp_window_tau_s.map(f64::to_bits),
+                    ) == key
+            });
+            match found {
+                Some(g) if r.frf.exp_window_tau_s.is_some() => {
+                    groups[g].push(i);
+                    group_of.push(g);
+                }
+                _ => {
+                    groups.push(vec![i]);
+                    group_of.push(groups.len() - 1);
+                }
+            }
+        }
+        let selections: Vec<Vec<usize>> = groups
+            .iter()
+            .map(|g| {
+                let frfs: Vec<&TestFrf> = g.iter().map(|&i| &raw[i].frf).collect();
+                select_bins(&frfs, range, options)
+            })
+            .collect();
+
+        let mut segments = Vec::with_capacity(raw.len());
+        for (i, r) in raw.iter().enumerate() {
+            let sel = &selections[group_of[i]];
+            segments.push(build_segment(r, sel, options, n_floors, f1)?);
+        }
+        let data = DiagnosisData {
+            title: campaign.title.clone(),
+            nominal,
+            nominal_freq_hz,
+            segments,
+            options: *options,
+        };
+        if data.n_points() == 0 {
+            return Err(Error::Usage(
+                "no FRF point passed the coherence and range selection".into(),
+            ));
+        }
+        Ok(data)
+    }
+
+    /// Number of floors of the nominal model.
+    pub fn n_floors(&self) -> usize {
+        self.nominal.n_floors()
+    }
+
+    /// Number of complex points over all segments and channels.
+    pub fn n_points(&self) -> usize {
+        self.segments.iter().map(SegmentData::n_points).sum()
+    }
+
+    /// Every distinct channel (inputs included), by name, in order of appearance.
+    pub fn channels(&self) -> Vec<Channel> {
+        let mut out: Vec<Channel> = Vec::new();
+        for s in &self.segments {
+            for c in std::iter::once(&s.input_channel).chain(s.channels.iter().map(|c| &c.channel))
+            {
+                if !out.iter().any(|o| o.name == c.name) {
+                    out.push(c.clone());
+                }
+            }
+        }
+        out
+    }
+
+    /// Response quantities present (acceleration and/or displacement).
+    pub fn response_quantities(&self) -> Vec<Quantity> {
+        let mut q: Vec<Quantity> = Vec::new();
+        for s in &self.segments {
+            for c in &s.channels {
+                if !q.contains(&c.channel.quantity) {
+                    q.push(c.channel.quantity);
+                }
+            }
+        }
+        q
+    }
+
+    /// The largest effective mean-square drift of story `story` (1-based) over the
+    /// segments, m^2, if any segment has it.
+    pub fn max_story_drift_ms_m2(&self, story: usize) -> Option<f64> {
+        self.segments
+            .iter()
+            .filter_map(|s| {
+                s.story_drift_ms_m2
+                    .get(story.checked_sub(1)?)
+                    .copied()
+                    .flatten()
+            })
+            .reduce(f64::max)
+    }
+}
+
+fn check_options(o: &DataOptions) -> Result<()> {
+    let (lo, hi) = o.freq_range_rel;
+    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+        return Err(Error::Usage(format!(
+            "freq_range_rel must satisfy 0 < lo < hi, got ({lo}, {hi})"
+        )));
+    }
+    if !(o.band_factor.is_finite() && o.band_factor > 0.0) {
+        return Err(Error::Usage(format!(
+            "band_factor must be positive, got {}",
+            o.band_factor
+        )));
+    }
+    if !(0.0..1.0).contains(&o.min_coherence) {
+        return Err(Error::Usage(format!(
+            "min_coherence must be in [0, 1), got {}",
+            o.min_coherence
+        )));
+    }
+    Ok(())
+}
+
+/// Undamped natural frequencies of the nominal model, Hz.
+pub fn nominal_frequencies(nominal: &NominalModel) -> Result<Vec<f64>> {
+    let model = nominal.structural_model()?;
+    let modes = Modes::solve(
+        &model.stiffness(&model.alpha_zero()),
+        &model.mass(&model.beta_zero()),
+        model.ground_influence(),
+        None,
+    )?;
+    Ok(modes.freq_hz())
+}
+
+struct RawSegment {
+    name: String,
+    impact: Option<usize>,
+    frf: TestFrf,
+    /// The record the estimate was made from (a slice for one impact).
+    record: Test,
+    /// First sample of the analysed block in `record`.
+    block_start: usize,
+    block_len: usize,
+}
+
+fn test_path(c: &Campaign, t: &Test) -> std::path::PathBuf {
+    c.root.join("tests").join(&t.name).join("data.csv")
+}
+
+fn with_root(c: &Campaign, e: Error) -> Error {
+    match e {
+        Error::Invalid { path, what } => Error::invalid(c.root.join(path), what),
+        other => other,
+    }
+}
+
+fn slice_test(t: &Test, lo: usize, hi: usize) -> Test {
+    let hi = hi.min(t.n_samples());
+    Test {
+        name: t.name.clone(),
+        kind: t.kind,
+        sample_rate_hz: t.sample_rate_hz,
+        channels: t.channels.clone(),
+        data: t.data.iter().map(|d| d[lo..hi].to_vec()).collect(),
+    }
+}
+
+/// Valid bins of one estimate: inside `range` and with input within `min_input_db`.
+fn valid_bins(frf: &TestFrf, range: (f64, f64), min_input_db: f64) -> Vec<bool> {
+    let max_p = frf.input_power.iter().cloned().fold(0.0, f64::max);
+    let floor = max_p * 10f64.powf(min_input_db / 10.0);
+    frf.freq_hz
+        .iter()
+        .zip(&frf.input_power)
+        .map(|(&f, &p)| f >= range.0 && f <= range.1 && p >= floor && p > 0.0)
+        .collect()
+}
+
+/// Bin indices `[lo, hi]` of `band` widened to `factor` half-power half-widths.
+fn band_span(band: &Band, freq_hz: &[f64], factor: f64) -> (f64, f64) {
+    let _ = freq_hz;
+    (
+        band.peak_hz - factor * (band.peak_hz - band.lo_hz),
+        band.peak_hz + factor * (band.hi_hz - band.peak_hz),
+    )
+}
+
+/// The selected bins of a group of estimates on one grid (see the module docs).
+fn select_bins(frfs: &[&TestFrf], range: (f64, f64), o: &DataOptions) -> Vec<usize> {
+    let freq = &frfs[0].freq_hz;
+    let n = freq.len();
+    let mut valid = vec![true; n];
+    for f in frfs {
+        for (v, ok) in valid
+            .iter_mut()
+            .zip(valid_bins(f, range, o.estimate.bands.min_input_db))
+        {
+            *v &= ok;
+        }
+    }
+    let mut sel: Vec<usize> = Vec::new();
+    for f in frfs {
+        for b in &f.bands {
+            let (lo, hi) = band_span(b, freq, o.band_factor);
+            let bins: Vec<usize> = (0..n)
+                .filter(|&k| valid[k] && freq[k] >= lo && freq[k] <= hi)
+                .collect();
+            let step = bins.len().div_ceil(o.max_band_points.max(1)).max(1);
+            sel.extend(bins.iter().step_by(step));
+        }
+    }
+    let valid_idx: Vec<usize> = (0..n).filter(|&k| valid[k]).collect();
+    if let (Some(&first), Some(&last)) = (valid_idx.first(), valid_idx.last()) {
+        let (a, b) = (freq[first].max(1e-12).ln(), freq[last].ln());
+        let m = o.off_band_points;
+        for i in 0..m {
+            let target = if m == 1 {
+                a
+            } else {
+                a + (b - a) * i as f64 / (m - 1) as f64
+            }
+            .exp();
+            // Nearest valid bin.
+            let pos = valid_idx.partition_point(|&k| freq[k] < target);
+            let cand = [pos.checked_sub(1), Some(pos)]
+                .into_iter()
+                .flatten()
+                .filter(|&p| p < valid_idx.len())
+                .min_by(|&p, &q| {
+                    (freq[valid_idx[p]] - target)
+                        .abs()
+                        .total_cmp(&(freq[valid_idx[q]] - target).abs())
+                });
+            if let Some(p) = cand {
+                sel.push(valid_idx[p]);
+            }
+        }
+    }
+    sel.sort_unstable();
+    sel.dedup();
+    sel
+}
+
+fn build_segment(
+    r: &RawSegment,
+    sel: &[usize],
+    o: &DataOptions,
+    n_floors: usize,
+    f1_hz: f64,
+) -> Result<SegmentData> {
+    let frf = &r.frf;
+    let ground = matches!(frf.input, InputKind::Ground { .. });
+    let input_name = match &frf.input {
+        InputKind::Force { channel, .. } | InputKind::Ground { channel } => channel,
+    };
+    let input_channel = r
+        .record
+        .channels
+        .iter()
+        .find(|c| &c.name == input_name)
+        .cloned()
+        .ok_or_else(|| {
+            Error::Usage(format!(
+                "input channel {input_name} not in test {}",
+                frf.test
+            ))
+        })?;
+    let freq_hz: Vec<f64> = sel.iter().map(|&k| frf.freq_hz[k]).collect();
+    let spans: Vec<(f64, f64)> = frf
+        .bands
+        .iter()
+        .map(|b| band_span(b, &frf.freq_hz, o.band_factor))
+        .collect();
+    let band_of = |f: f64| spans.iter().position(|&(lo, hi)| f >= lo && f <= hi);
+    let mut channels = Vec::with_capacity(frf.responses.len());
+    for resp in &frf.responses {
+        if resp.channel.floor == 0 || resp.channel.floor > n_floors {
+            continue;
+        }
+        let mut c = ChannelData {
+            channel: resp.channel.clone(),
+            kind: resp.kind,
+            freq_index: Vec::new(),
+            band: Vec::new(),
+            h: Vec::new(),
+            rel_err: Vec::new(),
+        };
+        for (i, &k) in sel.iter().enumerate() {
+            let g2 = resp.coherence[k];
+            if g2.is_nan() || g2 < o.min_coherence {
+                continue;
+            }
+            let h_rel = resp.h1[k];
+            let eps = bendat_piersol_rel_std(g2, frf.n_averages);
+            // Shake table: absolute acceleration / ground = relative + 1; the error is
+            // the relative estimate's, re-expressed relative to the absolute ratio.
+            let (h, eps) = if ground && resp.kind == FrfKind::Accelerance {
+                let h = h_rel + 1.0;
+                (h, eps * h_rel.norm() / h.norm())
+            } else {
+                (h_rel, eps)
+            };
+            if !(h.norm() > 0.0 && h.is_finite() && eps.is_finite()) {
+                continue;
+            }
+            c.freq_index.push(i);
+            c.band.push(band_of(freq_hz[i]));
+            c.h.push(h);
+            c.rel_err.push(eps);
+        }
+        if !c.is_empty() {
+            channels.push(c);
+        }
+    }
+    let window = frf.exp_window_tau_s;
+    let story_drift_ms_m2 = (1..=n_floors)
+        .map(|s| story_drift_ms(&r.record, s, r.block_start, r.block_len, window, f1_hz))
+        .collect();
+    let peak_force_n = if ground {
+        None
+    } else {
+        r.record.find(Quantity::Force).map(|fi| {
+            let d = &r.record.data[fi];
+            let base = d[..r.block_start.max(1).min(d.len())].iter().sum::<f64>()
+                / r.block_start.max(1) as f64;
+            d[r.block_start..]
+                .iter()
+                .map(|v| (v - base).abs())
+                .fold(0.0, f64::max)
+        })
+    };
+    Ok(SegmentData {
+        name: r.name.clone(),
+        test: frf.test.clone(),
+        impact: r.impact,
+        peak_force_n,
+        input: frf.input.clone(),
+        input_channel,
+        exp_window_tau_s: window,
+        freq_hz,
+        bands: frf.bands.clone(),
+        channels,
+        story_drift_ms_m2,
+    })
+}
+
+/// Effective mean-square drift of `story` over `[start, start + len)` of `t` (see the
+/// module docs); `None` without displacement channels on both of its levels.
+fn story_drift_ms(
+    t: &Test,
+    story: usize,
+    start: usize,
+    len: usize,
+    tau_s: Option<f64>,
+    f1_hz: f64,
+) -> Option<f64> {
+    let disp = |floor: usize| {
+        t.channels
+            .iter()
+            .position(|c| c.quantity == Quantity::Displacement && c.floor == floor)
+    };
+    let upper = disp(story)?;
+    let lower = if story == 1 {
+        None
+    } else {
+        Some(disp(story - 1)?)
+    };
+    let end = (start + len).min(t.n_samples());
+    if end <= start + 2 {
+        return None;
+    }
+    // Offsets: the mean of the quiet part before the block (as the hammer estimator
+    // does), else of the analysed part.
+    let offset = |i: usize| {
+        let d = &t.data[i];
+        if start >= 64 {
+            d[..start].iter().sum::<f64>() / start as f64
+        } else {
+            d[start..end].iter().sum::<f64>() / (end - start) as f64
+        }
+    };
+    let (ou, ol) = (offset(upper), lower.map_or(0.0, offset));
+    let drift: Vec<f64> = (start..end)
+        .map(|k| {
+            let l = lower.map_or(0.0, |i| t.data[i][k] - ol);
+            t.data[upper][k] - ou - l
+        })
+        .collect();
+    let n = drift.len();
+    let half = ((t.sample_rate_hz / f1_hz) / 2.0).round().max(1.0) as usize;
+    let mut prefix = vec![0.0; n + 1];
+    for (i, d) in drift.iter().enumerate() {
+        prefix[i + 1] = prefix[i] + d * d;
+    }
+    let dt = 1.0 / t.sample_rate_hz;
+    let (mut num, mut den) = (0.0, 0.0);
+    for (i, d) in drift.iter().enumerate() {
+        let (a, b) = (i.saturating_sub(half), (i + half + 1).min(n));
+        let ms = (prefix[b] - prefix[a]) / (b - a) as f64;
+        let w = tau_s.map_or(1.0, |tau| (-(i as f64) * dt / tau).exp());
+        let u2 = (w * d).powi(2);
+        num += u2 * ms;
+        den += u2;
+    }
+    (den > 0.0).then(|| num / den)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn effective_drift_of_a_steady_sinusoid_is_its_mean_square() {
+        // d = A sin(2 pi f t) on floor 1 (story 1 relative to the ground): m_eff = A^2/2
+        // up to the edge effect of the moving window (one period over 100 s: 1 %).
+        let fs = 200.0;
+        let (a, f) = (2e-3, 1.3);
+        let n = 20_000;
+        let d: Vec<f64> = (0..n)
+            .map(|k| a * (2.0 * std::f64::consts::PI * f * k as f64 / fs).sin())
+            .collect();
+        let t = Test {
+            name: "t".into(),
+            kind: TestKind::ShakeTable,
+            sample_rate_hz: fs,
+            channels: vec![Channel {
+                name: "disp1".into(),
+                quantity: Quantity::Displacement,
+                floor: 1,
+                unit: "m".into(),
+            }],
+            data: vec![d],
+        };
+        let m = story_drift_ms(&t, 1, 0, n, None, f).unwrap();
+        assert!((m / (a * a / 2.0) - 1.0).abs() < 0.01, "{m}");
+        assert!(story_drift_ms(&t, 2, 0, n, None, f).is_none());
+        // An exponentially decaying envelope A e^{-t/T} under a window e^{-t/tau}: the
+        // weights are A^2 e^{-2t/T} e^{-2t/tau}, so m_eff = (A^2/2) (1/T + 1/tau) /
+        // (2/T + 1/tau) (ratio of the integrals of e^{-4t/T - 2t/tau} and
+        // e^{-2t/T - 2t/tau}).
+        let (big_t, tau) = (20.0, 30.0);
+        let d: Vec<f64> = (0..n)
+            .map(|k| {
+                let tt = k as f64 / fs;
+                a * (-tt / big_t).exp() * (2.0 * std::f64::consts::PI * f * tt).sin()
+            })
+            .collect();
+        let t2 = Test { data: vec![d], ..t };
+        let m = story_drift_ms(&t2, 1, 0, n, Some(tau), f).unwrap();
+        let expect = a * a / 2.0 * (1.0 / big_t + 1.0 / tau) / (2.0 / big_t + 1.0 / tau);
+        assert!((m / expect - 1.0).abs() < 0.02, "{m} vs {expect}");
+    }
+
+    #[test]
+    fn options_are_checked() {
+        let bad = DataOptions {
+            freq_range_rel: (2.0, 1.0),
+            ..Default::default()
+        };
+        assert!(check_options(&bad).is_err());
+        assert!(check_options(&DataOptions::default()).is_ok());
+    }
+}

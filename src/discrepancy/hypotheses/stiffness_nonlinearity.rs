@@ -1,0 +1,106 @@
+//! `stiffness_nonlinearity`: a cubic story spring, force `k d + k3 d^3` for the drift `d`
+//! (hardening for `k3 > 0`), so the FRFs depend on the excitation level.
+//!
+//! Forward model: equivalent linearisation per segment. Harmonic balance of `k3 d^3` at
+//! drift amplitude `A` gives the stiffness `k + (3/4) k3 A^2`; with the segment's
+//! effective mean-square drift `m_eff = A^2 / 2` ([`SegmentData::story_drift_ms_m2`],
+//! measured from the displacement channels) that is `k + (3/2) k3 m_eff`, added across
+//! the story. Neglected: the amplitude's decay within a hammer block beyond its energy
+//! weighting, the frequency dependence of the amplitude along a chirp, and the
+//! harmonics (the third harmonic of mode 1 can drive a mode near three times its
+//! frequency). A segment without displacement channels at the story is treated as
+//! linear.
+//!
+//! Prior: the relative stiffness change at the largest measured effective amplitude,
+//! `r = (3/2) k3 m_max / k_s0` (`k_s0` nominal), uniform on -0.4..0.5 (so the
+//! linearised story keeps at least 10 % of its nominal stiffness); reported as `k3`
+//! (N/m^3). The nominal model is `k3 = 0`.
+
+use crate::discrepancy::data::{DiagnosisData, SegmentData};
+use crate::discrepancy::hypothesis::{Coordinate, EffectParam, Hypothesis};
+use crate::discrepancy::location::Location;
+use crate::error::{Error, Result};
+use crate::simulate::LinearSystem;
+
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StiffnessNonlinearityHypothesis;
+
+/// Lower and upper bound of the relative stiffness change `r`.
+const REL_CHANGE: (f64, f64) = (-0.4, 0.5);
+
+fn story_of(loc: &Location, n_floors: usize) -> Result<usize> {
+    match loc {
+        Location::Story(s) if (1..=n_floors).contains(s) => Ok(*s),
+        other => Err(Error::Usage(format!(
+            "stiffness_nonlinearity acts on a story 1..={n_floors}, not on {other}"
+        ))),
+    }
+}
+
+impl Hypothesis for StiffnessNonlinearityHypothesis {
+    fn name(&self) -> &'static str {
+        "stiffness_nonlinearity"
+    }
+
+    fn physics(&self) -> &'static str {
+        "a story spring is nonlinear (cubic): its stiffness changes with the vibration amplitude"
+    }
+
+    fn locations(&self, data: &DiagnosisData) -> Vec<Location> {
+        (1..=data.n_floors())
+            .filter(|&s| data.max_story_drift_ms_m2(s).is_some_and(|m| m > 0.0))
+            .map(Location::Story)
+            .collect()
+    }
+
+    fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
+        let s = story_of(loc, data.n_floors())?;
+        let m_max = data
+            .max_story_drift_ms_m2(s)
+            .filter(|m| *m > 0.0)
+            .ok_or_else(|| {
+                Error::Usage(format!(
+                    "stiffness_nonlinearity at story {s} needs displacement channels on its floors"
+                ))
+            })?;
+        let factor = data.nominal.story_stiffness_n_per_m[s - 1] / (1.5 * m_max);
+        Ok(vec![EffectParam {
+            name: "k3".into(),
+            unit: "N/m^3",
+            coordinate_name: "rel_stiffness_change".into(),
+            lower: REL_CHANGE.0,
+            upper: REL_CHANGE.1,
+            coordinate: Coordinate::Linear { factor },
+            no_effect: Some(0.0),
+        }])
+    }
+
+    fn amplitude_dependent(&self) -> bool {
+        true
+    }
+
+    /// Adds `(3/2) k3 m_eff` across the story (`effect[0] = k3`, N/m^3).
+    fn modify_for_segment(
+        &self,
+        loc: &Location,
+        effect: &[f64],
+        seg: &SegmentData,
+        sys: &mut LinearSystem,
+    ) -> Result<()> {
+        let s = story_of(loc, sys.n_floors())?;
+        let Some(m_eff) = seg.story_drift_ms_m2.get(s - 1).copied().flatten() else {
+            return Ok(());
+        };
+        let dk = 1.5 * effect[0] * m_eff;
+        let a = sys.dof_of_floor(s)?;
+        let b = sys.dof_of_level(s - 1)?;
+        let k = &mut sys.stiffness_n_per_m;
+        k[(a, a)] += dk;
+        if let Some(b) = b {
+            k[(b, b)] += dk;
+            k[(a, b)] -= dk;
+            k[(b, a)] -= dk;
+        }
+        Ok(())
+    }
+}

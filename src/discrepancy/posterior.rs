@@ -1,0 +1,397 @@
+//! The posterior of the nominal model or of one hypothesis at one location.
+//!
+//! # Parameters (`z`, uniform prior box)
+//! `[ln k_1/k_1,0 .. ln k_n/k_n,0, ln m_1/m_1,0 .. ln m_n/m_n,0, ln xi_1 .. ln xi_n,
+//! ln eta, effect...]`: story stiffness and floor mass multipliers about the campaign's
+//! nominal model, uniform on `ln 0.5 .. ln 2` ([`MULTIPLIER_BOUNDS`]); modal damping ratios
+//! of the frame's modes, `ln xi` uniform on `ln 1e-4 .. ln 0.2` ([`XI_BOUNDS`]); the
+//! relative error floor `eta`, `ln eta` uniform on `ln 1e-4 .. ln 0.3`
+//! ([`ETA_BOUNDS`]); then the hypothesis' effect coordinates with their own boxes.
+//! [`ModelPosterior::ln_prior`] is the normalised log density of the box.
+//!
+//! # Likelihood
+//! Each measured ratio `h_i` is complex circular Gaussian about the model `H_i` with
+//! `var(Re) = var(Im) = sigma_i^2 = (eps_i^2 + eta^2) |h_i|^2`, `eps_i` the Bendat &
+//! Piersol relative random error (`std(|H|)/|H|`, which is the per-component relative
+//! standard deviation): `ln L = -sum_i [ |H_i - h_i|^2 / (2 sigma_i^2) + ln(2 pi
+//! sigma_i^2) ]`. (DIAGNOSE.md writes `|r|^2 / sigma^2 + ln(pi sigma^2)`, the density
+//! for `E|r|^2 = sigma^2`; with `sigma^2` the per-component variance the above is the
+//! consistent form.) `chi2 per dof` below is `sum |r|^2 / sigma^2 / (2 N)`: 1 when the
+//! noise model is right.
+
+use super::data::DiagnosisData;
+use super::forward::{BaseParams, ExtendedModel};
+use super::hypothesis::{EffectParam, Hypothesis};
+use super::location::Location;
+use crate::error::{Error, Result};
+use crate::mcmc::LogDensity;
+use num_complex::Complex64;
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use std::sync::Arc;
+
+/// Box of the `ln` stiffness and mass multipliers.
+pub const MULTIPLIER_BOUNDS: (f64, f64) = (0.5, 2.0);
+/// Box of the modal damping ratios.
+pub const XI_BOUNDS: (f64, f64) = (1e-4, 0.2);
+/// Box of the relative error floor.
+pub const ETA_BOUNDS: (f64, f64) = (1e-4, 0.3);
+
+/// `ln(2 pi)`.
+const LN_2PI: f64 = 1.837_877_066_409_345_5;
+
+/// A reported value.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhysicalValue {
+    pub name: String,
+    pub value: f64,
+    pub unit: String,
+}
+
+/// Posterior of one model (see the module docs).
+#[derive(Debug, Clone)]
+pub struct ModelPosterior {
+    model: ExtendedModel,
+    effect_params: Vec<EffectParam>,
+    names: Vec<String>,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+    ln_volume: f64,
+    /// Measured ratios (flat layout of the model).
+    h: Vec<Complex64>,
+    /// `eps_i^2` and `|h_i|^2`.
+    eps2: Vec<f64>,
+    abs2: Vec<f64>,
+    n_floors: usize,
+}
+
+impl ModelPosterior {
+    /// The posterior of the nominal model (`hypothesis = None`) or of a hypothesis at a
+    /// location.
+    pub fn new(
+        data: Arc<DiagnosisData>,
+        hypothesis: Option<(Arc<dyn Hypothesis>, Location)>,
+    ) -> Result<Self> {
+        let n = data.n_floors();
+        let effect_params = match &hypothesis {
+            Some((h, loc)) => h.parameters(&data, loc)?,
+            None => Vec::new(),
+        };
+        let mut names = Vec::new();
+        let mut lower = Vec::new();
+        let mut upper = Vec::new();
+        for (prefix, (lo, hi)) in [
+            ("ln_k", MULTIPLIER_BOUNDS),
+            ("ln_m", MULTIPLIER_BOUNDS),
+            ("ln_xi", XI_BOUNDS),
+        ] {
+            for i in 1..=n {
+                names.push(format!("{prefix}{i}"));
+                lower.push(lo.ln());
+                upper.push(hi.ln());
+            }
+        }
+        names.push("ln_eta".into());
+        lower.push(ETA_BOUNDS.0.ln());
+        upper.push(ETA_BOUNDS.1.ln());
+        for p in &effect_params {
+            if !(p.lower < p.upper && p.lower.is_finite() && p.upper.is_finite()) {
+                return Err(Error::Model(format!(
+                    "effect parameter {} has the empty prior box [{}, {}]",
+                    p.name, p.lower, p.upper
+                )));
+            }
+            names.push(p.coordinate_name.clone());
+            lower.push(p.lower);
+            upper.push(p.upper);
+        }
+        let ln_volume = lower.iter().zip(&upper).map(|(l, u)| (u - l).ln()).sum();
+        let model = ExtendedModel::new(data.clone(), hypothesis)?;
+        let mut h = Vec::with_capacity(model.len());
+        let mut eps2 = Vec::with_capacity(model.len());
+        for seg in &data.segments {
+            for ch in &seg.channels {
+                h.extend_from_slice(&ch.h);
+                eps2.extend(ch.rel_err.iter().map(|e| e * e));
+            }
+        }
+        let abs2 = h.iter().map(|v| v.norm_sqr()).collect();
+        Ok(ModelPosterior {
+            model,
+            effect_params,
+            names,
+            lower,
+            upper,
+            ln_volume,
+            h,
+            eps2,
+            abs2,
+            n_floors: n,
+        })
+    }
+
+    /// The forward model.
+    pub fn model(&self) -> &ExtendedModel {
+        &self.model
+    }
+
+    /// The data.
+    pub fn data(&self) -> &Arc<DiagnosisData> {
+        self.model.data()
+    }
+
+    /// Number of parameters.
+    pub fn dim(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Names of the sampled coordinates.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Units of the sampled coordinates (`1` for logarithms).
+    pub fn units(&self) -> Vec<String> {
+        let mut u = vec!["1".to_string(); 3 * self.n_floors + 1];
+        u.extend(self.effect_params.iter().map(|p| match p.coordinate {
+            super::hypothesis::Coordinate::Log => "1".to_string(),
+            super::hypothesis::Coordinate::Linear { factor } if factor == 1.0 => p.unit.to_string(),
+            super::hypothesis::Coordinate::Linear { .. } => "1".to_string(),
+        }));
+        u
+    }
+
+    /// The effect parameters (empty for the nominal model).
+    pub fn effect_params(&self) -> &[EffectParam] {
+        &self.effect_params
+    }
+
+    /// Prior box: lower and upper corners.
+    pub fn bounds(&self) -> (&[f64], &[f64]) {
+        (&self.lower, &self.upper)
+    }
+
+    /// Index of `ln eta` in `z`.
+    pub fn eta_index(&self) -> usize {
+        3 * self.n_floors
+    }
+
+    /// Number of complex data points.
+    pub fn n_points(&self) -> usize {
+        self.h.len()
+    }
+
+    /// Measured ratios, flat layout.
+    pub fn measured(&self) -> &[Complex64] {
+        &self.h
+    }
+
+    /// Normalised log prior density: `-ln(box volume)` inside, `-inf` outside.
+    pub fn ln_prior(&self, z: &[f64]) -> f64 {
+        if z.len() != self.dim() {
+            return f64::NEG_INFINITY;
+        }
+        let inside = z
+            .iter()
+            .zip(self.lower.iter().zip(&self.upper))
+            .all(|(v, (l, u))| v >= l && v <= u);
+        if inside {
+            -self.ln_volume
+        } else {
+            f64::NEG_INFINITY
+        }
+    }
+
+    /// A draw from the prior.
+    pub fn sample_prior(&self, rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
+        Ok(self
+            .lower
+            .iter()
+            .zip(&self.upper)
+            .map(|(l, u)| l + (u - l) * rng.random::<f64>())
+            .collect())
+    }
+
+    /// Frame parameters in physical units.
+    pub fn base_params(&self, z: &[f64]) -> BaseParams {
+        let n = self.n_floors;
+        let nom = &self.data().nominal;
+        BaseParams {
+            stiffness_n_per_m: (0..n)
+                .map(|i| nom.story_stiffness_n_per_m[i] * z[i].exp())
+                .collect(),
+            mass_kg: (0..n)
+                .map(|i| nom.floor_mass_kg[i] * z[n + i].exp())
+                .collect(),
+            xi: (0..n).map(|i| z[2 * n + i].exp()).collect(),
+        }
+    }
+
+    /// The hypothesis' physical effect values.
+    pub fn effect_physical(&self, z: &[f64]) -> Result<Vec<f64>> {
+        match self.model.hypothesis() {
+            Some((h, loc)) => h.physical(self.data(), loc, &z[3 * self.n_floors + 1..]),
+            None => Ok(Vec::new()),
+        }
+    }
+
+    /// Every parameter in physical units: stiffnesses, masses, damping ratios, `eta`,
+    /// then the effect's values.
+    pub fn physical(&self, z: &[f64]) -> Result<Vec<PhysicalValue>> {
+        let b = self.base_params(z);
+        let mut out = Vec::new();
+        let pv = |name: String, value: f64, unit: &str| PhysicalValue {
+            name,
+            value,
+            unit: unit.into(),
+        };
+        for (i, v) in b.stiffness_n_per_m.iter().enumerate() {
+            out.push(pv(format!("k{}", i + 1), *v, "N/m"));
+        }
+        for (i, v) in b.mass_kg.iter().enumerate() {
+            out.push(pv(format!("m{}", i + 1), *v, "kg"));
+        }
+        for (i, v) in b.xi.iter().enumerate() {
+            out.push(pv(format!("xi{}", i + 1), *v, "1"));
+        }
+        out.push(pv("eta".into(), z[self.eta_index()].exp(), "1"));
+        for (p, v) in self.effect_params.iter().zip(self.effect_physical(z)?) {
+            out.push(pv(p.name.clone(), v, p.unit));
+        }
+        Ok(out)
+    }
+
+    /// Predicted ratios at `z` (flat layout; see [`ExtendedModel::layout`]).
+    pub fn predict(&self, z: &[f64]) -> Result<Vec<Complex64>> {
+        self.check_len(z)?;
+        self.model
+            .predict(&self.base_params(z), &self.effect_physical(z)?)
+    }
+
+    fn check_len(&self, z: &[f64]) -> Result<()> {
+        if z.len() != self.dim() {
+            return Err(Error::Usage(format!(
+                "parameter vector of {} entries for {} parameters",
+                z.len(),
+                self.dim()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Log-likelihood at `z` (see the module docs).
+    pub fn ln_likelihood(&self, z: &[f64]) -> Result<f64> {
+        let pred = self.predict(z)?;
+        Ok(self.ln_likelihood_of(&pred, z[self.eta_index()].exp()))
+    }
+
+    /// Log-likelihood of a prediction at error floor `eta`.
+    pub fn ln_likelihood_of(&self, pred: &[Complex64], eta: f64) -> f64 {
+        let eta2 = eta * eta;
+        let mut q = 0.0;
+        let mut ln_det = 0.0;
+        for i in 0..pred.len() {
+            let var = (self.eps2[i] + eta2) * self.abs2[i];
+            q += (pred[i] - self.h[i]).norm_sqr() / var;
+            ln_det += var.ln();
+        }
+        -0.5 * q - ln_det - pred.len() as f64 * LN_2PI
+    }
+
+    /// `sum |r|^2 / sigma^2 / (2 N)` of a prediction at error floor `eta`.
+    pub fn chi2_per_dof_of(&self, pred: &[Complex64], eta: f64) -> f64 {
+        let eta2 = eta * eta;
+        let q: f64 = (0..pred.len())
+            .map(|i| (pred[i] - self.h[i]).norm_sqr() / ((self.eps2[i] + eta2) * self.abs2[i]))
+            .sum();
+        q / (2.0 * pred.len().max(1) as f64)
+    }
+
+    /// The `eta` in the prior box that maximises the likelihood of a prediction
+    /// (golden-section search on `ln eta`; the profile is unimodal in practice).
+    pub fn profile_eta(&self, pred: &[Complex64]) -> f64 {
+        let r2: Vec<f64> = pred
+            .iter()
+            .zip(&self.h)
+            .map(|(p, h)| (p - h).norm_sqr())
+            .collect();
+        let f = |ln_eta: f64| {
+            let eta2 = (2.0 * ln_eta).exp();
+            let mut v = 0.0;
+            for i in 0..r2.len() {
+                let var = (self.eps2[i] + eta2) * self.abs2[i];
+                v += 0.5 * r2[i] / var + var.ln();
+            }
+            -v
+        };
+        let (mut a, mut b) = (ETA_BOUNDS.0.ln(), ETA_BOUNDS.1.ln());
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+        let (mut fc, mut fd) = (f(c), f(d));
+        for _ in 0..60 {
+            if fc > fd {
+                b = d;
+                d = c;
+                fd = fc;
+                c = b - g * (b - a);
+                fc = f(c);
+            } else {
+                a = c;
+                c = d;
+                fc = fd;
+                d = a + g * (b - a);
+                fd = f(d);
+            }
+            if b - a < 1e-6 {
+                break;
+            }
+        }
+        (0.5 * (a + b)).exp()
+    }
+
+    /// Whitened residuals at `z` with the error floor `eta` (not `z`'s): `2 N` reals,
+    /// `Re` then `Im` of `(H_i - h_i) / sigma_i` per point, so that half their squared
+    /// norm is the likelihood's quadratic term.
+    pub fn whitened_residuals(&self, z: &[f64], eta: f64, out: &mut [f64]) -> Result<()> {
+        let pred = self.predict(z)?;
+        let eta2 = eta * eta;
+        for (i, p) in pred.iter().enumerate() {
+            let sd = ((self.eps2[i] + eta2) * self.abs2[i]).sqrt();
+            let r = (p - self.h[i]) / sd;
+            out[2 * i] = r.re;
+            out[2 * i + 1] = r.im;
+        }
+        Ok(())
+    }
+
+    /// `z` of physical frame parameters and effect values (for truths and starts);
+    /// `effect` in the units of [`Self::effect_params`] (physical), converted through
+    /// each parameter's coordinate. Hypotheses whose [`Hypothesis::physical`] is not
+    /// per-parameter (base damping) take the coordinate values directly in
+    /// `effect_coordinates`.
+    pub fn z_of(&self, base: &BaseParams, eta: f64, effect_coordinates: &[f64]) -> Vec<f64> {
+        let n = self.n_floors;
+        let nom = &self.data().nominal;
+        let mut z = Vec::with_capacity(self.dim());
+        z.extend((0..n).map(|i| (base.stiffness_n_per_m[i] / nom.story_stiffness_n_per_m[i]).ln()));
+        z.extend((0..n).map(|i| (base.mass_kg[i] / nom.floor_mass_kg[i]).ln()));
+        z.extend(base.xi.iter().map(|x| x.ln()));
+        z.push(eta.ln());
+        z.extend_from_slice(effect_coordinates);
+        z
+    }
+}
+
+impl LogDensity for ModelPosterior {
+    fn dim(&self) -> usize {
+        self.names.len()
+    }
+
+    fn ln_density(&self, z: &[f64]) -> Result<f64> {
+        let p = self.ln_prior(z);
+        if p == f64::NEG_INFINITY {
+            return Ok(p);
+        }
+        Ok(p + self.ln_likelihood(z)?)
+    }
+}
