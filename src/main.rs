@@ -16,6 +16,10 @@ struct Cli {
 enum Command {
     /// Read and validate a campaign, and summarise it.
     Check(cli::check::Args),
+    /// Find what physics the nominal model leaves out (verdict, location, effect, evidence).
+    Diagnose(cli::diagnose::Args),
+    /// Run `diagnose` on the simulated missing-physics benchmark and score it.
+    DiagnoseBenchmark(cli::diagnose::BenchArgs),
     /// Estimate FRFs (H1, coherence, half-power bands) from a campaign's recordings.
     Frf(cli::frf::Args),
     /// Print the nominal natural frequencies and mode shapes of a campaign's model.
@@ -36,6 +40,8 @@ fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Check(a) => cli::check::run(a),
+        Command::Diagnose(a) => cli::diagnose::run(a),
+        Command::DiagnoseBenchmark(a) => cli::diagnose::bench(a),
         Command::Frf(a) => cli::frf::run(a),
         Command::Modes(a) => cli::modes::run(a),
         Command::Multistart(a) => cli::multistart::run(a),

@@ -2,6 +2,7 @@
 //! calls the library.
 
 pub mod check;
+pub mod diagnose;
 pub mod frf;
 pub mod modes;
 pub mod multistart;

@@ -4,12 +4,18 @@
 
 pub mod benchmark;
 pub mod data;
+pub mod diagnose;
+pub mod figures;
+pub mod heldout;
 pub mod fit;
 pub mod forward;
 pub mod hypotheses;
 pub mod hypothesis;
 pub mod location;
+pub mod output;
 pub mod posterior;
+pub mod report;
+pub mod search;
 pub mod verdict;
 
 pub use data::{ChannelData, DataOptions, DiagnosisData, SegmentData};

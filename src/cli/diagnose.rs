@@ -1,0 +1,185 @@
+//! `frfbayes diagnose <CAMPAIGN> --out <DIR>`: what physics, if any, the nominal model
+//! leaves out; and `frfbayes diagnose-benchmark`: the same on the simulated benchmark.
+
+use frfbayes::discrepancy::benchmark::{benchmark_markdown, read_cases, CaseOutcome};
+use frfbayes::discrepancy::diagnose::{diagnose, DiagnoseOptions, DiagnoseStage};
+use frfbayes::discrepancy::evidence::Stage;
+use frfbayes::discrepancy::output::write_diagnosis;
+use frfbayes::discrepancy::report::record;
+use frfbayes::io::{read_campaign, write_atomic, Campaign};
+use frfbayes::simulate::{SimModel, Simulator};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `frfbayes diagnose`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Campaign folder (the recording format of ../shared/spec), or bundled:four-story.
+    pub campaign: String,
+    /// Output folder (diagnosis.json, diagnosis.md, figures); replaced only on success.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Master seed (same seed, same result, whatever the thread count).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Only these hypotheses (comma separated names); all by default.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+}
+
+fn spinner() -> ProgressBar {
+    let pb = ProgressBar::new_spinner();
+    pb.set_style(
+        ProgressStyle::with_template("{elapsed_precise} {spinner} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    pb
+}
+
+fn stage_message(stage: &DiagnoseStage<'_>) -> String {
+    match stage {
+        DiagnoseStage::Data => "estimating FRFs".into(),
+        DiagnoseStage::NominalFit => "fitting the nominal model".into(),
+        DiagnoseStage::Search {
+            hypothesis,
+            location,
+        } => format!("fitting {hypothesis} at {location}"),
+        DiagnoseStage::Evidence { model, progress } => match progress.stage {
+            Stage::Tempering { temperature, beta } => format!(
+                "evidence of {model}: replicate {}/{}, temperature {temperature}, beta {beta:.2e}",
+                progress.replicate + 1,
+                progress.n_replicates
+            ),
+            Stage::Sampling { step, of } => format!(
+                "evidence of {model}: replicate {}/{}, posterior draws {step}/{of}",
+                progress.replicate + 1,
+                progress.n_replicates
+            ),
+        },
+        DiagnoseStage::HeldOut {
+            hypothesis,
+            done,
+            of,
+        } => format!("held-out check of {hypothesis}: {done}/{of} segments"),
+    }
+}
+
+fn open_campaign(spec: &str) -> anyhow::Result<Campaign> {
+    let path = if spec == "bundled:four-story" {
+        frfbayes::io::bundled_four_story()?
+    } else {
+        PathBuf::from(spec)
+    };
+    let c = read_campaign(&path)?;
+    for w in &c.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(c)
+}
+
+fn run_one(campaign: &Campaign, opts: &DiagnoseOptions, out: &Path) -> anyhow::Result<frfbayes::discrepancy::DiagnosisRecord> {
+    let pb = spinner();
+    let mut cb = |s: DiagnoseStage<'_>| pb.set_message(stage_message(&s));
+    let d = diagnose(campaign, opts, &mut cb)?;
+    pb.finish_and_clear();
+    let dir = write_diagnosis(&d, &campaign.title, out)?;
+    let rec = record(&d);
+    println!(
+        "{}: verdict {} at {} ({:.0} s); written to {}",
+        campaign.title,
+        rec.verdict,
+        rec.location,
+        d.elapsed_s,
+        dir.display()
+    );
+    Ok(rec)
+}
+
+/// Runs `frfbayes diagnose`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let campaign = open_campaign(&args.campaign)?;
+    let opts = DiagnoseOptions {
+        seed: args.seed,
+        only: args.only,
+        ..DiagnoseOptions::default()
+    };
+    let rec = run_one(&campaign, &opts, &args.out)?;
+    println!("{}", rec.explanation);
+    Ok(())
+}
+
+/// Arguments of `frfbayes diagnose-benchmark`.
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Case list.
+    #[arg(long, default_value = "experiments/models/discrepancy/cases.toml")]
+    pub cases: PathBuf,
+    /// Folder for the simulated campaigns (reused when present) and every diagnosis.
+    #[arg(long)]
+    pub work: PathBuf,
+    /// The report (Markdown; a JSON of every outcome is written beside it).
+    #[arg(long, default_value = "results/discrepancy_benchmark.md")]
+    pub report: PathBuf,
+    /// Only these case ids (comma separated); all by default.
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// Runs `frfbayes diagnose-benchmark`.
+pub fn bench(args: BenchArgs) -> anyhow::Result<()> {
+    let (hypotheses, cases) = read_cases(&args.cases)?;
+    let mut outcomes = Vec::new();
+    for case in cases
+        .into_iter()
+        .filter(|c| args.only.is_empty() || args.only.contains(&c.id))
+    {
+        let campaign_dir = args.work.join("campaigns").join(&case.id);
+        if !campaign_dir.join("campaign.toml").exists() {
+            eprintln!("simulating {}", case.id);
+            let model = SimModel::from_path(&case.model)?;
+            let sim = Simulator::new(model)?;
+            let campaign = sim.run(case.seed, &|_| {})?;
+            let tmp = args.work.join("campaigns").join(format!(".tmp-{}", case.id));
+            frfbayes::io::write_campaign(&campaign, &tmp)?;
+            std::fs::rename(&tmp, &campaign_dir)?;
+        }
+        let campaign = read_campaign(&campaign_dir)?;
+        let channel_quantity: BTreeMap<String, String> = campaign
+            .tests
+            .iter()
+            .flat_map(|t| t.channels.iter())
+            .map(|c| {
+                (
+                    c.name.clone(),
+                    serde_json::to_value(c.quantity)
+                        .ok()
+                        .and_then(|v| v.as_str().map(str::to_string))
+                        .unwrap_or_default(),
+                )
+            })
+            .collect();
+        let t0 = Instant::now();
+        let opts = DiagnoseOptions {
+            seed: args.seed,
+            ..DiagnoseOptions::default()
+        };
+        let record = run_one(&campaign, &opts, &args.work.join("diagnoses").join(&case.id))?;
+        outcomes.push(CaseOutcome {
+            case,
+            record,
+            channel_quantity,
+            seconds: t0.elapsed().as_secs_f64(),
+        });
+    }
+    let md = benchmark_markdown(&outcomes, &hypotheses, "Missing-physics benchmark");
+    write_atomic(&args.report, md.as_bytes())?;
+    let json = serde_json::to_string_pretty(&outcomes)?;
+    write_atomic(&args.report.with_extension("json"), json.as_bytes())?;
+    println!("{md}");
+    Ok(())
+}

@@ -1,0 +1,413 @@
+//! `frfbayes diagnose`: the whole pipeline on one campaign, with no hints.
+//!
+//! 1. **Data**: FRF estimates of every test (every impact of a hammer test on its own),
+//!    complex, with Bendat-Piersol errors ([`super::data`]).
+//! 2. **Nominal model**: multistart MAP, then its marginal likelihood by stepping-stone
+//!    over tempered ensembles ([`super::evidence`]) with posterior draws; residual map.
+//! 3. **Hypotheses**: each one is fitted at every candidate location
+//!    ([`super::search`]); its best location gets the same evidence computation.
+//! 4. **Decision** ([`super::verdict`]): decisive Bayes factor, plausible effect,
+//!    better prediction of held-out segments ([`super::heldout`]).
+
+use super::data::{DataOptions, DiagnosisData};
+use super::evidence::{stepping_stone, Evidence, EvidenceOptions, EvidenceProgress};
+use super::fit::{fit_map, frame_starts, MapFit, MapOptions};
+use super::heldout::{held_out, HeldOut};
+use super::laplace::laplace;
+use super::hypotheses::all_hypotheses;
+use super::hypothesis::{Coordinate, Hypothesis};
+use super::location::Location;
+use super::posterior::ModelPosterior;
+use super::search::{search, HypothesisSearch, SearchOptions};
+use super::verdict::{decide, Candidate, Decision, EffectSummary, FitQuality};
+use crate::error::Result;
+use crate::io::Campaign;
+use crate::mcmc::quantile;
+use crate::update::fdac;
+use num_complex::Complex64;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Settings of [`diagnose`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnoseOptions {
+    pub seed: u64,
+    pub data: DataOptions,
+    pub map: MapOptions,
+    /// Frame starts of the nominal MAP fit.
+    pub n_frame_starts: usize,
+    /// Effect starts per candidate location.
+    pub n_effect_starts: usize,
+    /// Hypotheses (best location each) whose evidence is computed, the most likely first
+    /// by maximum log-likelihood; the others are reported with their search results.
+    pub max_evidence_runs: usize,
+    /// Walkers, replicates, ... of every evidence run (its `seed` is derived per model).
+    pub evidence: Option<EvidenceOptions>,
+    /// Only these hypotheses (all when empty).
+    pub only: Vec<String>,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        DiagnoseOptions {
+            seed: 1,
+            data: DataOptions::default(),
+            map: MapOptions::default(),
+            n_frame_starts: 8,
+            n_effect_starts: 6,
+            max_evidence_runs: 3,
+            evidence: None,
+            only: Vec::new(),
+        }
+    }
+}
+
+/// Where the pipeline is, for progress bars.
+#[derive(Debug, Clone)]
+pub enum DiagnoseStage<'a> {
+    Data,
+    NominalFit,
+    Search { hypothesis: &'a str, location: &'a Location },
+    Evidence { model: &'a str, progress: EvidenceProgress },
+    HeldOut { hypothesis: &'a str, done: usize, of: usize },
+}
+
+/// One model's complete result.
+#[derive(Debug, Clone)]
+pub struct ModelResult {
+    /// `"nominal"` or the hypothesis name.
+    pub name: String,
+    pub location: Location,
+    pub posterior: ModelPosterior,
+    pub map: MapFit,
+    pub evidence: Option<Evidence>,
+    /// Effect parameters' posterior summaries (physical units), from the evidence run's
+    /// draws.
+    pub effect: Vec<(String, EffectSummary)>,
+    pub plausible: bool,
+    pub implausible_because: String,
+    pub held_out: Option<HeldOut>,
+}
+
+impl ModelResult {
+    /// Log evidence, when computed.
+    pub fn ln_z(&self) -> Option<f64> {
+        self.evidence.as_ref().map(|e| e.ln_z)
+    }
+}
+
+/// Everything [`diagnose`] found.
+#[derive(Debug, Clone)]
+pub struct Diagnosis {
+    pub data: Arc<DiagnosisData>,
+    pub nominal: ModelResult,
+    /// Hypotheses whose evidence was computed (ranked by log evidence).
+    pub finalists: Vec<ModelResult>,
+    /// Every hypothesis' location search.
+    pub searches: Vec<HypothesisSearch>,
+    /// Laplace approximation of the log evidence of the nominal model (`"nominal"`) and
+    /// of every hypothesis at its best location (`None` where the Hessian at the MAP is
+    /// not negative definite, e.g. a MAP on the prior's edge).
+    pub laplace: Vec<(String, Option<f64>)>,
+    pub decision: Decision,
+    /// Index into `finalists` of the verdict.
+    pub winner: Option<usize>,
+    pub fit_before: FitQuality,
+    pub fit_after: FitQuality,
+    pub elapsed_s: f64,
+}
+
+/// Mean FDAC (magnitudes) over every segment and channel, and chi2 per real datum with
+/// the Bendat-Piersol errors and the error floor `eta`.
+pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQuality {
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for seg in post.model().layout() {
+        for r in seg {
+            let a: Vec<f64> = pred[r.clone()].iter().map(|v| v.norm()).collect();
+            let e: Vec<f64> = post.measured()[r.clone()].iter().map(|v| v.norm()).collect();
+            sum += fdac(&a, &e);
+            n += 1;
+        }
+    }
+    FitQuality {
+        fdac_mean: if n == 0 { f64::NAN } else { sum / n as f64 },
+        chi2_per_point: post.chi2_per_dof_of(pred, eta),
+    }
+}
+
+/// Summaries of the effect parameters from posterior draws `draws` (rows of `z`), and
+/// whether the effect is plausible: every 95 % interval excludes the no-effect value
+/// and keeps 1 % of its box away from the box's ends (a posterior piled at the end of
+/// the physically plausible range is not an identified effect).
+fn effect_summaries(
+    post: &ModelPosterior,
+    draws: &[Vec<f64>],
+) -> Result<(Vec<(String, EffectSummary)>, bool, String)> {
+    let ie = post.eta_index();
+    let (lo, hi) = post.bounds();
+    let mut out = Vec::new();
+    let mut reasons = Vec::new();
+    for (k, p) in post.effect_params().iter().enumerate() {
+        let i = ie + 1 + k;
+        let mut zs: Vec<f64> = draws.iter().map(|d| d[i]).collect();
+        zs.sort_by(f64::total_cmp);
+        let (z_lo, z_hi) = (quantile(&zs, 0.025), quantile(&zs, 0.975));
+        let mut phys: Vec<f64> = draws
+            .iter()
+            .map(|d| post.effect_physical(d).map(|v| v[k]))
+            .collect::<Result<_>>()?;
+        let mean = phys.iter().sum::<f64>() / phys.len().max(1) as f64;
+        phys.sort_by(f64::total_cmp);
+        let s = EffectSummary {
+            mean,
+            q2_5: quantile(&phys, 0.025),
+            q97_5: quantile(&phys, 0.975),
+            unit: p.unit.to_string(),
+        };
+        let margin = 0.01 * (hi[i] - lo[i]);
+        if let Some(v) = p.no_effect {
+            let zv = match p.coordinate {
+                Coordinate::Log if v <= 0.0 => f64::NEG_INFINITY,
+                _ => p.coordinate_of(v),
+            };
+            if zv >= z_lo && zv <= z_hi {
+                reasons.push(format!(
+                    "{} = {:.3e} [{:.3e}, {:.3e}] {} includes no effect ({v})",
+                    p.name, s.mean, s.q2_5, s.q97_5, p.unit
+                ));
+            }
+        }
+        if z_lo < lo[i] + margin || z_hi > hi[i] - margin {
+            reasons.push(format!(
+                "{} [{:.3e}, {:.3e}] {} reaches the end of its plausible range [{:.3e}, {:.3e}]",
+                p.name,
+                s.q2_5,
+                s.q97_5,
+                p.unit,
+                p.physical(lo[i]),
+                p.physical(hi[i])
+            ));
+        }
+        out.push((p.name.clone(), s));
+    }
+    Ok((out, reasons.is_empty(), reasons.join("; ")))
+}
+
+fn evidence_options(opts: &DiagnoseOptions, dim: usize, model_index: u64) -> EvidenceOptions {
+    let mut e = opts
+        .evidence
+        .clone()
+        .unwrap_or_else(|| EvidenceOptions::new(dim, 0));
+    if e.n_walkers < 2 * dim + 2 {
+        e.n_walkers = EvidenceOptions::new(dim, 0).n_walkers;
+    }
+    e.seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(model_index);
+    e
+}
+
+/// Evidence, draws and summaries of one model at its MAP.
+fn complete(
+    name: &str,
+    location: Location,
+    post: ModelPosterior,
+    map: MapFit,
+    opts: &DiagnoseOptions,
+    model_index: u64,
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<ModelResult> {
+    let eopts = evidence_options(opts, post.dim(), model_index);
+    let mut cb = |p: EvidenceProgress| {
+        progress(DiagnoseStage::Evidence {
+            model: name,
+            progress: p,
+        })
+    };
+    let evidence = stepping_stone(&post, &eopts, Some(&mut cb))?;
+    let draws: Vec<Vec<f64>> = match &evidence.posterior {
+        Some(p) => p
+            .draws
+            .values
+            .chunks_exact(p.draws.dim)
+            .map(<[f64]>::to_vec)
+            .collect(),
+        None => vec![map.z.clone()],
+    };
+    let (effect, plausible, why) = effect_summaries(&post, &draws)?;
+    Ok(ModelResult {
+        name: name.to_string(),
+        location,
+        posterior: post,
+        map,
+        evidence: Some(evidence),
+        effect,
+        plausible,
+        implausible_because: why,
+        held_out: None,
+    })
+}
+
+/// Runs the diagnosis of `campaign` (see the module docs).
+pub fn diagnose(
+    campaign: &Campaign,
+    opts: &DiagnoseOptions,
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<Diagnosis> {
+    let t0 = Instant::now();
+    progress(DiagnoseStage::Data);
+    let data = Arc::new(DiagnosisData::from_campaign(campaign, &opts.data)?);
+
+    progress(DiagnoseStage::NominalFit);
+    let post0 = ModelPosterior::new(data.clone(), None)?;
+    let starts = frame_starts(&post0, opts.n_frame_starts, 0.3, opts.seed)?;
+    let map0 = fit_map(&post0, &starts, &opts.map)?;
+    let nominal = complete(
+        "nominal",
+        Location::Whole,
+        post0,
+        map0.clone(),
+        opts,
+        0,
+        progress,
+    )?;
+
+    let hypotheses: Vec<Arc<dyn Hypothesis>> = all_hypotheses()
+        .into_iter()
+        .filter(|h| opts.only.is_empty() || opts.only.iter().any(|o| o == h.name()))
+        .map(Arc::from)
+        .collect();
+    let sopts = SearchOptions {
+        n_effect_starts: opts.n_effect_starts,
+        map: opts.map.clone(),
+        seed: opts.seed,
+    };
+    let mut searches = Vec::new();
+    for h in &hypotheses {
+        let mut cb = |name: &str, loc: &Location| {
+            progress(DiagnoseStage::Search {
+                hypothesis: name,
+                location: loc,
+            })
+        };
+        searches.push((h.clone(), search(&data, h, &map0.z, &sopts, &mut cb)?));
+    }
+
+    let mut laplace_z = vec![(
+        "nominal".to_string(),
+        laplace(&nominal.posterior, &map0.z).ok().map(|l| l.ln_z),
+    )];
+    for (h, s) in &searches {
+        let v = s.best().and_then(|b| {
+            let post = ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())));
+            post.ok().and_then(|p| laplace(&p, &b.map.z).ok()).map(|l| l.ln_z)
+        });
+        laplace_z.push((h.name().to_string(), v));
+    }
+
+    // Evidence for the hypotheses that fit best (by maximum log-likelihood at their best
+    // location); a hypothesis that does not beat the nominal fit's likelihood at all
+    // cannot be decisive and is not run.
+    let mut order: Vec<usize> = (0..searches.len())
+        .filter(|&i| {
+            searches[i]
+                .1
+                .best()
+                .is_some_and(|b| b.map.ln_likelihood > map0.ln_likelihood)
+        })
+        .collect();
+    order.sort_by(|&a, &b| {
+        let la = searches[a].1.best().map_or(f64::NEG_INFINITY, |f| f.map.ln_likelihood);
+        let lb = searches[b].1.best().map_or(f64::NEG_INFINITY, |f| f.map.ln_likelihood);
+        lb.total_cmp(&la)
+    });
+    order.truncate(opts.max_evidence_runs);
+    let mut finalists = Vec::new();
+    for (k, &i) in order.iter().enumerate() {
+        let (h, s) = &searches[i];
+        let Some(best) = s.best() else { continue };
+        let post = ModelPosterior::new(data.clone(), Some((h.clone(), best.location.clone())))?;
+        finalists.push(complete(
+            h.name(),
+            best.location.clone(),
+            post,
+            best.map.clone(),
+            opts,
+            k as u64 + 1,
+            progress,
+        )?);
+    }
+    finalists.sort_by(|a, b| {
+        b.ln_z()
+            .unwrap_or(f64::NEG_INFINITY)
+            .total_cmp(&a.ln_z().unwrap_or(f64::NEG_INFINITY))
+    });
+
+    // Held-out check only where it can change the verdict: decisive and plausible.
+    let nominal_ln_z = nominal.ln_z().unwrap_or(f64::NEG_INFINITY);
+    let nominal_se = nominal.evidence.as_ref().map_or(0.0, |e| e.ln_z_se);
+    for f in &mut finalists {
+        let ev = f.evidence.as_ref();
+        let delta = ev.map_or(f64::NEG_INFINITY, |e| e.ln_z - nominal_ln_z);
+        let se = ev.map_or(0.0, |e| (e.ln_z_se.powi(2) + nominal_se.powi(2)).sqrt());
+        if f.plausible && delta - 2.0 * se >= super::verdict::decisive_ln_bayes_factor() {
+            let h = hypotheses
+                .iter()
+                .find(|h| h.name() == f.name)
+                .expect("finalists come from the hypotheses");
+            let name = f.name.clone();
+            let mut cb = |done: usize, of: usize| {
+                progress(DiagnoseStage::HeldOut {
+                    hypothesis: &name,
+                    done,
+                    of,
+                })
+            };
+            f.held_out = Some(held_out(
+                &data,
+                h,
+                &f.location,
+                &nominal.map.z,
+                &f.map.z,
+                &opts.map,
+                &mut cb,
+            )?);
+        }
+    }
+
+    let candidates: Vec<Candidate> = finalists
+        .iter()
+        .map(|f| Candidate {
+            name: f.name.clone(),
+            log_evidence: f.ln_z().unwrap_or(f64::NEG_INFINITY),
+            log_evidence_se: f.evidence.as_ref().map_or(0.0, |e| e.ln_z_se),
+            plausible: f.plausible,
+            implausible_because: f.implausible_because.clone(),
+            heldout_gain: f.held_out.as_ref().map_or(f64::NEG_INFINITY, |h| h.gain),
+            heldout_gain_se: f.held_out.as_ref().map_or(0.0, |h| h.gain_se),
+        })
+        .collect();
+    let decision = decide(nominal_ln_z, nominal_se, &candidates);
+
+    let eta0 = nominal.map.eta;
+    let pred0 = nominal.posterior.predict(&nominal.map.z)?;
+    let fit_before = fit_quality(&nominal.posterior, &pred0, eta0);
+    let fit_after = match decision.winner {
+        Some(w) => {
+            let f = &finalists[w];
+            fit_quality(&f.posterior, &f.posterior.predict(&f.map.z)?, eta0)
+        }
+        None => fit_before,
+    };
+    Ok(Diagnosis {
+        data,
+        nominal,
+        winner: decision.winner,
+        finalists,
+        searches: searches.into_iter().map(|(_, s)| s).collect(),
+        laplace: laplace_z,
+        decision,
+        fit_before,
+        fit_after,
+        elapsed_s: t0.elapsed().as_secs_f64(),
+    })
+}

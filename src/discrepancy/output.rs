@@ -1,0 +1,230 @@
+//! The output folder of `frfbayes diagnose`: `diagnosis.json`, `diagnosis.md`, figures,
+//! `models.json` (every fit), written into a staging folder and swapped in only when
+//! complete, so a failed run never leaves a half-written folder or loses the last one.
+
+use super::diagnose::{Diagnosis, ModelResult};
+use super::figures::{channel_misfits, channels_to_show, write_figures};
+use super::report::{explanation, hypothesis_evidence, record};
+use super::verdict::decisive_ln_bayes_factor;
+use crate::error::{Error, Result};
+use crate::io::{write_atomic, StagedDir};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+fn fmt_opt(v: Option<f64>, digits: usize) -> String {
+    match v {
+        Some(x) if x.is_finite() => format!("{x:.digits$}"),
+        _ => "-".into(),
+    }
+}
+
+fn model_row(m: &ModelResult, nominal_ln_z: f64, laplace: Option<f64>, reason: &str) -> String {
+    let ev = m.evidence.as_ref();
+    format!(
+        "| {} | {} | {:.1} | {} | {} | {} | {} | {} |",
+        m.name.replace('_', " "),
+        m.location,
+        m.map.ln_likelihood,
+        fmt_opt(laplace, 1),
+        ev.map_or("-".into(), |e| format!("{:.1} +- {:.1}", e.ln_z, e.ln_z_se)),
+        ev.map_or("-".into(), |e| format!("{:.1}", e.ln_z_ti)),
+        ev.map_or("-".into(), |e| format!("{:.1}", e.ln_z - nominal_ln_z)),
+        reason
+    )
+}
+
+/// `diagnosis.md`.
+pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String> {
+    let rec = record(d);
+    let mut s = String::new();
+    let _ = writeln!(s, "# Diagnosis: {title}\n");
+    let _ = writeln!(
+        s,
+        "**Verdict: `{}`** at `{}`.\n",
+        rec.verdict, rec.location
+    );
+    let _ = writeln!(s, "{}\n", explanation(d));
+    let _ = writeln!(s, "## Fit\n");
+    let _ = writeln!(s, "| | mean FDAC | chi2 per point |");
+    let _ = writeln!(s, "|---|---|---|");
+    let _ = writeln!(
+        s,
+        "| nominal model | {:.4} | {:.2} |",
+        d.fit_before.fdac_mean, d.fit_before.chi2_per_point
+    );
+    let _ = writeln!(
+        s,
+        "| after the verdict | {:.4} | {:.2} |\n",
+        d.fit_after.fdac_mean, d.fit_after.chi2_per_point
+    );
+    let _ = writeln!(
+        s,
+        "chi2 per point uses the estimates' Bendat-Piersol errors plus the nominal model's \
+         fitted relative error floor eta = {:.4}; 1 means agreement within noise.\n",
+        d.nominal.map.eta
+    );
+
+    let _ = writeln!(s, "## Hypothesis ranking\n");
+    let nominal_ln_z = d.nominal.ln_z().unwrap_or(f64::NAN);
+    let lap = |name: &str| {
+        d.laplace
+            .iter()
+            .find(|(n, _)| n == name)
+            .and_then(|(_, v)| *v)
+    };
+    let _ = writeln!(
+        s,
+        "| model | location | max ln L | ln Z (Laplace) | ln Z (stepping-stone) | ln Z (TI) | delta ln Z | decision |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(
+        s,
+        "{}",
+        model_row(&d.nominal, nominal_ln_z, lap("nominal"), "reference")
+    );
+    for (f, reason) in d.finalists.iter().zip(&d.decision.reasons) {
+        let _ = writeln!(s, "{}", model_row(f, nominal_ln_z, lap(&f.name), reason));
+    }
+    for sr in &d.searches {
+        if d.finalists.iter().any(|f| f.name == sr.name) {
+            continue;
+        }
+        if let Some(b) = sr.best() {
+            let why = if b.map.ln_likelihood <= d.nominal.map.ln_likelihood {
+                "fits no better than the nominal model"
+            } else {
+                "not among the best fits; Laplace only"
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.1} | {} | - | - | {} | {why} |",
+                sr.name.replace('_', " "),
+                b.location,
+                b.map.ln_likelihood,
+                fmt_opt(lap(sr.name), 1),
+                fmt_opt(lap(sr.name).map(|v| v - nominal_ln_z), 1),
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\nDecisive means delta ln Z >= ln 150 = {:.2} after two standard errors (Kass & Raftery's \
+         'very strong'). Stepping-stone over an adaptive ladder of tempered ensembles; \
+         thermodynamic integration (TI) on the same ladder as a check; standard errors from \
+         independent replicate ensembles. The Laplace column is the cheap approximation at the \
+         MAP, shown beside the full computation where both exist.\n",
+        decisive_ln_bayes_factor()
+    );
+    for (stem, cap) in [("ranking", "Hypothesis ranking")] {
+        if figures.iter().any(|f| f == stem) {
+            let _ = writeln!(s, "![{cap}]({stem}.png)\n");
+        }
+    }
+
+    let _ = writeln!(s, "## Locations tried\n");
+    for sr in &d.searches {
+        let tried: Vec<String> = sr
+            .tried
+            .iter()
+            .take(6)
+            .map(|t| format!("{} ({:.1})", t.location, t.map.ln_likelihood - d.nominal.map.ln_likelihood))
+            .collect();
+        let _ = writeln!(
+            s,
+            "- {}: {}{}",
+            sr.name.replace('_', " "),
+            tried.join(", "),
+            if sr.tried.len() > 6 { ", ..." } else { "" }
+        );
+        for (loc, e) in &sr.failed {
+            let _ = writeln!(s, "  - {loc}: fit failed: {e}");
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\n(max ln L gain over the nominal fit in brackets, best first)\n"
+    );
+
+    if !rec.effect_parameters.is_empty() {
+        let _ = writeln!(s, "## Effect parameters\n");
+        let _ = writeln!(s, "| parameter | mean | 2.5 % | 97.5 % | unit |");
+        let _ = writeln!(s, "|---|---|---|---|---|");
+        for (n, e) in &rec.effect_parameters {
+            let _ = writeln!(
+                s,
+                "| {n} | {:.4e} | {:.4e} | {:.4e} | {} |",
+                e.mean, e.q2_5, e.q97_5, e.unit
+            );
+        }
+        let _ = writeln!(s);
+    }
+    if figures.iter().any(|f| f == "effect_posterior") {
+        let _ = writeln!(s, "![Effect posterior](effect_posterior.png)\n");
+    }
+    for f in &d.finalists {
+        if let Some(h) = &f.held_out {
+            let _ = writeln!(
+                s,
+                "Held-out check of {} (leave one segment out; log density of the held-out \
+                 segment, hypothesis minus nominal): total {:.1} +- {:.1} nats.\n",
+                f.name, h.gain, h.gain_se
+            );
+            let _ = writeln!(s, "| held-out segment | nominal | hypothesis | gain |");
+            let _ = writeln!(s, "|---|---|---|---|");
+            for i in 0..h.segments.len() {
+                let _ = writeln!(
+                    s,
+                    "| {} | {:.1} | {:.1} | {:.1} |",
+                    h.segments[i],
+                    h.nominal[i],
+                    h.hypothesis[i],
+                    h.hypothesis[i] - h.nominal[i]
+                );
+            }
+            let _ = writeln!(s);
+        }
+    }
+
+    let _ = writeln!(s, "## Where the nominal model misfits\n");
+    let winner = d.winner.map(|w| &d.finalists[w]);
+    let mis = channel_misfits(d, winner)?;
+    let shown = channels_to_show(&mis, winner.is_some(), 10);
+    let _ = writeln!(s, "| segment / channel | chi2 per point, nominal | after verdict |");
+    let _ = writeln!(s, "|---|---|---|");
+    for m in &shown {
+        let _ = writeln!(
+            s,
+            "| {} | {:.2} | {:.2} |",
+            m.label, m.chi2_nominal, m.chi2_extended
+        );
+    }
+    let _ = writeln!(s);
+    for k in 0..4 {
+        if figures.iter().any(|f| f == &format!("frf_{k}")) {
+            let _ = writeln!(s, "![FRF {k}](frf_{k}.png) ![Phase {k}](phase_{k}.png)\n");
+        }
+    }
+    let _ = writeln!(
+        s,
+        "## Data\n\n{} segments (tests, or impacts of hammer tests on their own), {} complex \
+         FRF points; run time {:.0} s.\n",
+        d.data.segments.len(),
+        d.data.n_points(),
+        d.elapsed_s
+    );
+    Ok(s)
+}
+
+/// Writes the whole output folder `out` (replacing it only on success).
+pub fn write_diagnosis(d: &Diagnosis, title: &str, out: &Path) -> Result<PathBuf> {
+    let staged = StagedDir::new(out)?;
+    let dir = staged.path().to_path_buf();
+    let figures = write_figures(d, &dir)?;
+    let rec = record(d);
+    let json = serde_json::to_string_pretty(&rec)
+        .map_err(|e| Error::Numerical(format!("diagnosis.json: {e}")))?;
+    write_atomic(&dir.join("diagnosis.json"), json.as_bytes())?;
+    let md = markdown(d, title, &figures)?;
+    write_atomic(&dir.join("diagnosis.md"), md.as_bytes())?;
+    staged.commit()
+}

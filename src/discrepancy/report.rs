@@ -1,0 +1,180 @@
+//! `diagnosis.json` and `diagnosis.md` of a [`Diagnosis`].
+
+use super::diagnose::{Diagnosis, ModelResult};
+use super::hypotheses::hypothesis_by_name;
+use super::verdict::{decisive_ln_bayes_factor, DiagnosisRecord, HypothesisEvidence};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+/// Log evidence of every hypothesis: the stepping-stone value for those whose evidence
+/// was computed, otherwise the Laplace approximation at its best location's MAP (the
+/// report shows where both exist that they agree), otherwise `-inf` when neither could be
+/// computed (a hypothesis whose every fit failed).
+pub fn hypothesis_evidence(d: &Diagnosis) -> Vec<HypothesisEvidence> {
+    let nominal = d.nominal.ln_z().unwrap_or(f64::NAN);
+    let mut rows: Vec<HypothesisEvidence> = d
+        .searches
+        .iter()
+        .map(|s| {
+            let ss = d
+                .finalists
+                .iter()
+                .find(|f| f.name == s.name)
+                .and_then(ModelResult::ln_z);
+            let lap = d
+                .laplace
+                .iter()
+                .find(|(n, _)| n == s.name)
+                .and_then(|(_, v)| *v);
+            let ln_z = ss.or(lap).unwrap_or(f64::MIN);
+            HypothesisEvidence {
+                name: s.name.to_string(),
+                log_evidence: ln_z,
+                delta_log_evidence: ln_z - nominal,
+            }
+        })
+        .collect();
+    rows.sort_by(|a, b| b.log_evidence.total_cmp(&a.log_evidence));
+    rows
+}
+
+fn plain_location(loc: &super::location::Location) -> String {
+    use super::location::Location::*;
+    match loc {
+        Whole => "the whole structure".into(),
+        Story(s) => format!("story {s}"),
+        Floor(f) => format!("floor {f}"),
+        Channels(c) => format!("channel(s) {}", c.join(", ")),
+        Quantity(q) => format!("every {} channel", format!("{q:?}").to_lowercase()),
+    }
+}
+
+/// The plain-language explanation of the verdict.
+pub fn explanation(d: &Diagnosis) -> String {
+    let n0 = d.nominal.ln_z().unwrap_or(f64::NAN);
+    let before = d.fit_before;
+    let mut s = String::new();
+    match d.winner {
+        Some(w) => {
+            let f = &d.finalists[w];
+            let physics = hypothesis_by_name(&f.name)
+                .map(|h| h.physics().to_string())
+                .unwrap_or_default();
+            let ev = f.evidence.as_ref();
+            let delta = f.ln_z().unwrap_or(f64::NAN) - n0;
+            let se = ev.map_or(0.0, |e| e.ln_z_se);
+            let _ = write!(
+                s,
+                "The nominal model leaves out {name} at {loc}: {physics} Adding it raises the log \
+                 evidence by {delta:.1} +- {se:.1} (Bayes factor e^{delta:.0}; decisive is above \
+                 ln 150 = {thr:.1}) ",
+                name = f.name.replace('_', " "),
+                loc = plain_location(&f.location),
+                thr = decisive_ln_bayes_factor(),
+            );
+            if let Some(h) = &f.held_out {
+                let _ = write!(
+                    s,
+                    "and predicts recordings held out of the fit better by {:.0} +- {:.0} nats. ",
+                    h.gain, h.gain_se
+                );
+            } else {
+                s.push_str(". ");
+            }
+            let effects: Vec<String> = f
+                .effect
+                .iter()
+                .map(|(n, e)| {
+                    format!(
+                        "{n} = {:.4} {} (95 % interval {:.4} to {:.4})",
+                        e.mean, e.unit, e.q2_5, e.q97_5
+                    )
+                })
+                .collect();
+            if !effects.is_empty() {
+                let _ = write!(s, "Its size: {}. ", effects.join("; "));
+            }
+            let _ = write!(
+                s,
+                "The fit improves from chi2 per point {:.2} to {:.2} and mean FDAC {:.4} to {:.4}.",
+                before.chi2_per_point,
+                d.fit_after.chi2_per_point,
+                before.fdac_mean,
+                d.fit_after.fdac_mean
+            );
+            if let Some(r) = d.finalists.iter().enumerate().find(|(i, _)| *i != w) {
+                let dr = r.1.ln_z().unwrap_or(f64::NAN) - f.ln_z().unwrap_or(f64::NAN);
+                let _ = write!(
+                    s,
+                    " The next best explanation, {} at {}, is {:.1} nats less likely.",
+                    r.1.name.replace('_', " "),
+                    plain_location(&r.1.location),
+                    -dr
+                );
+            }
+        }
+        None => {
+            let best = hypothesis_evidence(d).into_iter().next();
+            let _ = write!(
+                s,
+                "Nothing missing: no hypothesis is decisively better than the nominal model \
+                 (shear frame, proportional damping, ideal sensors)"
+            );
+            if let Some(b) = best {
+                let _ = write!(
+                    s,
+                    "; the best, {}, changes the log evidence by {:.1} (decisive needs {:.1})",
+                    b.name.replace('_', " "),
+                    b.delta_log_evidence,
+                    decisive_ln_bayes_factor()
+                );
+            }
+            let _ = write!(
+                s,
+                ". The nominal fit has chi2 per point {:.2} and mean FDAC {:.4}.",
+                before.chi2_per_point, before.fdac_mean
+            );
+            let blocked: Vec<String> = d
+                .finalists
+                .iter()
+                .zip(&d.decision.reasons)
+                .filter(|(_, r)| r.starts_with("decisive"))
+                .map(|(f, r)| format!("{} was {}", f.name.replace('_', " "), r))
+                .collect();
+            if !blocked.is_empty() {
+                let _ = write!(
+                    s,
+                    " Decisive but not named: {}; the misfit is real, but none of the six \
+                     hypotheses explains it in a physically plausible way that predicts held-out \
+                     recordings.",
+                    blocked.join("; ")
+                );
+            }
+        }
+    }
+    s
+}
+
+/// `diagnosis.json`.
+pub fn record(d: &Diagnosis) -> DiagnosisRecord {
+    let (verdict, location, effect_parameters) = match d.winner {
+        Some(w) => {
+            let f = &d.finalists[w];
+            (
+                f.name.clone(),
+                serde_json::to_value(&f.location).unwrap_or_else(|_| serde_json::json!({})),
+                f.effect.iter().cloned().collect::<BTreeMap<_, _>>(),
+            )
+        }
+        None => ("none".to_string(), serde_json::json!({}), BTreeMap::new()),
+    };
+    DiagnosisRecord {
+        verdict,
+        location,
+        effect_parameters,
+        fit_before: d.fit_before,
+        fit_after: d.fit_after,
+        hypotheses: hypothesis_evidence(d),
+        explanation: explanation(d),
+    }
+}

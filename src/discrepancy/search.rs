@@ -1,0 +1,184 @@
+//! Where could each hypothesis act? Every candidate location is fitted (MAP, from the
+//! nominal fit plus a Latin hypercube over the effect's own box) and the best is kept.
+//!
+//! Within one hypothesis every location has the same parameters and priors of the same
+//! width, so locations are ranked by their maximum log-likelihood. Hypotheses acting on
+//! channels may act on any set of them: starting from the best single channel or
+//! quantity, channels are added one at a time (greedy forward selection) while the
+//! maximum log-likelihood rises by more than `ln C` per added channel, `C` the number of
+//! channels: the log prior odds of one particular channel joining the set when every
+//! subset size is equally likely a priori. A set that covers every channel of one
+//! quantity is reported as that quantity.
+
+use super::data::DiagnosisData;
+use super::fit::{effect_starts, fit_map, MapFit, MapOptions};
+use super::hypothesis::Hypothesis;
+use super::location::Location;
+use super::posterior::ModelPosterior;
+use crate::error::Result;
+use crate::io::Quantity;
+use std::sync::Arc;
+
+/// Settings of the location search.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SearchOptions {
+    /// Latin hypercube starts over the effect's box per location (plus the nominal fit's
+    /// frame in each).
+    pub n_effect_starts: usize,
+    pub map: MapOptions,
+    pub seed: u64,
+}
+
+impl Default for SearchOptions {
+    fn default() -> Self {
+        SearchOptions {
+            n_effect_starts: 6,
+            map: MapOptions::default(),
+            seed: 1,
+        }
+    }
+}
+
+/// One fitted location.
+#[derive(Debug, Clone)]
+pub struct LocationFit {
+    pub location: Location,
+    pub map: MapFit,
+}
+
+/// The search of one hypothesis: every location tried, best first.
+#[derive(Debug, Clone)]
+pub struct HypothesisSearch {
+    pub name: &'static str,
+    pub tried: Vec<LocationFit>,
+    /// Locations whose fit failed, with the reason.
+    pub failed: Vec<(Location, String)>,
+}
+
+impl HypothesisSearch {
+    /// The best location's fit.
+    pub fn best(&self) -> Option<&LocationFit> {
+        self.tried.first()
+    }
+}
+
+/// MAP fit of `hypothesis` at `location`, starting from the frame of `nominal_z`.
+pub fn fit_location(
+    data: &Arc<DiagnosisData>,
+    hypothesis: &Arc<dyn Hypothesis>,
+    location: &Location,
+    nominal_z: &[f64],
+    opts: &SearchOptions,
+) -> Result<LocationFit> {
+    let post = ModelPosterior::new(data.clone(), Some((hypothesis.clone(), location.clone())))?;
+    let starts = effect_starts(&post, nominal_z, opts.n_effect_starts, opts.seed)?;
+    let map = fit_map(&post, &starts, &opts.map)?;
+    Ok(LocationFit {
+        location: location.clone(),
+        map,
+    })
+}
+
+/// Channels of `quantity` (responses and inputs) in the campaign.
+fn channels_of(data: &DiagnosisData, quantity: Quantity) -> Vec<String> {
+    data.channels()
+        .into_iter()
+        .filter(|c| c.quantity == quantity)
+        .map(|c| c.name)
+        .collect()
+}
+
+/// The channel set of a channel or quantity location.
+fn channel_set(data: &DiagnosisData, loc: &Location) -> Option<Vec<String>> {
+    match loc {
+        Location::Channels(c) => Some(c.clone()),
+        Location::Quantity(q) => Some(channels_of(data, *q)),
+        _ => None,
+    }
+}
+
+/// A channel set as a location: a quantity when it is exactly that quantity's channels.
+fn as_location(data: &DiagnosisData, mut set: Vec<String>) -> Location {
+    set.sort();
+    for q in data.response_quantities() {
+        let mut all = channels_of(data, q);
+        all.sort();
+        if all == set {
+            return Location::Quantity(q);
+        }
+    }
+    Location::Channels(set)
+}
+
+/// Fits `hypothesis` at every candidate location (and, for channel hypotheses, grows the
+/// best channel set greedily); `progress` is called after every fit.
+pub fn search(
+    data: &Arc<DiagnosisData>,
+    hypothesis: &Arc<dyn Hypothesis>,
+    nominal_z: &[f64],
+    opts: &SearchOptions,
+    progress: &mut dyn FnMut(&str, &Location),
+) -> Result<HypothesisSearch> {
+    let mut tried: Vec<LocationFit> = Vec::new();
+    let mut failed = Vec::new();
+    for loc in hypothesis.locations(data) {
+        match fit_location(data, hypothesis, &loc, nominal_z, opts) {
+            Ok(f) => tried.push(f),
+            // A location the model cannot evaluate is not a candidate; it is reported.
+            Err(e) => failed.push((loc.clone(), e.to_string())),
+        }
+        progress(hypothesis.name(), &loc);
+    }
+    sort_best_first(&mut tried);
+    let channel_hypothesis = tried
+        .first()
+        .is_some_and(|f| channel_set(data, &f.location).is_some());
+    if channel_hypothesis {
+        let all: Vec<String> = data.channels().into_iter().map(|c| c.name).collect();
+        let penalty = (all.len().max(2) as f64).ln();
+        let mut best = tried[0].clone();
+        loop {
+            let set = channel_set(data, &best.location).unwrap_or_default();
+            let mut improved: Option<LocationFit> = None;
+            for c in all.iter().filter(|c| !set.contains(c)) {
+                let mut grown = set.clone();
+                grown.push(c.clone());
+                let loc = as_location(data, grown);
+                if tried.iter().any(|f| f.location == loc) {
+                    continue;
+                }
+                let Ok(f) = fit_location(data, hypothesis, &loc, &best.map.z, opts) else {
+                    continue;
+                };
+                progress(hypothesis.name(), &loc);
+                let gain = f.map.ln_likelihood - best.map.ln_likelihood;
+                if gain > penalty
+                    && improved
+                        .as_ref()
+                        .is_none_or(|i| f.map.ln_likelihood > i.map.ln_likelihood)
+                {
+                    improved = Some(f.clone());
+                }
+                tried.push(f);
+            }
+            match improved {
+                Some(f) => best = f,
+                None => break,
+            }
+        }
+        // The accepted set goes first even when a larger, rejected set fitted a little
+        // better (it did not pay its prior odds).
+        tried.retain(|f| f.location != best.location);
+        sort_best_first(&mut tried);
+        tried.insert(0, best);
+    }
+    Ok(HypothesisSearch {
+        name: hypothesis.name(),
+        tried,
+        failed,
+    })
+}
+
+fn sort_best_first(fits: &mut [LocationFit]) {
+    fits.sort_by(|a, b| b.map.ln_likelihood.total_cmp(&a.map.ln_likelihood));
+}
