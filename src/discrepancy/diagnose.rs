@@ -137,9 +137,10 @@ pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQu
 }
 
 /// Summaries of the effect parameters from posterior draws `draws` (rows of `z`), and
-/// whether the effect is plausible: every 95 % interval excludes the no-effect value
-/// and keeps 1 % of its box away from the box's ends (a posterior piled at the end of
-/// the physically plausible range is not an identified effect).
+/// whether the effect is plausible: the 95 % interval of every size parameter (one with
+/// a no-effect value) excludes that value and keeps 1 % of its box away from the box's
+/// ends (a posterior piled at the end of the physically plausible range is not an
+/// identified effect).
 fn effect_summaries(
     post: &ModelPosterior,
     draws: &[Vec<f64>],
@@ -178,7 +179,9 @@ fn effect_summaries(
                 ));
             }
         }
-        if z_lo < lo[i] + margin || z_hi > hi[i] - margin {
+        // Shape parameters (no_effect None, e.g. a damping ratio) may be weakly
+        // identified and rest on a prior end without making the effect implausible.
+        if p.no_effect.is_some() && (z_lo < lo[i] + margin || z_hi > hi[i] - margin) {
             reasons.push(format!(
                 "{} [{:.3e}, {:.3e}] {} reaches the end of its plausible range [{:.3e}, {:.3e}]",
                 p.name,
