@@ -42,12 +42,12 @@
 //!
 //! Calibration (`tests/signal_noise.rs`: exactly simulated frame, sensor noise of the
 //! campaign's size, 4 realisations): the mean of `z^2 = ((|H1| - |H|) / (s |H1|))^2`, `s`
-//! the Bendat & Piersol relative error from this coherence, is 0.76 (hammer, 2 impacts,
-//! gamma^2 >= 0.99), 0.73 (0.9-0.99), 0.59 (0.5-0.9) and 0.91 (shake table, one block,
-//! gamma^2 >= 0.99): the predicted standard deviation is right to -30 %..+20 %, on the
-//! safe side where it errs (the hammer's second block also carries the first impact's
-//! ring-down, which is error but not noise). The ordinary coherence of the same two blocks
-//! gives 7.7, i.e. it underpredicts the scatter 2.8x.
+//! the Bendat & Piersol relative error from this coherence, is 1.51 (hammer, whole record,
+//! one transform, gamma^2 >= 0.99), 1.28 (0.9-0.99), 1.20 (0.5-0.9) and 0.95 (shake table,
+//! gamma^2 >= 0.99). With 5-6 effective degrees of freedom, `E[z^2] = dof / (dof - 1)`
+//! (1.2-1.25) even for an unbiased noise estimate, so the hammer's noise power is right to
+//! about +20 % in variance. The ordinary coherence of two impact blocks gives 7.7, i.e. it
+//! underpredicts the scatter 2.8x (one whole-record block: coherence 1 by construction).
 
 use super::correlation::WindowDof;
 use crate::error::{Error, Result};
