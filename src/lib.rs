@@ -35,6 +35,7 @@ pub mod mcmc;
 pub mod modal;
 pub mod model;
 pub mod plot;
+pub mod real;
 pub mod signal;
 pub mod simulate;
 pub mod update;

@@ -24,6 +24,8 @@ enum Command {
     Repro(cli::repro::ReproArgs),
     /// Run an experiment file (experiments/<name>.toml).
     Run(cli::repro::RunArgs),
+    /// Studies on real measurements (../shared/data/real): four-story-modal, wheel-frf, tower-hmd.
+    Real(cli::real::Args),
     /// Simulate a campaign with known truth from a model file.
     Simulate(cli::simulate::Args),
 }
@@ -36,6 +38,7 @@ fn main() -> std::process::ExitCode {
         Command::Modes(a) => cli::modes::run(a),
         Command::Repro(a) => cli::repro::repro(a),
         Command::Run(a) => cli::repro::run(a),
+        Command::Real(a) => cli::real::run_cmd(a),
         Command::Simulate(a) => cli::simulate::run(a),
     };
     match result {

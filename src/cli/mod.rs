@@ -4,5 +4,6 @@
 pub mod check;
 pub mod frf;
 pub mod modes;
+pub mod real;
 pub mod repro;
 pub mod simulate;

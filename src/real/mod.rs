@@ -1,0 +1,104 @@
+//! Real measurements (issue 6): validation on data that no one in this project made.
+//!
+//! The data live in `../shared/data/real/<dataset>` (provenance, variables and units in
+//! each folder's README); they are read in place and never copied into the repository.
+//!
+//! - [`mat`]: MATLAB v5 reader (through the `matfile` crate) with errors naming the file
+//!   and variable.
+//! - [`posterior`]: sampling to R-hat/ESS targets and the `posterior.json` schema.
+//! - [`four_story`], [`four_story_run`], [`four_story_report`]: identified modes of the
+//!   four-story frame against a shear-frame modal likelihood (`four-story-modal`).
+//!
+//! Each study writes `report.md`, `posterior.json`, `run.json` and figures (PNG + SVG)
+//! into its output folder.
+
+pub mod four_story;
+pub mod four_story_report;
+pub mod four_story_run;
+pub mod mat;
+pub mod posterior;
+pub mod report;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::error::Result;
+use crate::experiment::runinfo::RunInfo;
+
+/// The datasets with a study.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dataset {
+    FourStoryModal,
+    WheelFrf,
+    TowerHmd,
+}
+
+impl Dataset {
+    /// Folder name under `data/real` and `results/real`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Dataset::FourStoryModal => "four-story-modal",
+            Dataset::WheelFrf => "wheel-frf",
+            Dataset::TowerHmd => "tower-hmd",
+        }
+    }
+}
+
+/// `<shared>/data/real/<dataset>`, `<shared>` being `$FRFBAYES_SHARED_DIR` when set,
+/// else `../shared` beside the current directory.
+pub fn default_data_dir(dataset: Dataset) -> PathBuf {
+    let shared = std::env::var_os("FRFBAYES_SHARED_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("../shared"));
+    shared.join("data/real").join(dataset.name())
+}
+
+/// Runs the study of `dataset` on `data_dir` and writes its outputs into `out_dir`;
+/// returns the wall-clock seconds of each stage.
+pub fn run(dataset: Dataset, data_dir: &Path, out_dir: &Path, seed: u64) -> Result<Vec<(String, f64)>> {
+    let config = serde_json::json!({ "dataset": dataset.name(), "seed": seed });
+    let mut info = RunInfo::start(seed, config, data_dir.display().to_string());
+    let t0 = Instant::now();
+    match dataset {
+        Dataset::FourStoryModal => {
+            let study = info.time("sample three variants and check", || {
+                four_story_run::run(data_dir, seed)
+            })?;
+            let mut timings = info.timings_s.clone();
+            timings.push(("total before writing".into(), t0.elapsed().as_secs_f64()));
+            info.time("write report and figures", || {
+                four_story_report::write(&study, out_dir, &timings)
+            })?;
+        }
+        Dataset::WheelFrf | Dataset::TowerHmd => {
+            return Err(crate::Error::Usage(format!(
+                "the {} study is not implemented yet",
+                dataset.name()
+            )))
+        }
+    }
+    info.write(out_dir)?;
+    Ok(info.timings_s)
+}
+
+/// For tests: `<shared>/data/real/<dataset>` when present (`$FRFBAYES_SHARED_DIR` or
+/// `../shared` beside the repository), else `None` after printing why.
+#[cfg(test)]
+pub(crate) fn shared_dataset(dataset: Dataset) -> Option<PathBuf> {
+    let mut roots = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")];
+    if let Some(d) = std::env::var_os("FRFBAYES_SHARED_DIR") {
+        roots.push(PathBuf::from(d));
+    }
+    let found = roots
+        .into_iter()
+        .map(|r| r.join("data/real").join(dataset.name()))
+        .find(|p| p.is_dir());
+    if found.is_none() {
+        println!(
+            "skipped: data/real/{} not found (no ../shared beside the repository and no \
+             FRFBAYES_SHARED_DIR)",
+            dataset.name()
+        );
+    }
+    found
+}
