@@ -8,6 +8,9 @@
 //! - [`posterior`]: sampling to R-hat/ESS targets and the `posterior.json` schema.
 //! - [`four_story`], [`four_story_run`], [`four_story_report`]: identified modes of the
 //!   four-story frame against a shear-frame modal likelihood (`four-story-modal`).
+//! - [`wheel`], [`wheel_run`], [`wheel_report`]: Bayesian modal parameters from the
+//!   measured accelerance of a wheel, damping against frequency uncertainty
+//!   (`wheel-frf`).
 //!
 //! Each study writes `report.md`, `posterior.json`, `run.json` and figures (PNG + SVG)
 //! into its output folder.
@@ -18,6 +21,9 @@ pub mod four_story_run;
 pub mod mat;
 pub mod posterior;
 pub mod report;
+pub mod wheel;
+pub mod wheel_report;
+pub mod wheel_run;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -70,7 +76,26 @@ pub fn run(dataset: Dataset, data_dir: &Path, out_dir: &Path, seed: u64) -> Resu
                 four_story_report::write(&study, out_dir, &timings)
             })?;
         }
-        Dataset::WheelFrf | Dataset::TowerHmd => {
+        Dataset::WheelFrf => {
+            let data = info.time("read data", || wheel::load(data_dir))?;
+            let bands = info.time("fit and sample bands", || wheel_run::run(&data, seed))?;
+            let scatter = info.time("channel-by-channel fits", || {
+                bands
+                    .iter()
+                    .map(wheel_run::channel_scatter)
+                    .collect::<Result<Vec<_>>>()
+            })?;
+            let study = wheel_report::WheelStudy {
+                scatter: scatter.into_iter().flatten().collect(),
+                bands,
+                wall_s: t0.elapsed().as_secs_f64(),
+            };
+            let timings = info.timings_s.clone();
+            info.time("write report and figures", || {
+                wheel_report::write(&study, &data, out_dir, &timings)
+            })?;
+        }
+        Dataset::TowerHmd => {
             return Err(crate::Error::Usage(format!(
                 "the {} study is not implemented yet",
                 dataset.name()
@@ -101,4 +126,22 @@ pub(crate) fn shared_dataset(dataset: Dataset) -> Option<PathBuf> {
         );
     }
     found
+}
+
+#[cfg(test)]
+mod probe {
+    #[test]
+    #[ignore = "probe"]
+    fn wheel_probe() {
+        let d = super::wheel::load(std::path::Path::new("/work/shared/data/real/wheel-frf")).unwrap();
+        for spec in super::wheel_run::bands() {
+            let t = std::time::Instant::now();
+            let lik = super::wheel::BandLikelihood::new(&d, spec.clone()).unwrap();
+            let x = super::wheel_run::varpro_start(&lik).unwrap();
+            let t1 = t.elapsed().as_secs_f64();
+            let t = std::time::Instant::now();
+            for _ in 0..100 { let _ = crate::mcmc::LogDensity::ln_density(&lik, &x).unwrap(); }
+            println!("{}: start {:?} (fit {:.2}s, eval {:.3} ms)", spec.label, x.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>(), t1, t.elapsed().as_secs_f64() * 10.0);
+        }
+    }
 }
