@@ -12,7 +12,9 @@ use super::four_story::{
     load, prior_bounds, shear_modes, table1_models, MassModel, ModalData, ModalLikelihood,
     Prediction, TableModel, K_INITIAL_N_PER_M, MASSES_KG, N_FLOORS,
 };
-use super::posterior::{near_bound, row_from_chains, sample_to_targets, ParamRow, Sampled, Targets};
+use super::posterior::{
+    near_bound, row_from_chains, sample_to_targets, ParamRow, Sampled, Targets,
+};
 use crate::error::Result;
 use crate::mcmc::{Ball, LogDensity, Start};
 use crate::modal::mac;
@@ -136,7 +138,14 @@ pub struct Chi2 {
 }
 
 /// The chi-square of a prediction at noise scales `sigma_f`, `sigma_s`.
-pub fn chi2(label: &str, data: &ModalData, p: &Prediction, sigma_f: f64, sigma_s: f64, dof: usize) -> Result<Chi2> {
+pub fn chi2(
+    label: &str,
+    data: &ModalData,
+    p: &Prediction,
+    sigma_f: f64,
+    sigma_s: f64,
+    dof: usize,
+) -> Result<Chi2> {
     use statrs::distribution::{ChiSquared, ContinuousCDF};
     let x: f64 = (0..N_FLOORS)
         .map(|i| {
@@ -200,7 +209,11 @@ pub fn sample_variant(
         .iter()
         .enumerate()
         .map(|(p, (name, unit))| {
-            let scale = if (4..ns).contains(&p) { MASSES_KG[0] } else { 1.0 };
+            let scale = if (4..ns).contains(&p) {
+                MASSES_KG[0]
+            } else {
+                1.0
+            };
             row_from_chains(
                 name,
                 unit,
@@ -352,7 +365,12 @@ pub fn frequency_only_fit(data: &ModalData) -> Result<FrequencyOnlyFit> {
         &x0,
         &Bounds::unbounded(4),
     )?;
-    let k = [sol.x[0].exp(), sol.x[1].exp(), sol.x[2].exp(), sol.x[3].exp()];
+    let k = [
+        sol.x[0].exp(),
+        sol.x[1].exp(),
+        sol.x[2].exp(),
+        sol.x[3].exp(),
+    ];
     let unit: Vec<Vec<f64>> = (0..4).map(|i| data.unit_shape(i)).collect();
     let p = super::four_story::predict_structure(&unit, &MASSES_KG, &k)?;
     let max_rel_freq_error = (0..4)
@@ -370,7 +388,13 @@ pub fn frequency_only_fit(data: &ModalData) -> Result<FrequencyOnlyFit> {
 pub fn run(data_dir: &Path, seed: u64) -> Result<FourStoryStudy> {
     let data = load(data_dir)?;
     let all = vec![0, 1, 2, 3];
-    let main = sample_variant("shear frame, fixed masses, modes 1-4", &data, all.clone(), MassModel::Fixed, seed)?;
+    let main = sample_variant(
+        "shear frame, fixed masses, modes 1-4",
+        &data,
+        all.clone(),
+        MassModel::Fixed,
+        seed,
+    )?;
     let main_ppc = ppc(&main, seed ^ 0x5eed_0001)?;
     let holdout = sample_variant(
         "shear frame, fixed masses, modes 1-3 (mode 4 held out)",
@@ -393,7 +417,8 @@ pub fn run(data_dir: &Path, seed: u64) -> Result<FourStoryStudy> {
         .into_iter()
         .chain(table2_models())
         .map(|t| {
-            let p = super::four_story::predict_structure(&unit, &t.masses_kg, &t.stiffness_n_per_m)?;
+            let p =
+                super::four_story::predict_structure(&unit, &t.masses_kg, &t.stiffness_n_per_m)?;
             Ok((t, p))
         })
         .collect::<Result<Vec<_>>>()?;
@@ -411,7 +436,14 @@ pub fn run(data_dir: &Path, seed: u64) -> Result<FourStoryStudy> {
         .iter()
         .map(|(t, p)| chi2(t.label, &data, p, sf, ss, 4 * N_FLOORS))
         .collect::<Result<Vec<_>>>()?;
-    chi.push(chi2("posterior median", &data, &main_median, sf, ss, 4 * N_FLOORS - 4)?);
+    chi.push(chi2(
+        "posterior median",
+        &data,
+        &main_median,
+        sf,
+        ss,
+        4 * N_FLOORS - 4,
+    )?);
     Ok(FourStoryStudy {
         chi2: chi,
         frequency_only: frequency_only_fit(&data)?,
@@ -470,7 +502,13 @@ mod tests {
         assert_eq!(v.sampled.stopped_because, "converged");
         for (r, k) in v.rows.iter().zip(&k_true) {
             let z = (r.mean - k) / r.sd;
-            assert!(z.abs() < 3.3, "{}: mean {} sd {} truth {k}", r.name, r.mean, r.sd);
+            assert!(
+                z.abs() < 3.3,
+                "{}: mean {} sd {} truth {k}",
+                r.name,
+                r.mean,
+                r.sd
+            );
         }
         let check = ppc(&v, 3).unwrap();
         assert!(check.p_t > 0.01, "{check:?}");

@@ -426,7 +426,7 @@ impl Reader {
 #[cfg(test)]
 pub(crate) fn write_test_mat(vars: &[(&str, u32, usize, usize, &[f64])]) -> Vec<u8> {
     fn pad8(v: &mut Vec<u8>) {
-        while v.len() % 8 != 0 {
+        while !v.len().is_multiple_of(8) {
             v.push(0);
         }
     }
@@ -485,7 +485,10 @@ mod tests {
         let err = m.vector("a", None).unwrap_err().to_string();
         assert!(err.contains("`a` is 2 x 3"), "{err}");
         let err = m.real("b").unwrap_err().to_string();
-        assert!(err.contains("t.mat") && err.contains("no numeric variable `b`"), "{err}");
+        assert!(
+            err.contains("t.mat") && err.contains("no numeric variable `b`"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -500,7 +503,10 @@ mod tests {
         let err = MatData::from_bytes(Path::new("dir/x.mat"), &bytes)
             .unwrap_err()
             .to_string();
-        assert!(err.contains("dir/x.mat") && err.contains("`K_y1` is stored as int32"), "{err}");
+        assert!(
+            err.contains("dir/x.mat") && err.contains("`K_y1` is stored as int32"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -527,7 +533,9 @@ mod tests {
         let m = MatData::from_bytes(Path::new("n.mat"), &nan).unwrap();
         let err = m.vector("v", Some(3)).unwrap_err().to_string();
         assert!(err.contains("`v`: element 2"), "{err}");
-        let err = MatData::open(&dir.path().join("missing.mat")).unwrap_err().to_string();
+        let err = MatData::open(&dir.path().join("missing.mat"))
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("missing.mat"), "{err}");
     }
 }

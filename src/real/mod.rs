@@ -11,6 +11,9 @@
 //! - [`wheel`], [`wheel_run`], [`wheel_report`]: Bayesian modal parameters from the
 //!   measured accelerance of a wheel, damping against frequency uncertainty
 //!   (`wheel-frf`).
+//! - [`tower`], [`tower_model`], [`tower_run`]: FRFs from a building's mass-damper force,
+//!   a 5-story shear model with uncertain channel gains, and where its fit fails
+//!   (`tower-hmd`).
 //!
 //! Each study writes `report.md`, `posterior.json`, `run.json` and figures (PNG + SVG)
 //! into its output folder.
@@ -21,6 +24,9 @@ pub mod four_story_run;
 pub mod mat;
 pub mod posterior;
 pub mod report;
+pub mod tower;
+pub mod tower_model;
+pub mod tower_run;
 pub mod wheel;
 pub mod wheel_report;
 pub mod wheel_run;
@@ -61,7 +67,12 @@ pub fn default_data_dir(dataset: Dataset) -> PathBuf {
 
 /// Runs the study of `dataset` on `data_dir` and writes its outputs into `out_dir`;
 /// returns the wall-clock seconds of each stage.
-pub fn run(dataset: Dataset, data_dir: &Path, out_dir: &Path, seed: u64) -> Result<Vec<(String, f64)>> {
+pub fn run(
+    dataset: Dataset,
+    data_dir: &Path,
+    out_dir: &Path,
+    seed: u64,
+) -> Result<Vec<(String, f64)>> {
     let config = serde_json::json!({ "dataset": dataset.name(), "seed": seed });
     let mut info = RunInfo::start(seed, config, data_dir.display().to_string());
     let t0 = Instant::now();
@@ -96,10 +107,13 @@ pub fn run(dataset: Dataset, data_dir: &Path, out_dir: &Path, seed: u64) -> Resu
             })?;
         }
         Dataset::TowerHmd => {
-            return Err(crate::Error::Usage(format!(
-                "the {} study is not implemented yet",
-                dataset.name()
-            )))
+            let study = info.time("estimate FRFs, fit and sample", || {
+                tower_run::run(data_dir, seed)
+            })?;
+            let timings = info.timings_s.clone();
+            info.time("write report and figures", || {
+                tower_run::write(&study, out_dir, &timings)
+            })?;
         }
     }
     info.write(out_dir)?;
@@ -126,22 +140,4 @@ pub(crate) fn shared_dataset(dataset: Dataset) -> Option<PathBuf> {
         );
     }
     found
-}
-
-#[cfg(test)]
-mod probe {
-    #[test]
-    #[ignore = "probe"]
-    fn wheel_probe() {
-        let d = super::wheel::load(std::path::Path::new("/work/shared/data/real/wheel-frf")).unwrap();
-        for spec in super::wheel_run::bands() {
-            let t = std::time::Instant::now();
-            let lik = super::wheel::BandLikelihood::new(&d, spec.clone()).unwrap();
-            let x = super::wheel_run::varpro_start(&lik).unwrap();
-            let t1 = t.elapsed().as_secs_f64();
-            let t = std::time::Instant::now();
-            for _ in 0..100 { let _ = crate::mcmc::LogDensity::ln_density(&lik, &x).unwrap(); }
-            println!("{}: start {:?} (fit {:.2}s, eval {:.3} ms)", spec.label, x.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>(), t1, t.elapsed().as_secs_f64() * 10.0);
-        }
-    }
 }

@@ -324,8 +324,13 @@ mod tests {
         // A unit-sd variable with bounds (-1, 1) has its 95% interval beyond them.
         assert_eq!(p["at_bound"], serde_json::Value::Bool(true));
         for key in [
-            "acceptance", "n_walkers", "n_steps", "n_likelihood_evals", "n_data_points",
-            "wall_s", "stopped_because",
+            "acceptance",
+            "n_walkers",
+            "n_steps",
+            "n_likelihood_evals",
+            "n_data_points",
+            "wall_s",
+            "stopped_because",
         ] {
             assert!(v.get(key).is_some(), "missing {key}");
         }

@@ -2,9 +2,9 @@
 
 use std::path::Path;
 
+use super::posterior::{ParamRow, Sampled};
 use crate::error::Result;
 use crate::plot::{traces, TraceParam, TracesSpec};
-use super::posterior::{ParamRow, Sampled};
 
 /// A Markdown table.
 pub fn md_table(headers: &[&str], rows: &[Vec<String>]) -> String {
@@ -47,14 +47,26 @@ pub fn posterior_table(rows: &[ParamRow]) -> String {
                 format!("{:.4}", r.rhat),
                 format!("{:.0}", r.ess_bulk),
                 format!("{:.0}", r.ess_tail),
-                if r.at_bound { "yes".into() } else { "no".into() },
+                if r.at_bound {
+                    "yes".into()
+                } else {
+                    "no".into()
+                },
             ]
         })
         .collect();
     md_table(
         &[
-            "parameter", "unit", "mean", "sd", "c.o.v. (%)", "95% interval", "R-hat",
-            "ESS bulk", "ESS tail", "at bound",
+            "parameter",
+            "unit",
+            "mean",
+            "sd",
+            "c.o.v. (%)",
+            "95% interval",
+            "R-hat",
+            "ESS bulk",
+            "ESS tail",
+            "at bound",
         ],
         &body,
     )
@@ -92,7 +104,11 @@ pub fn trace_figure(
             name: name.clone(),
             unit: unit.clone(),
             walkers: (0..full.n_walkers)
-                .map(|c| (0..full.n_draws).map(|d| map(p, full.draw(c, d)[p])).collect())
+                .map(|c| {
+                    (0..full.n_draws)
+                        .map(|d| map(p, full.draw(c, d)[p]))
+                        .collect()
+                })
                 .collect(),
             reference: None,
         })

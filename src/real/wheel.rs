@@ -75,7 +75,11 @@ pub fn load(dir: &Path) -> Result<WheelData> {
             ));
         }
     }
-    if let Some(i) = coh.data.iter().position(|g| !(0.0..=1.0 + 1e-9).contains(g)) {
+    if let Some(i) = coh
+        .data
+        .iter()
+        .position(|g| !(0.0..=1.0 + 1e-9).contains(g))
+    {
         return Err(Error::invalid(
             &path,
             format!(
@@ -154,7 +158,11 @@ impl BandData {
 
 /// Accelerance mode term `g(w) = -w^2 / (w_n^2 - w^2 + 2 j xi w_n w)`.
 pub fn mode_term(omega: f64, omega_n: f64, xi: f64) -> Complex64 {
-    -omega * omega / Complex64::new(omega_n * omega_n - omega * omega, 2.0 * xi * omega_n * omega)
+    -omega * omega
+        / Complex64::new(
+            omega_n * omega_n - omega * omega,
+            2.0 * xi * omega_n * omega,
+        )
 }
 
 /// The weighted least-squares solution of one channel.
@@ -389,6 +397,37 @@ mod tests {
             assert!((u - v).norm() < 1e-14);
         }
         assert!(cholesky(&[c(-1.0, 0.0)], 1).is_none());
+    }
+
+    /// The real file (skipped without ../shared): shapes, grid, and the strongest
+    /// resonance near 667 Hz with its n = 2 node at channel 4 (45 degrees).
+    #[test]
+    fn reads_the_real_wheel_file() {
+        let Some(dir) = crate::real::shared_dataset(crate::real::Dataset::WheelFrf) else {
+            return;
+        };
+        let d = load(&dir).unwrap();
+        assert_eq!(d.freq_hz.len(), 15001);
+        assert!((d.freq_hz[1] - 1.0 / 3.0).abs() < 1e-3);
+        let k = (1900..2100)
+            .max_by(|&a, &b| d.frf[0][a].norm().total_cmp(&d.frf[0][b].norm()))
+            .unwrap();
+        assert!((d.freq_hz[k] - 667.3).abs() < 1.0, "{}", d.freq_hz[k]);
+        assert!(d.frf[3][k].norm() < 0.1 * d.frf[0][k].norm());
+    }
+
+    #[test]
+    fn load_rejects_wrong_shapes() {
+        let dir = tempfile::tempdir().unwrap();
+        let freq: Vec<f64> = (0..12).map(f64::from).collect();
+        let bytes = crate::real::mat::write_test_mat(&[
+            ("freq", 6, 12, 1, &freq),
+            ("frf", 6, 12, 2, &[0.0; 24]),
+            ("cohe", 6, 12, 12, &[0.5; 144]),
+        ]);
+        std::fs::write(dir.path().join(FILE), bytes).unwrap();
+        let e = load(dir.path()).unwrap_err().to_string();
+        assert!(e.contains(FILE) && e.contains("`frf` is 12 x 2"), "{e}");
     }
 
     /// The mode term is the accelerance of a unit-residue SDOF: at resonance it is

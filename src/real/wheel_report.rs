@@ -62,7 +62,10 @@ pub fn all_rows(s: &WheelStudy) -> Vec<ParamRow> {
 /// `converged` only when every band converged).
 pub fn posterior_file(s: &WheelStudy) -> PosteriorFile {
     let sm = |f: &dyn Fn(&BandResult) -> f64| s.bands.iter().map(f).sum::<f64>();
-    let all_conv = s.bands.iter().all(|b| b.sampled.stopped_because == "converged");
+    let all_conv = s
+        .bands
+        .iter()
+        .all(|b| b.sampled.stopped_because == "converged");
     PosteriorFile {
         parameters: all_rows(s),
         acceptance: sm(&|b| b.sampled.acceptance) / s.bands.len() as f64,
@@ -85,7 +88,12 @@ pub fn posterior_file(s: &WheelStudy) -> PosteriorFile {
 }
 
 /// Writes everything into `out`.
-pub fn write(s: &WheelStudy, data: &WheelData, out: &Path, timings: &[(String, f64)]) -> Result<()> {
+pub fn write(
+    s: &WheelStudy,
+    data: &WheelData,
+    out: &Path,
+    timings: &[(String, f64)],
+) -> Result<()> {
     posterior_file(s).write(&out.join("posterior.json"))?;
     figures(s, data, out)?;
     crate::io::write_atomic(&out.join("report.md"), report(s, timings).as_bytes())
@@ -94,7 +102,10 @@ pub fn write(s: &WheelStudy, data: &WheelData, out: &Path, timings: &[(String, f
 fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
     let mut r = String::new();
     let cmp = cov_comparison(&s.bands);
-    let _ = writeln!(r, "# Light-rail wheel: Bayesian modal parameters from measured accelerance\n");
+    let _ = writeln!(
+        r,
+        "# Light-rail wheel: Bayesian modal parameters from measured accelerance\n"
+    );
     let _ = writeln!(
         r,
         "Data: `LRV_wheel_FRF.mat` (a university course's hammer test of a resilient \
@@ -133,7 +144,11 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
             r,
             "Whitened residual RMS / s per channel (1 = the coherence weights describe the \
              scatter's shape): {}.\n",
-            b.rms_z.iter().map(|z| format!("{z:.2}")).collect::<Vec<_>>().join(", ")
+            b.rms_z
+                .iter()
+                .map(|z| format!("{z:.2}"))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     let _ = writeln!(r, "## Frequency against damping uncertainty (Au's law)\n");
@@ -167,7 +182,16 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
         r,
         "{}",
         md_table(
-            &["mode", "f (Hz)", "xi", "cov(f)", "cov(xi)", "cov(xi)/cov(f)", "1/xi", "measured / predicted"],
+            &[
+                "mode",
+                "f (Hz)",
+                "xi",
+                "cov(f)",
+                "cov(xi)",
+                "cov(xi)/cov(f)",
+                "1/xi",
+                "measured / predicted"
+            ],
             &rows
         )
     );
@@ -207,14 +231,26 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
         "{}",
         md_table(
             &[
-                "mode", "channels", "f mean (Hz)", "xi mean", "scatter cov(f)", "scatter cov(xi)",
-                "cov(xi)/cov(f)", "1/xi", "scatter / posterior cov(f)", "scatter / posterior cov(xi)",
+                "mode",
+                "channels",
+                "f mean (Hz)",
+                "xi mean",
+                "scatter cov(f)",
+                "scatter cov(xi)",
+                "cov(xi)/cov(f)",
+                "1/xi",
+                "scatter / posterior cov(f)",
+                "scatter / posterior cov(xi)",
             ],
             &rows
         )
     );
     let ratios: Vec<f64> = s.scatter.iter().map(|sc| sc.cov_xi / sc.cov_f).collect();
-    let rel: Vec<f64> = s.scatter.iter().map(|sc| sc.cov_xi / sc.cov_f * sc.xi_mean).collect();
+    let rel: Vec<f64> = s
+        .scatter
+        .iter()
+        .map(|sc| sc.cov_xi / sc.cov_f * sc.xi_mean)
+        .collect();
     let _ = writeln!(
         r,
         "Across channels the damping ratio scatters {:.0}-{:.0} times more (relative) than \
@@ -226,13 +262,32 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
         ratios.iter().copied().fold(f64::MIN, f64::max),
         rel.iter().copied().fold(f64::MAX, f64::min),
         rel.iter().copied().fold(f64::MIN, f64::max),
-        s.scatter.iter().zip(&cmp).map(|(a, c)| a.cov_f / c.cov_f).fold(f64::MAX, f64::min),
-        s.scatter.iter().zip(&cmp).map(|(a, c)| a.cov_f / c.cov_f).fold(f64::MIN, f64::max),
-        s.scatter.iter().zip(&cmp).map(|(a, c)| a.cov_xi / c.cov_xi).fold(f64::MAX, f64::min),
-        s.scatter.iter().zip(&cmp).map(|(a, c)| a.cov_xi / c.cov_xi).fold(f64::MIN, f64::max),
+        s.scatter
+            .iter()
+            .zip(&cmp)
+            .map(|(a, c)| a.cov_f / c.cov_f)
+            .fold(f64::MAX, f64::min),
+        s.scatter
+            .iter()
+            .zip(&cmp)
+            .map(|(a, c)| a.cov_f / c.cov_f)
+            .fold(f64::MIN, f64::max),
+        s.scatter
+            .iter()
+            .zip(&cmp)
+            .map(|(a, c)| a.cov_xi / c.cov_xi)
+            .fold(f64::MAX, f64::min),
+        s.scatter
+            .iter()
+            .zip(&cmp)
+            .map(|(a, c)| a.cov_xi / c.cov_xi)
+            .fold(f64::MIN, f64::max),
     );
     let _ = writeln!(r, "## Figures\n");
-    let _ = writeln!(r, "- `overview.png/.svg`: measured |H| and coherence of channels 1-3, analysis bands shaded");
+    let _ = writeln!(
+        r,
+        "- `overview.png/.svg`: measured |H| and coherence of channels 1-3, analysis bands shaded"
+    );
     for bi in 0..s.bands.len() {
         let _ = writeln!(
             r,
@@ -240,7 +295,10 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
             bi + 1
         );
     }
-    let _ = writeln!(r, "- `cov.png/.svg`: c.o.v. of natural frequency and damping ratio per mode, and cov(f)/xi");
+    let _ = writeln!(
+        r,
+        "- `cov.png/.svg`: c.o.v. of natural frequency and damping ratio per mode, and cov(f)/xi"
+    );
     let _ = writeln!(r, "- `pair_corner.png/.svg`, `pair_traces.png/.svg`: the close pair's posterior and walker traces");
     let _ = writeln!(r, "\n## Timings\n");
     for (stage, t) in timings {
@@ -252,8 +310,12 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
 fn verdict(cmp: &[CovComparison]) -> String {
     let ratios: Vec<f64> = cmp.iter().map(|c| c.ratio).collect();
     let rel: Vec<f64> = cmp.iter().map(|c| c.ratio / c.predicted_ratio).collect();
-    let (rmin, rmax) = ratios.iter().fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
-    let (qmin, qmax) = rel.iter().fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
+    let (rmin, rmax) = ratios
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
+    let (qmin, qmax) = rel
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
     let within2 = rel.iter().filter(|&&q| (0.5..=2.0).contains(&q)).count();
     let orders = if rmin >= 100.0 {
         "two orders of magnitude or more"
@@ -293,7 +355,10 @@ fn figures(s: &WheelStudy, data: &WheelData, out: &Path) -> Result<()> {
             bands: s
                 .bands
                 .iter()
-                .map(|b| FreqBand { lo_hz: b.lik.spec.lo_hz, hi_hz: b.lik.spec.hi_hz })
+                .map(|b| FreqBand {
+                    lo_hz: b.lik.spec.lo_hz,
+                    hi_hz: b.lik.spec.hi_hz,
+                })
                 .collect(),
             size_px: None,
         },
@@ -312,8 +377,14 @@ fn figures(s: &WheelStudy, data: &WheelData, out: &Path) -> Result<()> {
                     y_scale: Scale::Log,
                     freq_hz: f.clone(),
                     median: q[2].clone(),
-                    band_50: Some(Interval { lo: q[1].clone(), hi: q[3].clone() }),
-                    band_95: Some(Interval { lo: q[0].clone(), hi: q[4].clone() }),
+                    band_50: Some(Interval {
+                        lo: q[1].clone(),
+                        hi: q[3].clone(),
+                    }),
+                    band_95: Some(Interval {
+                        lo: q[0].clone(),
+                        hi: q[4].clone(),
+                    }),
                     measured: Some(Curve {
                         freq_hz: f.clone(),
                         values: b.lik.data.y[c].iter().map(|h| h.norm()).collect(),
@@ -324,7 +395,11 @@ fn figures(s: &WheelStudy, data: &WheelData, out: &Path) -> Result<()> {
             .collect();
         band_overlay(
             &BandOverlaySpec {
-                title: format!("Band {}: {} — model posterior and measurement", bi + 1, b.lik.spec.label),
+                title: format!(
+                    "Band {}: {} — model posterior and measurement",
+                    bi + 1,
+                    b.lik.spec.label
+                ),
                 panels,
                 size_px: None,
             },
@@ -339,8 +414,14 @@ fn figures(s: &WheelStudy, data: &WheelData, out: &Path) -> Result<()> {
             y_label: "Coefficient of variation".into(),
             categories: cmp.iter().map(|c| format!("{:.0} Hz", c.f_hz)).collect(),
             groups: vec![
-                BarGroup { label: "cov(f)".into(), values: cmp.iter().map(|c| c.cov_f).collect() },
-                BarGroup { label: "cov(xi)".into(), values: cmp.iter().map(|c| c.cov_xi).collect() },
+                BarGroup {
+                    label: "cov(f)".into(),
+                    values: cmp.iter().map(|c| c.cov_f).collect(),
+                },
+                BarGroup {
+                    label: "cov(xi)".into(),
+                    values: cmp.iter().map(|c| c.cov_xi).collect(),
+                },
                 BarGroup {
                     label: "cov(f) / xi (predicted cov(xi))".into(),
                     values: cmp.iter().map(|c| c.cov_f / c.xi).collect(),
@@ -372,8 +453,16 @@ fn figures(s: &WheelStudy, data: &WheelData, out: &Path) -> Result<()> {
             },
             &out.join("pair_corner"),
         )?;
-        let nm: Vec<(String, String)> = (0..5).map(|p| (names[p].to_string(), units[p].to_string())).collect();
-        trace_figure(&pair.sampled, &nm, &tf, "Close pair: walker traces", &out.join("pair_traces"))?;
+        let nm: Vec<(String, String)> = (0..5)
+            .map(|p| (names[p].to_string(), units[p].to_string()))
+            .collect();
+        trace_figure(
+            &pair.sampled,
+            &nm,
+            &tf,
+            "Close pair: walker traces",
+            &out.join("pair_traces"),
+        )?;
     }
     Ok(())
 }

@@ -19,12 +19,18 @@
 //! uncertain in both directions: `sd(xi w_n) = sd(w_d)`, i.e. `sd(xi) = cov(f)`, and
 //! `cov(xi) / cov(f) = 1 / xi`. Each mode's measured ratio is compared with `1 / xi`.
 
+// Index loops over several parallel arrays (channels, bins, modes) read more clearly
+// than zipped iterators here.
+#![allow(clippy::needless_range_loop)]
+
 use num_complex::Complex64;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use super::posterior::{near_bound, quantile_sorted, row_from_chains, sample_to_targets, ParamRow, Sampled, Targets};
+use super::posterior::{
+    near_bound, quantile_sorted, row_from_chains, sample_to_targets, ParamRow, Sampled, Targets,
+};
 use super::wheel::{BandLikelihood, BandSpec, WheelData, N_CHANNELS};
 use crate::error::{Error, Result};
 use crate::mcmc::{Ball, LogDensity, Start};
@@ -47,11 +53,41 @@ pub const PLOT_CHANNELS: [usize; 4] = [0, 1, 2, 3];
 /// 30 Hz, is the close pair. The weak, broad peak near 2070 Hz completes six modes.
 pub fn bands() -> Vec<BandSpec> {
     vec![
-        BandSpec { label: "667 Hz (n = 2)", lo_hz: 630.0, hi_hz: 705.0, f_guess_hz: vec![667.3], xi_guess: 0.008 },
-        BandSpec { label: "1625 Hz (n = 3)", lo_hz: 1565.0, hi_hz: 1685.0, f_guess_hz: vec![1625.3], xi_guess: 0.006 },
-        BandSpec { label: "2070 Hz (weak)", lo_hz: 1990.0, hi_hz: 2150.0, f_guess_hz: vec![2069.0], xi_guess: 0.01 },
-        BandSpec { label: "2848/2862 Hz pair (n = 4)", lo_hz: 2770.0, hi_hz: 2940.0, f_guess_hz: vec![2847.0, 2862.0], xi_guess: 0.006 },
-        BandSpec { label: "4256 Hz (n = 5)", lo_hz: 4170.0, hi_hz: 4345.0, f_guess_hz: vec![4256.3], xi_guess: 0.0035 },
+        BandSpec {
+            label: "667 Hz (n = 2)",
+            lo_hz: 630.0,
+            hi_hz: 705.0,
+            f_guess_hz: vec![667.3],
+            xi_guess: 0.008,
+        },
+        BandSpec {
+            label: "1625 Hz (n = 3)",
+            lo_hz: 1565.0,
+            hi_hz: 1685.0,
+            f_guess_hz: vec![1625.3],
+            xi_guess: 0.006,
+        },
+        BandSpec {
+            label: "2070 Hz (weak)",
+            lo_hz: 1990.0,
+            hi_hz: 2150.0,
+            f_guess_hz: vec![2069.0],
+            xi_guess: 0.01,
+        },
+        BandSpec {
+            label: "2848/2862 Hz pair (n = 4)",
+            lo_hz: 2770.0,
+            hi_hz: 2940.0,
+            f_guess_hz: vec![2847.0, 2862.0],
+            xi_guess: 0.006,
+        },
+        BandSpec {
+            label: "4256 Hz (n = 5)",
+            lo_hz: 4170.0,
+            hi_hz: 4345.0,
+            f_guess_hz: vec![4256.3],
+            xi_guess: 0.0035,
+        },
     ]
 }
 
@@ -134,16 +170,20 @@ pub fn varpro_start(lik: &BandLikelihood) -> Result<Vec<f64>> {
         max_evaluations: Some(400),
         ..Default::default()
     };
-    let sol = Trf::new(opts).minimize(&VarPro { lik }, &mut (), &x0, &Bounds::new(lower, upper)?)?;
+    let sol =
+        Trf::new(opts).minimize(&VarPro { lik }, &mut (), &x0, &Bounds::new(lower, upper)?)?;
     let mut x = sol.x;
     // Keep the pair ordered (the start must lie in the support).
     let m = lik.n_modes();
     let mut pairs: Vec<(f64, f64)> = x.chunks(2).map(|c| (c[0], c[1])).collect();
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
     x = pairs.iter().flat_map(|&(f, l)| [f, l]).collect();
-    let fits = lik
-        .fit_channels(&lik.poles(&x))
-        .ok_or_else(|| Error::Numerical(format!("band {}: rank-deficient basis at the start", lik.spec.label)))?;
+    let fits = lik.fit_channels(&lik.poles(&x)).ok_or_else(|| {
+        Error::Numerical(format!(
+            "band {}: rank-deficient basis at the start",
+            lik.spec.label
+        ))
+    })?;
     let rss: f64 = fits.iter().map(|f| f.rss).sum();
     let dof = (fits.len() * (lik.data.freq_hz.len() - lik.n_linear())) as f64;
     x.push((rss / dof).sqrt().ln());
@@ -188,7 +228,8 @@ fn draw_residues(
             // x = theta^ + s L^-H z, z ~ CN(0, I): covariance s^2 (L L^H)^-1.
             let mut z: Vec<Complex64> = (0..p)
                 .map(|_| {
-                    let (a, b): (f64, f64) = (StandardNormal.sample(rng), StandardNormal.sample(rng));
+                    let (a, b): (f64, f64) =
+                        (StandardNormal.sample(rng), StandardNormal.sample(rng));
                     Complex64::new(a, b) * std::f64::consts::FRAC_1_SQRT_2
                 })
                 .collect();
@@ -217,7 +258,10 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
     scale[dim - 1] = 0.02;
     let sampled = sample_to_targets(
         &lik,
-        Start::Ball(Ball { center: start.clone(), scale }),
+        Start::Ball(Ball {
+            center: start.clone(),
+            scale,
+        }),
         N_WALKERS,
         seed,
         &Targets::default(),
@@ -228,7 +272,11 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
     let ref_channel: Vec<usize> = (0..lik.n_modes())
         .map(|r| {
             (0..N_CHANNELS)
-                .max_by(|&a, &b| fits0[a].theta[r].norm().total_cmp(&fits0[b].theta[r].norm()))
+                .max_by(|&a, &b| {
+                    fits0[a].theta[r]
+                        .norm()
+                        .total_cmp(&fits0[b].theta[r].norm())
+                })
                 .unwrap_or(0)
         })
         .collect();
@@ -236,17 +284,40 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
     let b = lik.bounds();
     let mut rows = Vec::new();
     for r in 0..lik.n_modes() {
-        rows.push(row_from_chains("f", "Hz", &sampled.chains(2 * r, |v| v), N_WALKERS, tau[2 * r], near_bound(&sampled.chains(2 * r, |v| v), b[2 * r])));
+        rows.push(row_from_chains(
+            "f",
+            "Hz",
+            &sampled.chains(2 * r, |v| v),
+            N_WALKERS,
+            tau[2 * r],
+            near_bound(&sampled.chains(2 * r, |v| v), b[2 * r]),
+        ));
         let ln_xi = sampled.chains(2 * r + 1, |v| v);
-        rows.push(row_from_chains("xi", "", &sampled.chains(2 * r + 1, f64::exp), N_WALKERS, tau[2 * r + 1], near_bound(&ln_xi, b[2 * r + 1])));
+        rows.push(row_from_chains(
+            "xi",
+            "",
+            &sampled.chains(2 * r + 1, f64::exp),
+            N_WALKERS,
+            tau[2 * r + 1],
+            near_bound(&ln_xi, b[2 * r + 1]),
+        ));
     }
     let ln_s = sampled.chains(dim - 1, |v| v);
-    rows.push(row_from_chains("s", "", &sampled.chains(dim - 1, f64::exp), N_WALKERS, tau[dim - 1], near_bound(&ln_s, b[dim - 1])));
+    rows.push(row_from_chains(
+        "s",
+        "",
+        &sampled.chains(dim - 1, f64::exp),
+        N_WALKERS,
+        tau[dim - 1],
+        near_bound(&ln_s, b[dim - 1]),
+    ));
 
     // Residue draws on a strided subset, one conditional draw per kept posterior draw,
     // kept as chains (same walker/draw layout) for R-hat and ESS.
     let draws = &sampled.draws;
-    let stride = (draws.n_chains * draws.n_draws).div_ceil(MAX_DERIVED_DRAWS * 4).max(1);
+    let stride = (draws.n_chains * draws.n_draws)
+        .div_ceil(MAX_DERIVED_DRAWS * 4)
+        .max(1);
     let kept: Vec<usize> = (0..draws.n_draws).step_by(stride).collect();
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xa11c_e5ed);
     let p = lik.n_linear();
@@ -254,7 +325,9 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
     let mut lin_chains: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); draws.n_chains]; m + 2];
     let n = lik.data.freq_hz.len();
     let mut abs_samples: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); n]; PLOT_CHANNELS.len()];
-    let every = (draws.n_chains * kept.len()).div_ceil(MAX_DERIVED_DRAWS).max(1);
+    let every = (draws.n_chains * kept.len())
+        .div_ceil(MAX_DERIVED_DRAWS)
+        .max(1);
     let mut count = 0usize;
     let mut row = vec![Complex64::new(0.0, 0.0); p];
     for c in 0..draws.n_chains {
@@ -266,7 +339,7 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
             }
             lin_chains[m][c].push(res[ref_channel[0]][m].norm());
             lin_chains[m + 1][c].push(res[ref_channel[0]][m + 1].norm());
-            if count % every == 0 {
+            if count.is_multiple_of(every) {
                 let poles = lik.poles(theta);
                 for k in 0..n {
                     lik.basis_row(k, &poles, &mut row);
@@ -280,10 +353,31 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
         }
     }
     for r in 0..m {
-        rows.push(row_from_chains(&format!("|A| ch{}", ref_channel[r] + 1), "(m/s^2)/N", &lin_chains[r], N_WALKERS, f64::NAN, false));
+        rows.push(row_from_chains(
+            &format!("|A| ch{}", ref_channel[r] + 1),
+            "(m/s^2)/N",
+            &lin_chains[r],
+            N_WALKERS,
+            f64::NAN,
+            false,
+        ));
     }
-    rows.push(row_from_chains(&format!("|B| ch{}", ref_channel[0] + 1), "(m/s^2)/N", &lin_chains[m], N_WALKERS, f64::NAN, false));
-    rows.push(row_from_chains(&format!("|D| ch{}", ref_channel[0] + 1), "(m/s^2)/N", &lin_chains[m + 1], N_WALKERS, f64::NAN, false));
+    rows.push(row_from_chains(
+        &format!("|B| ch{}", ref_channel[0] + 1),
+        "(m/s^2)/N",
+        &lin_chains[m],
+        N_WALKERS,
+        f64::NAN,
+        false,
+    ));
+    rows.push(row_from_chains(
+        &format!("|D| ch{}", ref_channel[0] + 1),
+        "(m/s^2)/N",
+        &lin_chains[m + 1],
+        N_WALKERS,
+        f64::NAN,
+        false,
+    ));
     let bands_abs = abs_samples
         .into_iter()
         .map(|per_k| {
@@ -361,10 +455,19 @@ pub fn channel_scatter(b: &BandResult) -> Result<Vec<ChannelScatter>> {
         .map(|r| {
             let amax = fits0.iter().map(|f| f.theta[r].norm()).fold(0.0, f64::max);
             let chans: Vec<usize> = (0..N_CHANNELS)
-                .filter(|&c| fits0[c].theta[r].norm() >= SCATTER_MIN_RESIDUE * amax && per_channel[c].is_some())
+                .filter(|&c| {
+                    fits0[c].theta[r].norm() >= SCATTER_MIN_RESIDUE * amax
+                        && per_channel[c].is_some()
+                })
                 .collect();
-            let f: Vec<f64> = chans.iter().filter_map(|&c| per_channel[c].as_ref().map(|x| x[2 * r])).collect();
-            let xi: Vec<f64> = chans.iter().filter_map(|&c| per_channel[c].as_ref().map(|x| x[2 * r + 1].exp())).collect();
+            let f: Vec<f64> = chans
+                .iter()
+                .filter_map(|&c| per_channel[c].as_ref().map(|x| x[2 * r]))
+                .collect();
+            let xi: Vec<f64> = chans
+                .iter()
+                .filter_map(|&c| per_channel[c].as_ref().map(|x| x[2 * r + 1].exp()))
+                .collect();
             let (fm, cf) = stats(&f);
             let (xm, cx) = stats(&xi);
             ChannelScatter {
@@ -429,9 +532,19 @@ mod tests {
     /// Synthetic accelerance of `modes` (f_hz, xi) on a 1/3 Hz grid over `lo..hi`, with
     /// residues following cos/sin(n theta) on 12 rim points (complex: a small phase),
     /// residual terms, and complex Gaussian noise of variance `s^2 |H|^2 (1-g)/g`.
-    fn synthetic(modes: &[(f64, f64)], lo: f64, hi: f64, s: f64, gamma2: f64, seed: u64) -> WheelData {
+    fn synthetic(
+        modes: &[(f64, f64)],
+        lo: f64,
+        hi: f64,
+        s: f64,
+        gamma2: f64,
+        seed: u64,
+    ) -> WheelData {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let freq_hz: Vec<f64> = (0..).map(|k| lo + k as f64 / 3.0).take_while(|f| *f <= hi).collect();
+        let freq_hz: Vec<f64> = (0..)
+            .map(|k| lo + k as f64 / 3.0)
+            .take_while(|f| *f <= hi)
+            .collect();
         let two_pi = 2.0 * std::f64::consts::PI;
         let w0 = std::f64::consts::PI * (lo + hi);
         let mut frf = vec![Vec::new(); N_CHANNELS];
@@ -439,14 +552,22 @@ mod tests {
             let th = (15.0 * c as f64).to_radians();
             for &f in &freq_hz {
                 let w = two_pi * f;
-                let mut v = Complex64::new(0.02, 0.003) + Complex64::new(0.015, -0.002) * (w / w0).powi(2);
+                let mut v =
+                    Complex64::new(0.02, 0.003) + Complex64::new(0.015, -0.002) * (w / w0).powi(2);
                 for (r, &(fr, xi)) in modes.iter().enumerate() {
-                    let shape = if r == 0 { (4.0 * th).cos() } else { 0.6 * (4.0 * th).sin() + 0.3 };
+                    let shape = if r == 0 {
+                        (4.0 * th).cos()
+                    } else {
+                        0.6 * (4.0 * th).sin() + 0.3
+                    };
                     let a = Complex64::from_polar(0.004 * shape, 0.05 * (r as f64 + 1.0));
                     v += a * mode_term(w, two_pi * fr, xi);
                 }
                 let sd = s * v.norm() * ((1.0 - gamma2) / gamma2).sqrt();
-                let (a, b): (f64, f64) = (StandardNormal.sample(&mut rng), StandardNormal.sample(&mut rng));
+                let (a, b): (f64, f64) = (
+                    StandardNormal.sample(&mut rng),
+                    StandardNormal.sample(&mut rng),
+                );
                 h.push(v + Complex64::new(a, b) * sd * std::f64::consts::FRAC_1_SQRT_2);
             }
         }
@@ -463,12 +584,26 @@ mod tests {
     fn varpro_recovers_a_noise_free_close_pair() {
         let truth = [(2848.6, 0.0056), (2862.0, 0.0049)];
         let data = synthetic(&truth, 2770.0, 2940.0, 0.0, 0.9, 1);
-        let spec = BandSpec { label: "pair", lo_hz: 2770.0, hi_hz: 2940.0, f_guess_hz: vec![2845.0, 2867.0], xi_guess: 0.007 };
+        let spec = BandSpec {
+            label: "pair",
+            lo_hz: 2770.0,
+            hi_hz: 2940.0,
+            f_guess_hz: vec![2845.0, 2867.0],
+            xi_guess: 0.007,
+        };
         let lik = BandLikelihood::new(&data, spec).unwrap();
         let x = varpro_start(&lik).unwrap();
         for (r, &(f, xi)) in truth.iter().enumerate() {
-            assert!((x[2 * r] / f - 1.0).abs() < 1e-7, "f{r}: {} vs {f}", x[2 * r]);
-            assert!((x[2 * r + 1].exp() / xi - 1.0).abs() < 1e-5, "xi{r}: {} vs {xi}", x[2 * r + 1].exp());
+            assert!(
+                (x[2 * r] / f - 1.0).abs() < 1e-7,
+                "f{r}: {} vs {f}",
+                x[2 * r]
+            );
+            assert!(
+                (x[2 * r + 1].exp() / xi - 1.0).abs() < 1e-5,
+                "xi{r}: {} vs {xi}",
+                x[2 * r + 1].exp()
+            );
         }
     }
 
@@ -478,11 +613,26 @@ mod tests {
     fn likelihood_peaks_near_the_truth_on_noisy_data() {
         let truth = [(2848.6, 0.0056), (2862.0, 0.0049)];
         let data = synthetic(&truth, 2770.0, 2940.0, 0.05, 0.9, 2);
-        let spec = BandSpec { label: "pair", lo_hz: 2770.0, hi_hz: 2940.0, f_guess_hz: vec![2848.0, 2862.0], xi_guess: 0.005 };
+        let spec = BandSpec {
+            label: "pair",
+            lo_hz: 2770.0,
+            hi_hz: 2940.0,
+            f_guess_hz: vec![2848.0, 2862.0],
+            xi_guess: 0.005,
+        };
         let lik = BandLikelihood::new(&data, spec).unwrap();
         let t = vec![2848.6, 0.0056f64.ln(), 2862.0, 0.0049f64.ln(), 0.05f64.ln()];
         let l0 = lik.ln_density(&t).unwrap();
-        for (i, d) in [(0, 0.5), (0, -0.5), (1, 0.05), (1, -0.05), (2, 0.5), (2, -0.5), (3, 0.05), (3, -0.05)] {
+        for (i, d) in [
+            (0, 0.5),
+            (0, -0.5),
+            (1, 0.05),
+            (1, -0.05),
+            (2, 0.5),
+            (2, -0.5),
+            (3, 0.05),
+            (3, -0.05),
+        ] {
             let mut u = t.clone();
             u[i] += d;
             assert!(lik.ln_density(&u).unwrap() < l0, "coordinate {i} {d:+}");
@@ -497,7 +647,13 @@ mod tests {
     fn posterior_covers_a_synthetic_mode_and_follows_the_uncertainty_law() {
         let truth = [(2848.6, 0.0056)];
         let data = synthetic(&truth, 2790.0, 2910.0, 0.3, 0.9, 3);
-        let spec = BandSpec { label: "one", lo_hz: 2790.0, hi_hz: 2910.0, f_guess_hz: vec![2850.0], xi_guess: 0.006 };
+        let spec = BandSpec {
+            label: "one",
+            lo_hz: 2790.0,
+            hi_hz: 2910.0,
+            f_guess_hz: vec![2850.0],
+            xi_guess: 0.006,
+        };
         let b = run_band(&data, spec, 5).unwrap();
         assert_eq!(b.sampled.stopped_because, "converged");
         let (f, xi, s) = (&b.rows[0], &b.rows[1], &b.rows[2]);
@@ -507,6 +663,10 @@ mod tests {
         let c = &cov_comparison(std::slice::from_ref(&b))[0];
         assert!((c.ratio / c.predicted_ratio - 1.0).abs() < 0.15, "{c:?}");
         // The whitened residual matches the noise model.
-        assert!(b.rms_z.iter().all(|z| (z - 1.0).abs() < 0.15), "{:?}", b.rms_z);
+        assert!(
+            b.rms_z.iter().all(|z| (z - 1.0).abs() < 0.15),
+            "{:?}",
+            b.rms_z
+        );
     }
 }
