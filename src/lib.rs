@@ -23,9 +23,11 @@
 //! - [`simulate`]: synthetic campaigns with known truth.
 //! - [`update`]: bounded multistart least squares (Eqs. 22-24), FDAC, RSD.
 //! - [`mcmc`]: affine-invariant ensemble sampler and diagnostics.
+//! - [`bayes`]: posterior of the model given FRF magnitudes, sampling runs, SBC.
 //! - [`plot`]: figures (PNG and SVG) from results.
 //! - [`discrepancy`]: locating and explaining missing physics.
 
+pub mod bayes;
 pub mod discrepancy;
 pub mod error;
 pub mod experiment;

@@ -4,18 +4,12 @@
 mod signal_common;
 
 use frfbayes::frf::FrfKind;
-use frfbayes::io::{Campaign, NominalModel};
+use frfbayes::io::{read_campaign, NominalModel};
 use frfbayes::modal::Modes;
 use frfbayes::signal::bands::{peak_curve_db, peak_prominences};
 use frfbayes::signal::{estimate_campaign, EstimateOptions, InputKind};
 use signal_common::*;
 use std::time::Instant;
-
-#[derive(serde::Deserialize)]
-struct CampaignToml {
-    title: String,
-    nominal: NominalModel,
-}
 
 fn nominal_modes_hz(nominal: &NominalModel) -> Vec<f64> {
     let model = nominal.structural_model().unwrap();
@@ -38,15 +32,8 @@ fn four_story_campaign_has_four_clean_peaks_per_channel() {
         println!("skipped: ../shared/data/four-story not found");
         return;
     };
-    let meta: CampaignToml =
-        toml::from_str(&std::fs::read_to_string(root.join("campaign.toml")).unwrap()).unwrap();
-    let nominal_hz = nominal_modes_hz(&meta.nominal);
-    let campaign = Campaign {
-        root: root.clone(),
-        title: meta.title,
-        nominal: meta.nominal,
-        tests: read_shared_tests(&root),
-    };
+    let campaign = read_campaign(&root).unwrap();
+    let nominal_hz = nominal_modes_hz(&campaign.nominal);
     let t0 = Instant::now();
     let est = estimate_campaign(&campaign, &EstimateOptions::default()).unwrap();
     let elapsed = t0.elapsed().as_secs_f64();

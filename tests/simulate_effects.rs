@@ -3,19 +3,18 @@
 //! sensor effects (time offset, low-pass) must change exactly the channels they name, by
 //! exactly their own transfer function.
 
-use frfbayes::frf::direct;
+mod simulate_common;
+
 use frfbayes::io::{Campaign, Quantity, TestKind};
 use frfbayes::simulate::{
-    DampingSpec, Dashpot, EffectSpec, ImpactSpec, LowPass, NoiseSpec, Oscillator, SamplingSpec,
-    SensorEffect, SimModel, Simulator, StructureSpec, TestSpec, TimeOffset,
+    BaseFlexibility, DampingSpec, Dashpot, EffectSpec, ImpactSpec, LowPass, NoiseSpec, Oscillator,
+    SamplingSpec, SensorEffect, SimModel, Simulator, StructureSpec, TestSpec, TimeOffset,
 };
 use nalgebra::DMatrix;
 use num_complex::Complex64;
-use realfft::RealFftPlanner;
+use simulate_common::{decimation_tolerance, foh_frf, spectrum, stop_band_peak, INTERNAL_RATE_HZ};
 use std::f64::consts::PI;
 use std::path::Path;
-
-const INTERNAL_RATE_HZ: f64 = 5000.0;
 
 fn model() -> SimModel {
     SimModel {
@@ -51,62 +50,17 @@ fn model() -> SimModel {
     }
 }
 
-fn spectrum(x: &[f64]) -> Vec<Complex64> {
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(x.len());
-    let mut input = x.to_vec();
-    let mut out = fft.make_output_vec();
-    fft.process(&mut input, &mut out).unwrap();
-    out
-}
-
 fn run(m: SimModel) -> (Simulator, Campaign) {
     let sim = Simulator::new(m).unwrap();
     let c = sim.run(1, &|_| {}).unwrap();
     (sim, c)
 }
 
-/// FOH-sampled FRF `sum_m X(nu_m) sinc^2(nu_m h / 2)` with `X` the direct receptance
-/// (times `-nu^2` for accelerance, whose mass-line limit `(M^-1)_re` is summed exactly as
-/// in `simulate_frf.rs`).
-fn foh_frf(
-    m: &DMatrix<f64>,
-    k: &DMatrix<f64>,
-    c: &DMatrix<f64>,
-    r: usize,
-    e: usize,
-    accel: bool,
-    omega: f64,
-) -> Complex64 {
-    let h = 1.0 / INTERNAL_RATE_HZ;
-    let ws = 2.0 * PI / h;
-    let limit = if accel {
-        m.clone().try_inverse().unwrap()[(r, e)]
-    } else {
-        0.0
-    };
-    let terms = if accel { 100 } else { 2 };
-    (-terms..=terms)
-        .map(|j| {
-            let nu = omega + j as f64 * ws;
-            let x = direct::receptance_matrix(m, k, c, nu.abs()).unwrap()[(r, e)];
-            let x = if nu < 0.0 { x.conj() } else { x };
-            let x = if accel { -nu * nu * x } else { x };
-            let a = 0.5 * nu * h;
-            let l = if a == 0.0 { 1.0 } else { (a.sin() / a).powi(2) };
-            (x - limit) * l
-        })
-        .sum::<Complex64>()
-        + limit
-}
-
 #[test]
 fn dashpot_and_oscillator_change_the_frfs_as_the_direct_solve_says() {
     let mut m = model();
     m.effects = vec![
-        EffectSpec::Dashpot(Dashpot {
-            floors: [1, 3],
-            coefficient_n_s_per_m: 40.0,
-        }),
+        EffectSpec::Dashpot(Dashpot::between([1, 3], 40.0)),
         EffectSpec::Oscillator(Oscillator {
             floor: 3,
             mass_kg: 0.5,
@@ -131,20 +85,7 @@ fn dashpot_and_oscillator_change_the_frfs_as_the_direct_solve_says() {
         let accel = ch.quantity == Quantity::Acceleration;
         let r = sys.dof_of_floor(ch.floor).unwrap();
         let y = spectrum(data);
-        let g_stop = (0..40)
-            .map(|i| {
-                foh_frf(
-                    mm,
-                    kk,
-                    cc,
-                    r,
-                    e,
-                    accel,
-                    2.0 * PI * (250.0 + 56.25 * i as f64),
-                )
-                .norm()
-            })
-            .fold(0.0, f64::max);
+        let g_stop = stop_band_peak(|w| foh_frf(mm, kk, cc, r, e, accel, w));
         for bin in (20..n / 2).step_by(7) {
             let f = bin as f64 * 500.0 / n as f64;
             if f > 60.0 {
@@ -152,9 +93,7 @@ fn dashpot_and_oscillator_change_the_frfs_as_the_direct_solve_says() {
             }
             let est = y[bin] / u[bin];
             let expect = foh_frf(mm, kk, cc, r, e, accel, 2.0 * PI * f);
-            // Decimation-aliasing bound as in simulate_frf.rs (100 dB: delta = 1e-5).
-            let tol = 9.0 * 1.5e-5 * (g_stop + expect.norm()) * u_max / u[bin].norm()
-                + 1e-9 * expect.norm();
+            let tol = decimation_tolerance(g_stop, expect, u_max, u[bin].norm());
             let err = (est - expect).norm();
             worst = worst.max(err / expect.norm());
             assert!(err <= tol, "{} at {f} Hz: {est} vs {expect}", ch.name);
@@ -177,6 +116,7 @@ fn sensor_effects_change_only_their_channels_by_their_transfer_function() {
     let offset_s = 0.00437;
     let lp = LowPass {
         channels: vec!["acc1".into()],
+        quantity: None,
         tests: None,
         natural_frequency_hz: 80.0,
         damping_ratio: 0.6,
@@ -184,6 +124,7 @@ fn sensor_effects_change_only_their_channels_by_their_transfer_function() {
     m.sensor_effects = vec![
         SensorEffect::TimeOffset(TimeOffset {
             channels: vec!["acc3".into(), "disp3".into()],
+            quantity: None,
             tests: Some(vec!["hammer".into()]),
             offset_s,
         }),
@@ -263,9 +204,25 @@ mass_kg = 0.3
 stiffness_n_per_m = 120.0
 damping_ratio = 0.02
 
+[[effect]]
+kind = "dashpot"
+story = 3
+coefficient_n_s_per_m = 2.0
+
+[[effect]]
+kind = "base_flexibility"
+mass_kg = 5.0
+stiffness_n_per_m = 40000.0
+damping_n_s_per_m = 10.0
+
+[[effect]]
+kind = "stiffness_nonlinearity"
+story = 1
+k3_n_per_m3 = 1e7
+
 [[sensor_effect]]
 kind = "low_pass"
-channels = ["acc1", "acc2", "acc3", "acc4"]
+quantity = "acceleration"
 natural_frequency_hz = 60.0
 damping_ratio = 0.6
 
@@ -277,10 +234,12 @@ offset_s = -0.004
 "#;
     let path = Path::new("fx.toml");
     let m = SimModel::from_toml(&format!("{base}{effects}"), path).unwrap();
-    assert_eq!(m.effects.len(), 2);
+    assert_eq!(m.effects.len(), 5);
     assert_eq!(m.sensor_effects.len(), 2);
-    assert!(m.sensor_effects[1].applies_to("shake-table-chirp", "disp3"));
-    assert!(!m.sensor_effects[1].applies_to("hammer-floor1", "disp3"));
+    assert!(m.sensor_effects[0].applies_to("hammer-floor2", "acc3", Quantity::Acceleration));
+    assert!(!m.sensor_effects[0].applies_to("hammer-floor2", "disp3", Quantity::Displacement));
+    assert!(m.sensor_effects[1].applies_to("shake-table-chirp", "disp3", Quantity::Displacement));
+    assert!(!m.sensor_effects[1].applies_to("hammer-floor1", "disp3", Quantity::Displacement));
     for (from, to, needle) in [
         (
             "floor = 4\nmass_kg",
@@ -309,6 +268,34 @@ offset_s = -0.004
             "natural_frequency_hz",
         ),
         ("oversampling = 10", "oversampling = 2", "oversampling >= 4"),
+        (
+            "story = 3\ncoefficient",
+            "story = 3\nfloors = [2, 3]\ncoefficient",
+            "exactly one of `story` or `floors`",
+        ),
+        ("story = 1\nk3", "story = 5\nk3", "story must be in 1..=4"),
+        ("k3_n_per_m3 = 1e7", "k3_n_per_m3 = nan", "k3_n_per_m3 must be finite"),
+        (
+            "mass_kg = 5.0",
+            "mass_kg = 0.0",
+            "base_flexibility mass_kg and stiffness_n_per_m must be positive",
+        ),
+        (
+            "kind = \"stiffness_nonlinearity\"\nstory = 1\nk3_n_per_m3 = 1e7",
+            "kind = \"base_flexibility\"\nmass_kg = 1.0\nstiffness_n_per_m = 1.0\ndamping_n_s_per_m = 0.0",
+            "given twice",
+        ),
+        (
+            "quantity = \"acceleration\"",
+            "quantity = \"acceleration\"\nchannels = [\"acc1\"]",
+            "not both",
+        ),
+        ("quantity = \"acceleration\"", "quantity = \"velocity\"", "unknown variant"),
+        (
+            "quantity = \"acceleration\"",
+            "quantity = \"ground_acceleration\"\ntests = [\"hammer-floor1\"]",
+            "none of its tests records",
+        ),
     ] {
         let text = format!("{base}{effects}").replacen(from, to, 1);
         let e = SimModel::from_toml(&text, path).unwrap_err().to_string();
@@ -317,8 +304,46 @@ offset_s = -0.004
             "expected {needle:?} in: {e}"
         );
     }
-    // The effects reach the simulated system: a fifth DOF, non-proportional damping.
+    // The effects reach the simulated system: an oscillator DOF, then the base DOF, and
+    // a cubic spring across story 1 from the base to floor 1.
     let sim = Simulator::new(m).unwrap();
-    assert_eq!(sim.system().n_dof(), 5);
+    assert_eq!(sim.system().n_dof(), 6);
     assert_eq!(sim.system().floor_dof, vec![0, 1, 2, 3]);
+    assert_eq!(sim.system().base_dof, Some(5));
+    let spring = sim.cubic_springs()[0];
+    assert_eq!((spring.upper_dof, spring.lower_dof), (0, Some(5)));
+    assert_eq!(spring.k3_n_per_m3, 1e7);
+    // Both dashpots: 5 N s/m floor 1 to the base (moved there by the base), 2 N s/m
+    // across story 3; the oscillator is on floor 4 (DOF 4).
+    let c = &sim.system().damping_n_s_per_m;
+    let plain = {
+        let mut m = SimModel::from_toml(&base, path).unwrap();
+        m.effects = vec![
+            EffectSpec::Oscillator(Oscillator {
+                floor: 4,
+                mass_kg: 0.3,
+                stiffness_n_per_m: 120.0,
+                damping_ratio: 0.02,
+            }),
+            EffectSpec::BaseFlexibility(BaseFlexibility {
+                mass_kg: 5.0,
+                stiffness_n_per_m: 40000.0,
+                damping_n_s_per_m: 10.0,
+            }),
+        ];
+        Simulator::new(m)
+            .unwrap()
+            .system()
+            .damping_n_s_per_m
+            .clone()
+    };
+    let d = c - plain;
+    let mut expect = DMatrix::<f64>::zeros(6, 6);
+    for (i, j, v) in [(0, 0, 5.0), (5, 5, 5.0), (0, 5, -5.0), (5, 0, -5.0)] {
+        expect[(i, j)] += v;
+    }
+    for (i, j, v) in [(1, 1, 2.0), (2, 2, 2.0), (1, 2, -2.0), (2, 1, -2.0)] {
+        expect[(i, j)] += v;
+    }
+    assert!((d - expect).amax() < 1e-12);
 }

@@ -4,6 +4,8 @@
 pub mod check;
 pub mod frf;
 pub mod modes;
+pub mod multistart;
 pub mod real;
 pub mod repro;
+pub mod sample;
 pub mod simulate;

@@ -162,7 +162,7 @@ impl ExperimentConfig {
         if self.update.starts == 0 {
             return Err("update.starts must be at least 1".into());
         }
-        if !(self.estimate.band_factor > 0.0) {
+        if self.estimate.band_factor.is_nan() || self.estimate.band_factor <= 0.0 {
             return Err("estimate.band_factor must be positive".into());
         }
         for f in &self.figures {

@@ -183,6 +183,18 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         }
         Ok(())
     })?;
+    // The eight problems as solved, for side-by-side solver comparisons
+    // (`paper_repro/scipy_multistart.py --problems <out>/problems`).
+    for r in &runs {
+        r.problem.spec().write(&dir.join("problems").join(format!(
+            "{}_{}.json",
+            r.variant.table.key(),
+            r.variant.column()
+        )))?;
+    }
+    info.time("identifiability", || {
+        super::identifiability_report::write_identifiability(&runs, &frfs, &dir)
+    })?;
     info.write(&dir)?;
     let out = staged.commit()?;
     Ok(Outcome {

@@ -10,4 +10,6 @@ pub mod tables;
 pub use config::ExperimentConfig;
 pub mod driver;
 pub mod figures;
+pub mod identifiability;
+pub mod identifiability_report;
 pub mod report;

@@ -33,7 +33,7 @@ fn table_section(
         paper.title
     );
     let _ = writeln!(out, "Each cell: paper / ours. RSD across the four variants (sample standard deviation, n - 1).\n");
-    let _ = writeln!(out, "| parameter | initial | Rayleigh receptance | Rayleigh accelerance | Caughey receptance | Caughey accelerance | RSD % paper / ours |");
+    let _ = writeln!(out, "| parameter | initial | Rayleigh receptance | Rayleigh accelerance | Caughey receptance | Caughey accelerance | RSD % (paper values) / ours |");
     let _ = writeln!(out, "|---|---|---|---|---|---|---|");
     for row in &ours.rows {
         let mut line = format!(

@@ -28,17 +28,7 @@ pub struct ParamTable {
     pub columns: BTreeMap<String, BTreeMap<String, f64>>,
 }
 
-/// Relative standard deviation in percent (sample std, n - 1); `None` for fewer than two
-/// values.
-pub fn rsd_percent(values: &[f64]) -> Option<f64> {
-    if values.len() < 2 {
-        return None;
-    }
-    let n = values.len() as f64;
-    let mean = values.iter().sum::<f64>() / n;
-    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    Some(100.0 * var.sqrt() / mean.abs())
-}
+pub use crate::update::rsd_percent;
 
 impl ParamTable {
     /// The paper's row order for a 4-story frame: masses, stiffnesses, damping.

@@ -207,7 +207,7 @@ fn sorted_all(chains: &[Vec<f64>]) -> Vec<f64> {
 
 /// Sample quantile of sorted data, R's default (type 7): linear interpolation between
 /// order statistics at `h = (n - 1) p`.
-pub(crate) fn quantile(sorted: &[f64], p: f64) -> f64 {
+pub fn quantile(sorted: &[f64], p: f64) -> f64 {
     let n = sorted.len();
     if n == 0 {
         return f64::NAN;

@@ -252,13 +252,18 @@ fn check_full_rank(index: usize, positions: &[f64], n_walkers: usize, dim: usize
              give it a positive spread"
         )));
     }
-    let corr = nalgebra::DMatrix::from_fn(dim, dim, |i, j| cov[(i, j)] / (sd[i] * sd[j]));
-    let eig = corr.symmetric_eigenvalues();
-    let (lo, hi) = (eig.min(), eig.max());
-    if lo.is_nan() || lo <= 1e-10 * hi {
+    // Singular values of the standardised walker matrix (the square roots of the
+    // correlation matrix's eigenvalues, without squaring the condition number): an
+    // exactly degenerate ensemble (walkers confined to a hyperplane) gives a ratio at
+    // rounding level, ~1e-16; a legitimately anisotropic one (a posterior ridge, one
+    // direction 1e8 times longer than another) stays far above the 1e-12 threshold.
+    let z = nalgebra::DMatrix::from_fn(n_walkers, dim, |w, i| centred[(w, i)] / sd[i]);
+    let s = z.singular_values();
+    let (lo, hi) = (s.min(), s.max());
+    if lo.is_nan() || lo <= 1e-12 * hi {
         return Err(Error::Usage(format!(
-            "ensemble {index}: the initial walkers are degenerate (correlation eigenvalues \
-             from {lo:.3e} to {hi:.3e}); they must span all {dim} dimensions"
+            "ensemble {index}: the initial walkers are degenerate (singular values of the \
+             standardised walkers from {lo:.3e} to {hi:.3e}); they must span all {dim} dimensions"
         )));
     }
     Ok(())

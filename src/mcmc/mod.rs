@@ -59,7 +59,7 @@ mod spec;
 pub use autocorr::{autocorrelation, integrated_time, TauEstimate};
 pub use convergence::{
     diagnostics, ensemble_diagnostics, ess_basic, ess_bulk, ess_mean, ess_tail, mcse_mean,
-    rank_normalize, rhat, rhat_basic, split_chains, Diagnostics,
+    quantile, rank_normalize, rhat, rhat_basic, split_chains, Diagnostics,
 };
 pub use density::{DensityFn, LogDensity};
 pub use draws::{Draws, ParamSummary};

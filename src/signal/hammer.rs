@@ -30,6 +30,17 @@
 //! `T = 58 s`, `e = 0.05` (the default): `tau = 19.4 s`, `Delta xi = 0.9 %` at 0.9 Hz and
 //! 0.14 % at 5.7 Hz; leakage `<= 0.2 %` even for 1 % damping at 0.9 Hz. The added damping is
 //! exactly known, so model updating either corrects damping or windows the model.
+//!
+//! ## Accuracy (exactly simulated frame, `tests/signal_hammer.rs`)
+//! Noise-free, one impact, strong window: H1 equals the exact discrete-time FRF at
+//! `omega - j/tau` to 1e-6 of its peak (the cut tail), and the continuous `H(omega - j/tau)`
+//! to the sampling term `(omega dt)^2 / 12`. Two impacts 60 s apart with damping 1, 0.5, 0.5,
+//! 0.2 %, default options: worst `|H1|` error in the half-power bands 0.39, 0.31, 0.36,
+//! 0.93 % for modes 1-4, all explained by the first impact's ring-down left in block 2
+//! (`exp(-xi_j omega_j 60 s)` of mode j's pole terms, halved by the average) and the tail
+//! cut at `T`. Half-power damping corrected for the window: 1.01, 0.52, 0.50, 0.26 %.
+//! Force-channel noise of `L sigma^2 = |F|^2` biases H1 to 0.48 without the force window
+//! and to 0.99 with it; H2 stays at 1.00 either way.
 
 use super::spectra::Fft;
 use super::windows::{exponential_window, force_window, ExpWindow};
@@ -151,7 +162,7 @@ pub fn detect_impacts(force: &[f64], sample_rate_hz: f64, opts: &HammerOptions) 
 /// block when there are at least 64 of them, else 0. (The record mean would be wrong: an
 /// impact response has a genuine mean `H(0) * impulse / T`, and once multiplied by the
 /// exponential window a subtracted constant leaks into every bin.)
-pub(crate) fn response_offset(r: &[f64], quiet: usize) -> f64 {
+pub fn response_offset(r: &[f64], quiet: usize) -> f64 {
     if quiet >= 64 {
         r[..quiet].iter().sum::<f64>() / quiet as f64
     } else {

@@ -15,8 +15,28 @@
 //! | shake table | ground acceleration | acceleration minus ground acceleration -> relative accelerance, relative displacement -> receptance (Eq. 14) | full-record H1 ([`sweep`]) |
 //!
 //! Coherence: ordinary block coherence is meaningless with 1-2 blocks, so by default it
-//! comes from a local rational model of the FRF over neighbouring bins ([`noise`]).
+//! comes from local polynomial / rational models of the FRF over neighbouring bins
+//! ([`noise`]); with `n_averages` it gives the Bendat & Piersol error of `|H1|`.
 //! Conventions of the transforms: [`spectra`].
+//!
+//! ## Handing over to model updating
+//! - `TestFrf::frf_block()` / `selected_magnitudes()` / `selected_rel_std()`: one
+//!   [`crate::frf::FrfBlock`] per test (selected frequencies, one pair per response), the
+//!   experimental `|H1|` in the same long-vector order, and its relative random error.
+//! - Hammer estimates carry an exponential window (`exp_window_tau_s`): they estimate
+//!   `H(omega - j/tau)`, every pole's decay rate raised by `1/tau`. Either evaluate the model
+//!   the same way ([`windowed_modal_frf`], or [`exp_window_modal_parameters`] for the fast
+//!   receptance sum) or correct identified damping ([`correct_exp_window_damping`]).
+//!
+//! ## Defaults (`EstimateOptions::default()`)
+//! Impact threshold 10 x MAD noise, impacts >= 1 s apart and >= 10 % of the largest, 0.1 s
+//! pre-trigger, force window pulse +- 30 ms flat + 20 ms taper, exponential window to 5 % at
+//! the block end; local models over 9 bins; no zero padding (bins stay independent for the
+//! coherence); bands: as many peaks as the model has modes, half-power band x 1, searched
+//! where the input is within 40 dB of its maximum and the mean coherence is at least 0.5,
+//! peaks at least 3 dB prominent with coherence at least 0.9. On the shared campaign this
+//! finds 0.861, 2.685, 4.268, 5.731 Hz in every hammer test and 0.862, 2.692, 4.262,
+//! 5.723 Hz in the shake-table test.
 
 pub mod bands;
 mod estimate;

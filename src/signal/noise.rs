@@ -38,8 +38,16 @@
 //! Windows (force, exponential) and zero padding correlate neighbouring bins; the local
 //! model then absorbs part of the noise and `sigma^2` is underestimated. Zero padding is
 //! handled by spacing the window by the padding factor (`step`); the exponential window's
-//! kernel is about `ln(1/end_level) / (2 pi)` bins wide (0.7 bins for a 1 % end level),
-//! measured effect documented in the tests (`tests/signal_noise.rs`).
+//! kernel is about `ln(1/end_level) / (2 pi)` bins wide (0.5 bins at the default 5 %).
+//!
+//! Calibration (`tests/signal_noise.rs`: exactly simulated frame, sensor noise of the
+//! campaign's size, 4 realisations): the mean of `z^2 = ((|H1| - |H|) / (s |H1|))^2`, `s`
+//! the Bendat & Piersol relative error from this coherence, is 0.76 (hammer, 2 impacts,
+//! gamma^2 >= 0.99), 0.73 (0.9-0.99), 0.59 (0.5-0.9) and 0.91 (shake table, one block,
+//! gamma^2 >= 0.99): the predicted standard deviation is right to -30 %..+20 %, on the
+//! safe side where it errs (the hammer's second block also carries the first impact's
+//! ring-down, which is error but not noise). The ordinary coherence of the same two blocks
+//! gives 7.7, i.e. it underpredicts the scatter 2.8x.
 
 use crate::error::{Error, Result};
 use num_complex::Complex64;

@@ -2,9 +2,11 @@
 //! through the exact discretisation, then every channel through its sensor chain.
 
 use super::antialias::Decimator;
-use super::config::{SimModel, TestSpec};
+use super::config::{SimModel, StructureSpec, TestSpec};
 use super::discrete::{Drive, Foh, Response, StateSpace};
+use super::effects::EffectSpec;
 use super::excitation::{Chirp, Excitation, HalfSinePulses};
+use super::nonlinear::{CubicSpring, NonlinearFoh};
 use super::sensor::{noise_stream, run_chain, Decimate, GaussianNoise, SensorStage, Signal};
 use super::system::LinearSystem;
 use crate::error::{Error, Result};
@@ -26,16 +28,32 @@ pub struct ChannelPlan {
 pub struct Simulator {
     model: SimModel,
     system: LinearSystem,
+    springs: Vec<CubicSpring>,
     decimator: Arc<Decimator>,
 }
 
 impl Simulator {
-    /// Builds the true system (structure, damping, then the model's effects in order) and
-    /// the anti-aliasing filter. The model is validated again (errors name `<model>`).
+    /// Builds the true system (structure, damping, then the model's effects in order),
+    /// its cubic springs (resolved on the final system), and the anti-aliasing filter.
+    /// The model is validated again (errors name `<model>`).
     pub fn new(model: SimModel) -> Result<Self> {
         model.validate(Path::new("<model>"))?;
         let system = LinearSystem::from_spec(&model.structure, &model.damping)?
             .with_effects(&model.effects)?;
+        let StructureSpec::ShearFrame {
+            story_stiffness_n_per_m,
+            ..
+        } = &model.structure;
+        let springs = model
+            .effects
+            .iter()
+            .filter_map(|e| match e {
+                EffectSpec::StiffnessNonlinearity(s) => {
+                    Some(s.spring(&system, story_stiffness_n_per_m[s.story - 1]))
+                }
+                _ => None,
+            })
+            .collect::<Result<Vec<_>>>()?;
         let s = &model.sampling;
         let decimator = Decimator::kaiser(
             s.internal_rate_hz(),
@@ -47,6 +65,7 @@ impl Simulator {
         Ok(Simulator {
             model,
             system,
+            springs,
             decimator: Arc::new(decimator),
         })
     }
@@ -56,9 +75,14 @@ impl Simulator {
         &self.model
     }
 
-    /// The simulated system (the truth).
+    /// The simulated system (the truth; the linearisation when there are cubic springs).
     pub fn system(&self) -> &LinearSystem {
         &self.system
+    }
+
+    /// Cubic springs of the truth (empty for a linear system).
+    pub fn cubic_springs(&self) -> &[CubicSpring] {
+        &self.springs
     }
 
     /// The anti-aliasing filter.
@@ -140,7 +164,8 @@ impl Simulator {
 
     /// The channels of `test`, as in the real campaign: the input (`force` at the
     /// excited floor, or `ground_acc`), then `acc1..n` (absolute) and `disp1..n`
-    /// (relative to the base), each with its sensor chain: the sensor effects that name
+    /// (relative to the ground / table, base motion included when the base is flexible),
+    /// each with its sensor chain: the sensor effects that name
     /// it (in model order), anti-aliasing and decimation, then noise of its quantity's
     /// standard deviation (when positive).
     pub fn channels(&self, test: &TestSpec, seed: u64) -> Result<Vec<ChannelPlan>> {
@@ -194,7 +219,7 @@ impl Simulator {
                     .model
                     .sensor_effects
                     .iter()
-                    .filter(|e| e.applies_to(test.name(), &channel.name))
+                    .filter(|e| e.applies_to(test.name(), &channel.name, channel.quantity))
                     .map(|e| Arc::new(e.clone()) as Arc<dyn SensorStage>)
                     .collect();
                 stages.push(decimate.clone());
@@ -223,14 +248,31 @@ impl Simulator {
     ) -> Result<Test> {
         let (drive, excitation) = self.excitation(test)?;
         let channels = self.channels(test, seed)?;
-        let ss = StateSpace::new(&self.system, &[drive])?;
         let responses: Vec<Response> = channels.iter().map(|c| c.response).collect();
-        let outputs = ss.output_map(&responses)?;
         let internal_rate_hz = self.model.sampling.internal_rate_hz();
-        let foh = Foh::new(&ss, 1.0 / internal_rate_hz)?;
         let n_int = self.n_internal_samples(test);
         let input = excitation.sample(internal_rate_hz, n_int);
-        let raw = foh.simulate(&outputs, &[input], None, progress)?;
+        let raw = if self.springs.is_empty() {
+            let ss = StateSpace::new(&self.system, &[drive])?;
+            let outputs = ss.output_map(&responses)?;
+            let foh = Foh::new(&ss, 1.0 / internal_rate_hz)?;
+            foh.simulate(&outputs, &[input], None, progress)?
+        } else {
+            let nl = NonlinearFoh::new(
+                &self.system,
+                &[drive],
+                &self.springs,
+                1.0 / internal_rate_hz,
+            )?;
+            let outputs = nl.state_space.output_map(&responses)?;
+            nl.simulate(&outputs, &[input], None, progress)
+                .map_err(|e| match e {
+                    Error::Numerical(what) => {
+                        Error::Numerical(format!("test {}: {what}", test.name()))
+                    }
+                    e => e,
+                })?
+        };
         let n_ch = channels.len() as u64;
         let data = channels
             .par_iter()
@@ -273,7 +315,9 @@ impl Simulator {
     /// Writes `truth.json` into the campaign folder `root`: the model, the seed, and the
     /// true modes of the simulated system (all its DOFs, extra ones included): natural
     /// frequencies, damping ratios `(Phi^T C Phi)_ii / 2 omega_i` (exact only when
-    /// `proportional_damping` is true), mass-normalised shapes at the floor DOFs.
+    /// `proportional_damping` is true), mass-normalised shapes at the floor DOFs; the
+    /// DOF of the base when it is flexible; with cubic springs, all of this is the
+    /// small-amplitude linearisation.
     pub fn write_truth(&self, root: &Path, seed: u64) -> Result<()> {
         let modes = self.system.modes()?;
         let xi = self.system.modal_damping_ratios()?;
@@ -298,6 +342,9 @@ impl Simulator {
             "generator": format!("frfbayes {} simulate", env!("CARGO_PKG_VERSION")),
             "seed": seed,
             "n_dof": self.system.n_dof(),
+            "floor_dof": self.system.floor_dof,
+            "base_dof": self.system.base_dof,
+            "linear": self.springs.is_empty(),
             "natural_frequencies_hz": modes.freq_hz(),
             "damping_ratios": xi,
             "proportional_damping": off_diagonal <= 1e-9 * cm.amax(),

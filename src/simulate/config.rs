@@ -4,7 +4,7 @@
 use super::effects::EffectSpec;
 use super::sensor_effects::SensorEffect;
 use crate::error::{Error, Result};
-use crate::io::NominalModel;
+use crate::io::{NominalModel, Quantity};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -419,6 +419,16 @@ impl SimModel {
         for (i, e) in self.effects.iter().enumerate() {
             e.check(n)
                 .or_else(|what| bad(format!("effect {}: {what}", i + 1)))?;
+            if matches!(e, EffectSpec::BaseFlexibility(_))
+                && self.effects[..i]
+                    .iter()
+                    .any(|f| matches!(f, EffectSpec::BaseFlexibility(_)))
+            {
+                return bad(format!(
+                    "effect {}: base_flexibility is given twice (one base only)",
+                    i + 1
+                ));
+            }
         }
         for (i, e) in self.sensor_effects.iter().enumerate() {
             e.check()
@@ -437,15 +447,27 @@ impl SimModel {
             {
                 return bad(format!("sensor_effect {}: no test named {t:?}", i + 1));
             }
+            let in_scope = || {
+                self.tests.iter().filter(|t| {
+                    e.tests()
+                        .is_none_or(|names| names.iter().any(|n| n == t.name()))
+                })
+            };
+            if let Some(q) = e.quantity() {
+                let has = |t: &TestSpec| match q {
+                    Quantity::Force => matches!(t, TestSpec::Hammer { .. }),
+                    Quantity::GroundAcceleration => matches!(t, TestSpec::ShakeTable { .. }),
+                    Quantity::Acceleration | Quantity::Displacement => true,
+                };
+                if !in_scope().any(has) {
+                    return bad(format!(
+                        "sensor_effect {}: none of its tests records a {q:?} channel",
+                        i + 1
+                    ));
+                }
+            }
             for c in e.channels() {
-                let known = self
-                    .tests
-                    .iter()
-                    .filter(|t| {
-                        e.tests()
-                            .is_none_or(|names| names.iter().any(|n| n == t.name()))
-                    })
-                    .any(|t| channel_names(t, n).iter().any(|k| k == c));
+                let known = in_scope().any(|t| channel_names(t, n).iter().any(|k| k == c));
                 if !known {
                     return bad(format!(
                         "sensor_effect {}: no channel {c:?} in its tests (channels are force or ground_acc, acc1..{n}, disp1..{n})",

@@ -27,6 +27,12 @@ pub enum Drive {
     Force { dof: usize },
     /// Ground acceleration (m/s^2): load `-M iota a_g` on the relative coordinates.
     Ground,
+    /// An internal force (N) of an element between two DOFs: `+1` on `plus_dof`, `-1` on
+    /// `minus_dof` (none: the element reacts on the ground).
+    Pair {
+        plus_dof: usize,
+        minus_dof: Option<usize>,
+    },
 }
 
 /// A quantity read out of the simulation.
@@ -71,6 +77,20 @@ impl StateSpace {
                     bf[(dof, j)] = 1.0;
                 }
                 Drive::Ground => bf.set_column(j, &(-(m * &system.ground_influence))),
+                Drive::Pair {
+                    plus_dof,
+                    minus_dof,
+                } => {
+                    if plus_dof >= n || minus_dof.is_some_and(|d| d >= n || d == plus_dof) {
+                        return Err(Error::Usage(format!(
+                            "element force between DOFs {plus_dof} and {minus_dof:?} of {n}"
+                        )));
+                    }
+                    bf[(plus_dof, j)] = 1.0;
+                    if let Some(d) = minus_dof {
+                        bf[(d, j)] = -1.0;
+                    }
+                }
             }
         }
         let minv_k = chol.solve(&system.stiffness_n_per_m);
@@ -164,26 +184,9 @@ pub struct Foh {
 impl Foh {
     /// Discretises with one matrix exponential of the augmented matrix (module docs).
     pub fn new(ss: &StateSpace, step_s: f64) -> Result<Self> {
-        if !(step_s.is_finite() && step_s > 0.0) {
-            return Err(Error::Usage(format!(
-                "time step {step_s} s must be positive"
-            )));
-        }
-        let ns = ss.n_states();
-        let ni = ss.n_inputs();
-        let mut f = DMatrix::zeros(ns + 2 * ni, ns + 2 * ni);
-        f.view_mut((0, 0), (ns, ns)).copy_from(&(&ss.a * step_s));
-        f.view_mut((0, ns), (ns, ni)).copy_from(&(&ss.b * step_s));
-        f.view_mut((ns, ns + ni), (ni, ni)).fill_with_identity();
-        let e = f.exp();
-        if e.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Numerical(
-                "matrix exponential of the discretisation is not finite".into(),
-            ));
-        }
-        let phi = e.view((0, 0), (ns, ns)).into_owned();
-        let g01 = e.view((0, ns), (ns, ni)).into_owned();
-        let gamma1 = e.view((0, ns + ni), (ns, ni)).into_owned();
+        let (phi, mut g) = polynomial_hold(ss, step_s, 1)?;
+        let gamma1 = g.pop().unwrap_or_default();
+        let g01 = g.pop().unwrap_or_default();
         Ok(Foh {
             phi,
             gamma0: g01 - &gamma1,
@@ -270,7 +273,54 @@ impl Foh {
     }
 }
 
+/// Exact step for inputs that are polynomials of degree `degree` over the step:
+/// for `u(t_k + tau h) = sum_j c_j tau^j` (`tau` in [0, 1]),
+/// `z_{k+1} = Phi z_k + sum_j G_j c_j`. Returns `(Phi, [G_0, ..., G_degree])`.
+///
+/// One matrix exponential of `[[A h, B h, 0, ..., 0], [0, 0, I, 0, ...], ...,
+/// [0, ..., 0]]` with `degree + 1` input blocks `w_0 = u, w_1 = du/dtau, ...` chained as
+/// integrators: its first block row is `[Phi, E_0, ..., E_degree]` and `G_j = j! E_j`
+/// (as `w_j(0) = j! c_j`). Degree 1 is the first-order hold of [`Foh`].
+pub fn polynomial_hold(
+    ss: &StateSpace,
+    step_s: f64,
+    degree: usize,
+) -> Result<(DMatrix<f64>, Vec<DMatrix<f64>>)> {
+    if !(step_s.is_finite() && step_s > 0.0) {
+        return Err(Error::Usage(format!(
+            "time step {step_s} s must be positive"
+        )));
+    }
+    let ns = ss.n_states();
+    let ni = ss.n_inputs();
+    let nb = degree + 1;
+    let mut f = DMatrix::zeros(ns + nb * ni, ns + nb * ni);
+    f.view_mut((0, 0), (ns, ns)).copy_from(&(&ss.a * step_s));
+    f.view_mut((0, ns), (ns, ni)).copy_from(&(&ss.b * step_s));
+    for j in 0..degree {
+        f.view_mut((ns + j * ni, ns + (j + 1) * ni), (ni, ni))
+            .fill_with_identity();
+    }
+    let e = f.exp();
+    if e.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical(
+            "matrix exponential of the discretisation is not finite".into(),
+        ));
+    }
+    let phi = e.view((0, 0), (ns, ns)).into_owned();
+    let mut factorial = 1.0;
+    let g = (0..nb)
+        .map(|j| {
+            if j > 0 {
+                factorial *= j as f64;
+            }
+            e.view((0, ns + j * ni), (ns, ni)).into_owned() * factorial
+        })
+        .collect();
+    Ok((phi, g))
+}
+
 #[inline]
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }

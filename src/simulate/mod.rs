@@ -18,8 +18,10 @@
 //! 3. **Dynamics** ([`discrete`]): relative coordinates,
 //!    `M x'' + C x' + K x = f - M iota a_g`, discretised *exactly* for an input that is
 //!    linear between the internal samples (first-order hold, one matrix exponential of an
-//!    augmented matrix): no integrator error. Displacements are `x` (relative to the base),
-//!    accelerations are absolute, `x'' + a_g`, with `x''` from the state equation.
+//!    augmented matrix): no integrator error. Displacements are `x` (relative to the
+//!    ground / table), accelerations are absolute, `x'' + a_g`, with `x''` from the state
+//!    equation. Cubic story springs ([`nonlinear`]) are extra inputs with a cubic Hermite
+//!    hold, solved implicitly per step (fourth order; exact when `k3 = 0`).
 //! 4. **Sensors** ([`sensor`]): each channel's internal-rate signal goes through its chain
 //!    of [`SensorStage`]s: the anti-aliasing FIR low-pass and decimation ([`antialias`];
 //!    the same zero-phase filter on every channel, input included, so FRFs are
@@ -93,8 +95,8 @@
 //! ```toml
 //! [[effect]]                               # physics (see the effects module)
 //! kind = "dashpot"                         # viscous damper, non-proportional C
-//! floors = [1, 3]                          # between floors 1 and 3 (0 = ground)
-//! coefficient_n_s_per_m = 20.0
+//! floors = [1, 3]                          # between floors 1 and 3 (0 = the base);
+//! coefficient_n_s_per_m = 20.0             # or `story = s` (floors s-1 and s)
 //!
 //! [[effect]]
 //! kind = "oscillator"                      # secondary mass on a spring: one extra DOF
@@ -103,9 +105,20 @@
 //! stiffness_n_per_m = 120.0
 //! damping_ratio = 0.02                     # c = 2 zeta sqrt(k m)
 //!
+//! [[effect]]
+//! kind = "base_flexibility"                # base mass under story 1: one extra DOF
+//! mass_kg = 5.0
+//! stiffness_n_per_m = 9000.0               # base to ground / table
+//! damping_n_s_per_m = 10.0
+//!
+//! [[effect]]
+//! kind = "stiffness_nonlinearity"          # cubic spring k3 d^3 across story 2
+//! story = 2                                # (d: the story drift; k3 < 0 softens)
+//! k3_n_per_m3 = 2.5e8
+//!
 //! [[sensor_effect]]                        # instruments, before anti-aliasing
 //! kind = "low_pass"                        # H = w^2 / (s^2 + 2 zeta w s + w^2)
-//! channels = ["acc1", "acc2"]
+//! channels = ["acc1", "acc2"]              # or quantity = "acceleration" (all acc)
 //! natural_frequency_hz = 60.0
 //! damping_ratio = 0.6
 //!
@@ -127,9 +140,11 @@
 //! and a variant of [`EffectSpec`], applied to the [`LinearSystem`] after the structure
 //! is built (extra DOFs allowed). A change of instrument is one more [`SensorStage`] in
 //! its own file under [`sensor_effects`] and a variant of [`SensorEffect`]; it runs at
-//! the internal rate before [`Decimate`]. Not built yet: a flexible base and nonlinear
-//! springs (a cubic story spring needs a nonlinear integrator; the FOH step is exact
-//! only for linear systems).
+//! the internal rate before [`Decimate`]. A nonlinear element needs an input in
+//! [`nonlinear`] (as the cubic spring is): the FOH step is exact only for linear systems.
+//!
+//! The missing-physics benchmark cases built from these effects are in
+//! `experiments/models/discrepancy/` (README there).
 
 pub mod antialias;
 mod campaign;
@@ -137,6 +152,7 @@ pub mod config;
 pub mod discrete;
 pub mod effects;
 pub mod excitation;
+pub mod nonlinear;
 pub mod sensor;
 pub mod sensor_effects;
 pub mod system;
@@ -146,8 +162,9 @@ pub use config::{
     ChirpSpec, DampingSpec, ImpactSpec, NoiseSpec, NominalSpec, SamplingSpec, SimModel,
     StructureSpec, TestSpec,
 };
-pub use discrete::{Drive, Foh, OutputMap, Response, StateSpace};
-pub use effects::{Dashpot, EffectSpec, Oscillator};
+pub use discrete::{polynomial_hold, Drive, Foh, OutputMap, Response, StateSpace};
+pub use effects::{BaseFlexibility, Dashpot, EffectSpec, Oscillator, StiffnessNonlinearity};
+pub use nonlinear::{CubicSpring, NonlinearFoh};
 pub use sensor::{Decimate, GaussianNoise, SensorStage, Signal};
 pub use sensor_effects::{LowPass, SensorEffect, TimeOffset};
 pub use system::{LinearSystem, SystemEffect};

@@ -22,6 +22,9 @@ pub struct LinearSystem {
     pub floor_dof: Vec<usize>,
     /// Rigid-body influence vector `iota` of ground motion (paper Eq. 13).
     pub ground_influence: DVector<f64>,
+    /// DOF of a flexible base under story 1 (see [`super::BaseFlexibility`]); `None`
+    /// when the structure stands on the rigid ground (or table).
+    pub base_dof: Option<usize>,
 }
 
 /// One transformation of the simulated physics (an added damper, an attached
@@ -52,6 +55,7 @@ impl LinearSystem {
             damping_n_s_per_m: c,
             floor_dof: (0..n).collect(),
             ground_influence: iota,
+            base_dof: None,
         };
         system.validate()?;
         Ok(system)
@@ -78,6 +82,17 @@ impl LinearSystem {
                     self.n_floors()
                 ))
             })
+    }
+
+    /// DOF of level `level`: floor `level` for `level >= 1`; for `level = 0` the base,
+    /// which is the base DOF when the base is flexible and the rigid ground (`None`)
+    /// otherwise. Story `s` joins levels `s - 1` and `s`.
+    pub fn dof_of_level(&self, level: usize) -> Result<Option<usize>> {
+        if level == 0 {
+            Ok(self.base_dof)
+        } else {
+            self.dof_of_floor(level).map(Some)
+        }
     }
 
     /// Applies effects in order.
@@ -114,7 +129,12 @@ impl LinearSystem {
                 self.ground_influence.len()
             )));
         }
-        if let Some(d) = self.floor_dof.iter().find(|&&d| d >= n) {
+        if let Some(d) = self
+            .floor_dof
+            .iter()
+            .chain(&self.base_dof)
+            .find(|&&d| d >= n)
+        {
             return Err(Error::Model(format!("floor mapped to DOF {d} of {n}")));
         }
         if self.mass_kg.clone().cholesky().is_none() {

@@ -1,7 +1,7 @@
 //! Multistart updating of a [`Problem`] (the paper's MATLAB `MultiStart` +
 //! `lsqnonlin`), reported in physical variables.
 
-use super::lsq::{multistart, Active, MultistartOptions, Termination};
+use super::lsq::{self, multistart_from, Active, MultistartOptions, Termination};
 use super::problem::Problem;
 use crate::error::Result;
 
@@ -64,9 +64,8 @@ impl UpdateResult {
 /// (damping on its log scale), in parallel; deterministic for a given seed.
 pub fn update(problem: &Problem, options: &MultistartOptions) -> Result<UpdateResult> {
     let vars = problem.variables();
-    let z0 = vars.to_internal(&vars.initial());
-    let bounds = vars.internal_bounds();
-    let ms = multistart(problem, &bounds, Some(&z0), options)?;
+    let starts = internal_start_points(problem, options)?;
+    let ms = multistart_from(problem, &vars.internal_bounds(), starts, options)?;
     let to_fit = |s: &super::lsq::Solution| {
         let theta = vars.theta(&s.x);
         let mut active = vec![Active::Free; vars.len()];
@@ -101,4 +100,48 @@ pub fn update(problem: &Problem, options: &MultistartOptions) -> Result<UpdateRe
         n_at_best: ms.n_at_best,
         starts,
     })
+}
+
+/// The start points [`update`] uses for `options` (`n_starts` and `seed`), in the
+/// solver's internal coordinates `z` (free variables only, damping on its log scale
+/// by default; see [`crate::update::Variables`]): the variables' start values, then a
+/// seeded Latin hypercube over the internal box.
+pub fn internal_start_points(
+    problem: &Problem,
+    options: &MultistartOptions,
+) -> Result<Vec<Vec<f64>>> {
+    let vars = problem.variables();
+    let z0 = vars.to_internal(&vars.initial());
+    lsq::start_points(&vars.internal_bounds(), Some(&z0), options)
+}
+
+/// The start points [`update`] uses for `options`, as full physical `theta` (fixed
+/// variables at their values), so another solver can start from the very same points.
+///
+/// # Example
+/// ```
+/// # use frfbayes::frf::{Excitation, FrfBlock, FrfKind, FrfPair};
+/// # use frfbayes::model::StructuralModel;
+/// # use frfbayes::update::*;
+/// let model = StructuralModel::shear_frame(&[1.0], &[100.0])?;
+/// let pair = FrfPair { response: 0, excitation: Excitation::Dof(0), kind: FrfKind::Receptance };
+/// let blocks = vec![FrfBlock { omega_rad_s: vec![5.0, 10.0, 15.0], pairs: vec![pair] }];
+/// let data = Measurements { blocks, magnitude: vec![0.01, 0.05, 0.01], sigma: None };
+/// let problem = Problem::new(model, data, DampingModel::Caughey,
+///     &VariablesConfig::default(), ObjectiveOptions::default())?;
+/// let options = MultistartOptions { n_starts: 4, seed: 7, ..Default::default() };
+/// let starts = start_points(&problem, &options)?;
+/// assert_eq!(starts.len(), 4);
+/// // The first start is the variables' start values (up to the log-scale round trip).
+/// for (s, t) in starts[0].iter().zip(problem.variables().initial()) {
+///     assert!((s - t).abs() <= 1e-15 * t.abs());
+/// }
+/// # Ok::<(), frfbayes::Error>(())
+/// ```
+pub fn start_points(problem: &Problem, options: &MultistartOptions) -> Result<Vec<Vec<f64>>> {
+    let vars = problem.variables();
+    Ok(internal_start_points(problem, options)?
+        .iter()
+        .map(|z| vars.theta(z))
+        .collect())
 }

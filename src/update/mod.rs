@@ -13,6 +13,9 @@
 //!   port of scipy's `least_squares(method="trf")`) and Latin hypercube multistart.
 //! - [`update`]: multistart updating of a [`Problem`], reported in physical units.
 //! - [`fdac`], [`rsd_percent`], [`gauss_newton_covariance`]: metrics.
+//! - [`ProblemSpec`]: a problem as JSON ([`Problem::spec`], [`Problem::from_spec`]),
+//!   and [`start_points`]: the starts [`update`] uses, for comparisons with other
+//!   solvers on identical data and starts.
 //!
 //! # Identifiability under ground excitation
 //! Scaling `M` and `K` together by `s` leaves `lambda_i` unchanged, scales `phi_i` by
@@ -66,9 +69,10 @@ pub mod lsq;
 mod metrics;
 mod problem;
 mod sensitivity;
+mod spec;
 mod variables;
 
-pub use fit::{update, Fit, StartFit, UpdateResult};
+pub use fit::{internal_start_points, start_points, update, Fit, StartFit, UpdateResult};
 pub use lsq::{Active, MultistartOptions, Termination, TrfOptions, XScale};
 pub use metrics::{
     fdac, fdac_complex, fdac_per_pair, gain_relative_error, gauss_newton_covariance, pair_ranges,
@@ -76,4 +80,5 @@ pub use metrics::{
 };
 pub use problem::{Measurements, ObjectiveOptions, Problem, ProblemWorkspace, ResidualForm};
 pub use sensitivity::REPEATED_EIGENVALUE_RTOL;
+pub use spec::{BlockSpec, ModelSpec, PairSpec, ParameterSpec, ProblemSpec, PROBLEM_SPEC_FORMAT};
 pub use variables::{DampingModel, Scale, Variable, VariableKind, Variables, VariablesConfig};

@@ -2,7 +2,7 @@
 //! analytical and measured FRF magnitudes over the long vector (Eqs. 18-19, 23), with
 //! the eigen-constraint (22b) enforced by solving the modes at every evaluation.
 
-use super::sensitivity::{magnitude_jacobian, SensitivityWorkspace};
+use super::sensitivity::{magnitude_jacobian, RowScale, SensitivityWorkspace};
 use super::variables::{DampingModel, Variables, VariablesConfig};
 use crate::error::{Error, Result};
 use crate::frf::{FrfBlock, ModalFrf};
@@ -60,7 +60,10 @@ pub struct Problem {
     weights: Vec<f64>,
     options: ObjectiveOptions,
     n_modes: usize,
-    has_sigma: bool,
+    /// The caller's `|H^E|` and sigmas, kept so the problem can be written out
+    /// exactly ([`Problem::spec`]).
+    measured: Vec<f64>,
+    sigma: Option<Vec<f64>>,
 }
 
 /// Per-thread scratch memory of a [`Problem`].
@@ -166,7 +169,7 @@ impl Problem {
         let target = if log {
             data.magnitude.iter().map(|v| v.ln()).collect()
         } else {
-            data.magnitude
+            data.magnitude.clone()
         };
         Ok(Problem {
             model,
@@ -176,7 +179,8 @@ impl Problem {
             weights,
             options,
             n_modes,
-            has_sigma: data.sigma.is_some(),
+            measured: data.magnitude,
+            sigma: data.sigma,
         })
     }
 
@@ -202,7 +206,15 @@ impl Problem {
     }
     /// True when the caller gave per-point sigmas (residuals are then standardised).
     pub fn is_weighted(&self) -> bool {
-        self.has_sigma
+        self.sigma.is_some()
+    }
+    /// The measured magnitudes `|H^E|` as given (long-vector order).
+    pub fn measured(&self) -> &[f64] {
+        &self.measured
+    }
+    /// The per-point sigmas as given, if any.
+    pub fn sigma(&self) -> Option<&[f64]> {
+        self.sigma.as_deref()
     }
     /// Per-point factor the raw difference is multiplied by (`1/sigma_k`, or
     /// `1/RMS(|H^E|)` for unweighted magnitude residuals, or 1).
@@ -320,6 +332,10 @@ impl Problem {
     ) -> Result<()> {
         let (modes, mass) = self.modes(theta)?;
         let (_, _, damping) = self.variables.split(theta);
+        let rows = RowScale {
+            weights: &self.weights,
+            log: self.options.residual == ResidualForm::LogMagnitude,
+        };
         magnitude_jacobian(
             &self.model,
             &mass,
@@ -327,22 +343,12 @@ impl Problem {
             self.n_modes,
             &damping,
             self.frf.blocks(),
+            rows,
             columns,
             sens,
             mag,
             jac,
         )?;
-        // Row factors dr_k/d|H_k|, written over the magnitudes.
-        let log = self.options.residual == ResidualForm::LogMagnitude;
-        for (h, &w) in mag.iter_mut().zip(&self.weights) {
-            let f = if log { w / *h } else { w };
-            *h = if f.is_finite() { f } else { 0.0 };
-        }
-        for c in columns.iter().flatten() {
-            for (x, f) in jac.column_mut(*c).iter_mut().zip(mag.iter()) {
-                *x *= f;
-            }
-        }
         Ok(())
     }
 
@@ -389,9 +395,12 @@ impl LeastSquaresProblem for Problem {
         self.variables.from_internal(z, &mut ws.theta);
         self.jacobian_into(&ws.theta, &ws.columns, &mut ws.sens, &mut ws.mag, jac)?;
         self.variables.chain_factors(&ws.theta, &mut ws.factors);
+        let n_rows = jac.nrows();
         for (c, &f) in ws.factors.iter().enumerate() {
             if f != 1.0 {
-                jac.column_mut(c).scale_mut(f);
+                for x in &mut jac.as_mut_slice()[c * n_rows..(c + 1) * n_rows] {
+                    *x *= f;
+                }
             }
         }
         Ok(())

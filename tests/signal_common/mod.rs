@@ -1,5 +1,5 @@
 //! Shared helpers of the `signal_*` integration tests: exact simulation of modal systems
-//! and a minimal reader of the shared four-story campaign.
+//! and the location of the shared four-story campaign.
 #![allow(dead_code)]
 
 use frfbayes::frf::{modal_coefficient, Excitation, FrfPair};
@@ -273,59 +273,6 @@ pub fn shared_campaign_dir() -> Option<PathBuf> {
         .into_iter()
         .map(|r| r.join("data/four-story"))
         .find(|p| p.join("campaign.toml").exists())
-}
-
-#[derive(serde::Deserialize)]
-struct TestToml {
-    kind: String,
-    sample_rate_hz: f64,
-    excited_floor: Option<usize>,
-    channel: Vec<Channel>,
-}
-
-/// Minimal reader of the shared campaign's tests (the library's reader is built
-/// elsewhere); panics on malformed files, which are not under test here.
-pub fn read_shared_tests(root: &Path) -> Vec<Test> {
-    let mut names: Vec<String> = std::fs::read_dir(root.join("tests"))
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-        .iter()
-        .map(|name| {
-            let dir = root.join("tests").join(name);
-            let meta: TestToml =
-                toml::from_str(&std::fs::read_to_string(dir.join("test.toml")).unwrap()).unwrap();
-            let mut rdr = csv::Reader::from_path(dir.join("data.csv")).unwrap();
-            let header: Vec<String> = rdr.headers().unwrap().iter().map(String::from).collect();
-            let cols: Vec<usize> = meta
-                .channel
-                .iter()
-                .map(|c| header.iter().position(|h| *h == c.name).unwrap())
-                .collect();
-            let mut data = vec![Vec::new(); meta.channel.len()];
-            for rec in rdr.records() {
-                let rec = rec.unwrap();
-                for (d, &ci) in data.iter_mut().zip(&cols) {
-                    d.push(rec[ci].parse::<f64>().unwrap());
-                }
-            }
-            let kind = match meta.kind.as_str() {
-                "hammer" => TestKind::Hammer {
-                    excited_floor: meta.excited_floor.unwrap(),
-                },
-                _ => TestKind::ShakeTable,
-            };
-            Test {
-                name: name.clone(),
-                kind,
-                sample_rate_hz: meta.sample_rate_hz,
-                channels: meta.channel,
-                data,
-            }
-        })
-        .collect()
 }
 
 /// Bound on a free decay of mode `j` started by a unit impulse, seen in a windowed block:

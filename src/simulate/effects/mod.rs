@@ -1,9 +1,13 @@
 //! Changes of the simulated physics, each a [`SystemEffect`] in a file of its own and a
 //! variant of [`EffectSpec`] (the `[[effect]]` tables of the model file).
 
+mod base;
+mod cubic;
 mod dashpot;
 mod oscillator;
 
+pub use base::BaseFlexibility;
+pub use cubic::StiffnessNonlinearity;
 pub use dashpot::Dashpot;
 pub use oscillator::Oscillator;
 
@@ -15,10 +19,15 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum EffectSpec {
-    /// A discrete viscous damper between two floors (non-proportional damping).
+    /// A discrete viscous damper across a story or between two floors (non-proportional
+    /// damping).
     Dashpot(Dashpot),
     /// A secondary mass-spring-damper attached to a floor (one extra DOF).
     Oscillator(Oscillator),
+    /// A base mass on a spring and dashpot under story 1 (one extra DOF).
+    BaseFlexibility(BaseFlexibility),
+    /// A cubic spring across a story (amplitude-dependent response).
+    StiffnessNonlinearity(StiffnessNonlinearity),
 }
 
 impl EffectSpec {
@@ -28,6 +37,8 @@ impl EffectSpec {
         match self {
             EffectSpec::Dashpot(d) => d.check(n_floors),
             EffectSpec::Oscillator(o) => o.check(n_floors),
+            EffectSpec::BaseFlexibility(b) => b.check(),
+            EffectSpec::StiffnessNonlinearity(s) => s.check(n_floors),
         }
     }
 }
@@ -37,6 +48,8 @@ impl SystemEffect for EffectSpec {
         match self {
             EffectSpec::Dashpot(d) => d.apply(system),
             EffectSpec::Oscillator(o) => o.apply(system),
+            EffectSpec::BaseFlexibility(b) => b.apply(system),
+            EffectSpec::StiffnessNonlinearity(s) => s.apply(system),
         }
     }
 }

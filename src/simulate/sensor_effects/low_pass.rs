@@ -7,6 +7,7 @@
 //! 100 Hz for h = 1/5000 s: a slightly different sensor, not an integration error.
 
 use crate::error::{Error, Result};
+use crate::io::Quantity;
 use crate::simulate::discrete::{Foh, OutputMap, StateSpace};
 use crate::simulate::sensor::{SensorStage, Signal};
 use nalgebra::DMatrix;
@@ -17,8 +18,14 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LowPass {
+    /// Channels by name; or give `quantity` instead.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub channels: Vec<String>,
-    #[serde(default)]
+    /// Every channel of this quantity; or give `channels` instead.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quantity: Option<Quantity>,
+    /// Tests it applies to (all when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tests: Option<Vec<String>>,
     pub natural_frequency_hz: f64,
     pub damping_ratio: f64,
@@ -76,6 +83,7 @@ mod tests {
     fn steady_state_gain_and_phase_match_the_transfer_function() {
         let lp = LowPass {
             channels: vec!["acc1".into()],
+            quantity: None,
             tests: None,
             natural_frequency_hz: 60.0,
             damping_ratio: 0.6,

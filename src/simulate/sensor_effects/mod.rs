@@ -1,6 +1,7 @@
 //! Instrument effects: [`SensorStage`]s applied at the internal rate, before
-//! anti-aliasing, to the channels they name (the `[[sensor_effect]]` tables of the model
-//! file). Each lives in a file of its own.
+//! anti-aliasing, to the channels they name or to every channel of a quantity, in all
+//! tests or the named ones (the `[[sensor_effect]]` tables of the model file). Each
+//! lives in a file of its own.
 
 mod low_pass;
 mod time_offset;
@@ -10,6 +11,7 @@ pub use time_offset::TimeOffset;
 
 use super::sensor::{SensorStage, Signal};
 use crate::error::Result;
+use crate::io::Quantity;
 use serde::{Deserialize, Serialize};
 
 /// One `[[sensor_effect]]`: which channels (by name, in which tests) and what it does.
@@ -31,6 +33,14 @@ impl SensorEffect {
         }
     }
 
+    /// The quantity whose channels it applies to, if placed by quantity.
+    pub fn quantity(&self) -> Option<Quantity> {
+        match self {
+            SensorEffect::LowPass(e) => e.quantity,
+            SensorEffect::TimeOffset(e) => e.quantity,
+        }
+    }
+
     /// Test names it applies to (`None`: all tests).
     pub fn tests(&self) -> Option<&[String]> {
         match self {
@@ -39,16 +49,18 @@ impl SensorEffect {
         }
     }
 
-    /// Whether it applies to `channel` of `test`.
-    pub fn applies_to(&self, test: &str, channel: &str) -> bool {
-        self.channels().iter().any(|c| c == channel)
+    /// Whether it applies to channel `channel` (measuring `quantity`) of `test`.
+    pub fn applies_to(&self, test: &str, channel: &str, quantity: Quantity) -> bool {
+        (self.channels().iter().any(|c| c == channel) || self.quantity() == Some(quantity))
             && self.tests().is_none_or(|t| t.iter().any(|t| t == test))
     }
 
     /// Checks its own parameters; returns the reason on failure.
     pub fn check(&self) -> std::result::Result<(), String> {
-        if self.channels().is_empty() {
-            return Err("sensor_effect: give at least one channel name".into());
+        if self.channels().is_empty() == self.quantity().is_none() {
+            return Err(
+                "sensor_effect: give either `channels` (names) or `quantity`, not both".into(),
+            );
         }
         match self {
             SensorEffect::LowPass(e) => e.check(),

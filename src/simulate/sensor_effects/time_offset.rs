@@ -9,6 +9,7 @@
 //! negative offset the simulation runs [`SensorStage::lookahead_samples`] further.
 
 use crate::error::{Error, Result};
+use crate::io::Quantity;
 use crate::simulate::antialias::bessel_i0;
 use crate::simulate::sensor::{SensorStage, Signal};
 use serde::{Deserialize, Serialize};
@@ -25,8 +26,14 @@ const CUTOFF: f64 = 0.3;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TimeOffset {
+    /// Channels by name; or give `quantity` instead.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub channels: Vec<String>,
-    #[serde(default)]
+    /// Every channel of this quantity; or give `channels` instead.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub quantity: Option<Quantity>,
+    /// Tests it applies to (all when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub tests: Option<Vec<String>>,
     /// Positive: the channel's samples are late (it records `y(t - offset_s)`).
     pub offset_s: f64,
@@ -129,6 +136,7 @@ mod tests {
         for offset_s in [0.004, 0.00437, -0.0031, 0.0] {
             let stage = TimeOffset {
                 channels: vec!["acc3".into()],
+                quantity: None,
                 tests: None,
                 offset_s,
             };

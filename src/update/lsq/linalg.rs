@@ -1,69 +1,11 @@
-//! Small dense kernels of the trust-region reflective solver: an in-place Householder
-//! QR of the Jacobian, the exact trust-region subproblem by SVD (More's method, as in
+//! Small dense kernels of the trust-region reflective solver (the QR of the Jacobian
+//! is in `qr.rs`): the exact trust-region subproblem by SVD (More's method, as in
 //! MINPACK and scipy's `solve_lsq_trust_region`), and the one-dimensional helpers of the
 //! reflective step selection. Everything after the QR works on `n x n` data.
 
+use super::qr::dot;
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, SVD};
-
-/// Householder QR of `a` (m x n, overwritten) applied to `f` (length m, overwritten
-/// by `Q^T f`). Writes the `n x n` upper-triangular factor `R` (rows beyond `m` zero)
-/// into `r` and the first `n` entries of `Q^T f` (zero beyond `m`) into `qtf`, so that
-/// `||a x + f||^2 = ||R x + qtf||^2 + const` for every `x`.
-pub(crate) fn householder_qr(
-    a: &mut DMatrix<f64>,
-    f: &mut [f64],
-    r: &mut DMatrix<f64>,
-    qtf: &mut [f64],
-) {
-    let (m, n) = a.shape();
-    let steps = m.min(n);
-    for j in 0..steps {
-        let norm = a.as_slice()[j * m + j..(j + 1) * m]
-            .iter()
-            .map(|v| v * v)
-            .sum::<f64>()
-            .sqrt();
-        if norm == 0.0 {
-            continue;
-        }
-        // v = x + sign(x0) ||x|| e1, stored in place; H = I - 2 v v^T / (v^T v).
-        let x0 = a[(j, j)];
-        let alpha = if x0 >= 0.0 { -norm } else { norm };
-        a[(j, j)] = x0 - alpha;
-        let vtv: f64 = a.as_slice()[j * m + j..(j + 1) * m]
-            .iter()
-            .map(|v| v * v)
-            .sum();
-        let tau = 2.0 / vtv;
-        let (head, tail) = a.as_mut_slice().split_at_mut((j + 1) * m);
-        let v = &head[j * m + j..j * m + m];
-        for c in 0..n - j - 1 {
-            let col = &mut tail[c * m + j..c * m + m];
-            let dot: f64 = v.iter().zip(col.iter()).map(|(p, q)| p * q).sum();
-            let s = tau * dot;
-            for (q, p) in col.iter_mut().zip(v) {
-                *q -= s * p;
-            }
-        }
-        let fj = &mut f[j..m];
-        let dot: f64 = v.iter().zip(fj.iter()).map(|(p, q)| p * q).sum();
-        let s = tau * dot;
-        for (q, p) in fj.iter_mut().zip(v) {
-            *q -= s * p;
-        }
-        a[(j, j)] = alpha;
-    }
-    r.fill(0.0);
-    for c in 0..n {
-        for row in 0..steps.min(c + 1) {
-            r[(row, c)] = a[(row, c)];
-        }
-    }
-    for (i, q) in qtf.iter_mut().enumerate() {
-        *q = if i < m { f[i] } else { 0.0 };
-    }
-}
 
 /// Thin SVD of a small matrix, singular values descending: returns `(s, U, V)` with
 /// `a = U diag(s) V^T`.
@@ -173,11 +115,6 @@ fn mat_vec_scaled(v: &DMatrix<f64>, coef: impl Fn(usize) -> f64, out: &mut [f64]
 /// Euclidean norm.
 pub(crate) fn norm(x: &[f64]) -> f64 {
     x.iter().map(|v| v * v).sum::<f64>().sqrt()
-}
-
-/// Dot product.
-pub(crate) fn dot(x: &[f64], y: &[f64]) -> f64 {
-    x.iter().zip(y).map(|(a, b)| a * b).sum()
 }
 
 /// Largest `t >= 0` keeping `x + t s` inside the box, and for each variable whether
@@ -303,51 +240,6 @@ fn mat_vec(r: &DMatrix<f64>, x: &[f64], out: &mut [f64]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn qr_preserves_norms_and_solves_least_squares() {
-        let a0 = DMatrix::from_row_slice(
-            5,
-            3,
-            &[
-                1.0, 2.0, 0.5, -1.0, 0.3, 4.0, 2.0, 2.0, 1.0, 0.0, -3.0, 2.0, 1.5, 1.0, -1.0,
-            ],
-        );
-        let f0 = vec![1.0, -2.0, 0.5, 3.0, 0.25];
-        let (mut a, mut f) = (a0.clone(), f0.clone());
-        let mut r = DMatrix::zeros(3, 3);
-        let mut qtf = vec![0.0; 3];
-        householder_qr(&mut a, &mut f, &mut r, &mut qtf);
-        // R^T R = A^T A.
-        let ata = a0.transpose() * &a0;
-        assert!((r.transpose() * &r - &ata).amax() < 1e-12 * ata.amax());
-        // Least-squares solution from R x = -qtf equals the normal-equation solution.
-        let x_qr = r
-            .clone()
-            .lu()
-            .solve(&nalgebra::DVector::from_iterator(3, qtf.iter().map(|v| -v)))
-            .unwrap();
-        let atf = a0.transpose() * nalgebra::DVector::from_vec(f0.clone());
-        let x_ne = ata.lu().solve(&(-atf)).unwrap();
-        assert!((x_qr - x_ne).amax() < 1e-12);
-        for i in 0..3 {
-            for j in 0..i {
-                assert_eq!(r[(i, j)], 0.0);
-            }
-        }
-    }
-
-    #[test]
-    fn qr_of_wide_matrix_pads_with_zero_rows() {
-        let a0 = DMatrix::from_row_slice(2, 3, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0]);
-        let (mut a, mut f) = (a0.clone(), vec![1.0, 1.0]);
-        let mut r = DMatrix::zeros(3, 3);
-        let mut qtf = vec![0.0; 3];
-        householder_qr(&mut a, &mut f, &mut r, &mut qtf);
-        assert!((r.transpose() * &r - a0.transpose() * &a0).amax() < 1e-12);
-        assert_eq!(qtf[2], 0.0);
-        assert!((qtf[0].powi(2) + qtf[1].powi(2) - 2.0).abs() < 1e-12);
-    }
 
     #[test]
     fn trust_region_step_matches_constrained_minimiser() {

@@ -15,11 +15,13 @@
 
 mod linalg;
 mod multistart;
+mod qr;
 mod step;
 mod trf;
 
 pub use multistart::{
-    latin_hypercube, multistart, MultistartOptions, MultistartResult, StartOutcome,
+    latin_hypercube, multistart, multistart_from, start_points, MultistartOptions,
+    MultistartResult, StartOutcome,
 };
 pub use trf::{Solution, Termination, Trf, TrfOptions, TrfState, XScale};
 

@@ -92,21 +92,56 @@ pub fn latin_hypercube(bounds: &Bounds, n: usize, rng: &mut ChaCha8Rng) -> Resul
     Ok(points)
 }
 
+/// The start points of [`multistart`]: `initial` (when given) first, then
+/// `options.n_starts - 1` (or `n_starts`) Latin hypercube points in `bounds` drawn from
+/// `ChaCha8Rng::seed_from_u64(options.seed)`.
+pub fn start_points(
+    bounds: &Bounds,
+    initial: Option<&[f64]>,
+    options: &MultistartOptions,
+) -> Result<Vec<Vec<f64>>> {
+    if options.n_starts == 0 {
+        return Err(Error::Usage("multistart needs at least one start".into()));
+    }
+    if let Some(x) = initial {
+        if x.len() != bounds.len() {
+            return Err(Error::Usage(format!(
+                "initial point has {} entries for {} variables",
+                x.len(),
+                bounds.len()
+            )));
+        }
+    }
+    let n_lhs = options.n_starts - usize::from(initial.is_some());
+    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+    let mut starts: Vec<Vec<f64>> = initial.map(|x| x.to_vec()).into_iter().collect();
+    starts.extend(latin_hypercube(bounds, n_lhs, &mut rng)?);
+    Ok(starts)
+}
+
 /// Runs `options.n_starts` local solves of `problem` in `bounds` in parallel and
-/// returns the best. `initial`, when given, is the first start.
+/// returns the best. `initial`, when given, is the first start (see [`start_points`]).
 pub fn multistart<P: LeastSquaresProblem>(
     problem: &P,
     bounds: &Bounds,
     initial: Option<&[f64]>,
     options: &MultistartOptions,
 ) -> Result<MultistartResult> {
-    if options.n_starts == 0 {
+    let starts = start_points(bounds, initial, options)?;
+    multistart_from(problem, bounds, starts, options)
+}
+
+/// Runs one local solve from each of `starts` in parallel and returns the best
+/// (`options.n_starts` and `options.seed` are not used).
+pub fn multistart_from<P: LeastSquaresProblem>(
+    problem: &P,
+    bounds: &Bounds,
+    starts: Vec<Vec<f64>>,
+    options: &MultistartOptions,
+) -> Result<MultistartResult> {
+    if starts.is_empty() {
         return Err(Error::Usage("multistart needs at least one start".into()));
     }
-    let n_lhs = options.n_starts - usize::from(initial.is_some());
-    let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
-    let mut starts: Vec<Vec<f64>> = initial.map(|x| x.to_vec()).into_iter().collect();
-    starts.extend(latin_hypercube(bounds, n_lhs, &mut rng)?);
     let trf = Trf::new(options.trf.clone());
     let solutions: Vec<Result<Solution>> = starts
         .par_iter()

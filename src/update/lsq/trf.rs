@@ -5,7 +5,8 @@
 //! trust-region step, its reflection off the first bound hit, and the scaled
 //! steepest-descent step. Iterates stay strictly inside the box.
 
-use super::linalg::{householder_qr, norm, solve_trust_region, svd_descending};
+use super::linalg::{norm, solve_trust_region, svd_descending};
+use super::qr::{dot, householder_qr};
 use super::step::{
     check_termination, cl_scaling, make_strictly_feasible, select_step, update_radius, Scratch,
 };
@@ -383,14 +384,23 @@ impl Trf {
     ) -> Result<()> {
         problem.jacobian(&st.x, ws, &mut st.jac)?;
         st.n_jacobians += 1;
-        if st.jac.iter().any(|v| !v.is_finite()) {
-            return Err(Error::Numerical("Jacobian is not finite".into()));
-        }
+        st.f_work.copy_from_slice(&st.f);
+        householder_qr(&mut st.jac, &mut st.f_work, &mut st.r, &mut st.qtf);
+        // J = Q R: the columns of J and R have the same norms, and J^T f = R^T (Q^T f)
+        // over R's n rows. A non-finite Jacobian entry spreads into R.
+        let n = st.r.nrows();
         for (j, g) in st.g.iter_mut().enumerate() {
-            let col = st.jac.column(j);
-            *g = col.iter().zip(&st.f).map(|(a, b)| a * b).sum();
+            // Column j of the upper-triangular R (n x n): rows 0..=j.
+            let col = &st.r.as_slice()[j * n..j * n + j + 1];
+            let cn2 = dot(col, col);
+            *g = dot(col, &st.qtf);
+            if !(cn2.is_finite() && g.is_finite()) {
+                return Err(Error::Numerical(format!(
+                    "Jacobian column {j} is not finite (or its norm overflows)"
+                )));
+            }
             if self.options.x_scale == XScale::Jacobian {
-                let cn = col.norm();
+                let cn = cn2.sqrt();
                 let inv = if st.n_jacobians == 1 {
                     cn
                 } else {
@@ -400,8 +410,6 @@ impl Trf {
                 st.scale[j] = 1.0 / st.scale_inv[j];
             }
         }
-        st.f_work.copy_from_slice(&st.f);
-        householder_qr(&mut st.jac, &mut st.f_work, &mut st.r, &mut st.qtf);
         Ok(())
     }
 

@@ -1,0 +1,59 @@
+//! Bayesian model updating from FRF magnitudes: the posterior of the masses,
+//! stiffnesses and damping of a model given measured FRFs, sampled with the ensemble
+//! sampler of [`crate::mcmc`].
+//!
+//! # The model
+//! Data: measured magnitudes `y_k = |H^E_k|` at the selected points of every test
+//! (Eqs. 17-19), [`FrfData`]. Forward model: `h_k(theta) = |H^A_k(theta)|`, the modal
+//! sums of Eqs. (7), (10), (15), (16) with each test's exponential window applied to the
+//! model exactly ([`ForwardModel`]), so the damping sampled is the structure's.
+//!
+//! Likelihood (independent points, unknown noise scale `s`):
+//! - magnitude residuals (default): `y_k ~ N(h_k, (s sigma_k)^2)`,
+//!   `sigma_k = y_k max(r_k, r_floor)`;
+//! - log-magnitude residuals: `ln y_k ~ N(ln h_k, (s sigma_k)^2)`,
+//!   `sigma_k = max(r_k, r_floor)`,
+//!
+//! where `r_k = sqrt((1 - g_k^2) / (2 g_k^2 n))` is the Bendat & Piersol relative random
+//! error of `|H1|` from the coherence `g_k^2` and the number of averages `n`
+//! ([`TestFrf::selected_rel_std`](crate::signal::TestFrf::selected_rel_std)) and
+//! `r_floor` a floor ([`DEFAULT_REL_SIGMA_FLOOR`], 0.1 %) that keeps points with
+//! coherence near 1 from getting unbounded weight. `sigma_k` is computed once from the
+//! data (plug-in) and is a constant of the model. `s` carries what the coherence does
+//! not see (model error, bias); it is sampled, log-uniform on [`DEFAULT_NOISE_SCALE_BOUNDS`].
+//!
+//! Pointwise log-likelihood (for PSIS-LOO / WAIC): the log density of each `y_k`
+//! (lognormal density for log residuals), so both residual forms compare on one scale.
+//!
+//! Priors: [`prior`]. Sampled coordinates: the free multipliers `alpha`, `beta` as they
+//! are, damping as logarithms, then `ln s` ([`FrfPosterior::names`]). Reported: masses in
+//! kg, stiffnesses in N/m, damping in its units, `noise_scale` ([`summary`]).
+//!
+//! # Running
+//! [`run::run_sample`] does a whole `frfbayes sample` run: estimate the FRFs of a
+//! campaign, build the posterior, find the maximum-likelihood start ([`find_start`]),
+//! sample with periodic checkpoints (resumable bit for bit), and write
+//! `posterior.json`, draws (CSV, `.npy`), the pointwise log-likelihood and figures.
+//!
+//! # Calibration
+//! [`sbc`]: simulation-based calibration (Talts et al. 2018) of the whole chain
+//! (prior, simulator, likelihood, start, sampler) on a small problem.
+
+mod data;
+pub mod figures;
+mod forward;
+mod posterior;
+pub mod predictive;
+pub mod prior;
+pub mod run;
+pub mod sbc;
+mod start;
+pub mod summary;
+#[cfg(test)]
+mod tests;
+
+pub use data::{FrfData, DEFAULT_REL_SIGMA_FLOOR};
+pub use forward::{ForwardModel, ForwardWorkspace};
+pub use posterior::{FrfPosterior, PosteriorOptions};
+pub use prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
+pub use start::{ball_positions, find_start, StartPoint};

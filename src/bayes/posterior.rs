@@ -1,0 +1,369 @@
+//! The posterior of the updating variables and the noise scale given measured FRF
+//! magnitudes.
+
+use super::data::FrfData;
+use super::forward::{ForwardModel, ForwardWorkspace};
+use super::prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
+use crate::error::{Error, Result};
+use crate::mcmc::LogDensity;
+use crate::model::StructuralModel;
+use crate::update::{DampingModel, ResidualForm, VariableKind, Variables, VariablesConfig};
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde::{Deserialize, Serialize};
+use std::sync::Mutex;
+
+/// Settings of an [`FrfPosterior`] beyond the data and the variables.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PosteriorOptions {
+    /// Prior family (see [`super::prior`]).
+    pub prior: PriorKind,
+    /// Bounds of the log-uniform prior on the noise scale.
+    pub noise_scale_bounds: [f64; 2],
+    /// Modes kept in the modal sums (all when `None`).
+    pub n_modes: Option<usize>,
+}
+
+impl Default for PosteriorOptions {
+    fn default() -> Self {
+        PosteriorOptions {
+            prior: PriorKind::Uniform,
+            noise_scale_bounds: DEFAULT_NOISE_SCALE_BOUNDS,
+            n_modes: None,
+        }
+    }
+}
+
+/// `p(z | y)` for FRF magnitudes `y` (see the [module docs](super) for the model).
+///
+/// The sampled vector `z` is the free updating variables in internal coordinates
+/// (multipliers as they are, damping as logarithms) followed by `ln s`.
+/// Evaluation is thread-safe; each thread borrows scratch memory from a pool.
+pub struct FrfPosterior {
+    forward: ForwardModel,
+    data: FrfData,
+    prior: Prior,
+    options: PosteriorOptions,
+    /// `y_k` (magnitude residuals) or `ln y_k` (log residuals).
+    target: Vec<f64>,
+    /// `1 / sigma_k`.
+    inv_sigma: Vec<f64>,
+    /// Per point: `-ln sigma_k - ln(2 pi)/2`, and `- ln y_k` for log residuals (so every
+    /// pointwise term is a log density of `y_k` itself, comparable across residual forms).
+    ln_norm: Vec<f64>,
+    ln_norm_sum: f64,
+    pool: Mutex<Vec<ForwardWorkspace>>,
+}
+
+impl Clone for FrfPosterior {
+    fn clone(&self) -> Self {
+        FrfPosterior {
+            forward: self.forward.clone(),
+            data: self.data.clone(),
+            prior: self.prior.clone(),
+            options: self.options,
+            target: self.target.clone(),
+            inv_sigma: self.inv_sigma.clone(),
+            ln_norm: self.ln_norm.clone(),
+            ln_norm_sum: self.ln_norm_sum,
+            pool: Mutex::new(Vec::new()),
+        }
+    }
+}
+
+impl std::fmt::Debug for FrfPosterior {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FrfPosterior")
+            .field("names", &self.names())
+            .field("n_points", &self.data.len())
+            .field("options", &self.options)
+            .finish()
+    }
+}
+
+impl FrfPosterior {
+    /// Assembles the posterior. `variables` gives the box (and fixed variables); damping
+    /// is always sampled on a log scale (`log_damping` is forced on).
+    pub fn new(
+        model: StructuralModel,
+        data: FrfData,
+        damping: DampingModel,
+        variables: &VariablesConfig,
+        options: PosteriorOptions,
+    ) -> Result<Self> {
+        data.validate()?;
+        let n_modes = options.n_modes.unwrap_or(model.n_dof());
+        let config = VariablesConfig {
+            log_damping: true,
+            ..variables.clone()
+        };
+        let vars = Variables::new(&model, damping, n_modes.min(model.n_dof()), &config)?;
+        let prior = Prior::new(options.prior, &vars, options.noise_scale_bounds)?;
+        let forward = ForwardModel::new(
+            model,
+            vars,
+            n_modes,
+            data.blocks.clone(),
+            &data.window_tau_s,
+        )?;
+        let log = data.residual == ResidualForm::LogMagnitude;
+        let half_ln_2pi = 0.5 * (2.0 * std::f64::consts::PI).ln();
+        let target = data
+            .magnitude
+            .iter()
+            .map(|&y| if log { y.ln() } else { y })
+            .collect();
+        let inv_sigma = data.sigma.iter().map(|s| 1.0 / s).collect();
+        let ln_norm: Vec<f64> = data
+            .sigma
+            .iter()
+            .zip(&data.magnitude)
+            .map(|(s, y)| -s.ln() - half_ln_2pi - if log { y.ln() } else { 0.0 })
+            .collect();
+        Ok(FrfPosterior {
+            forward,
+            ln_norm_sum: ln_norm.iter().sum(),
+            data,
+            prior,
+            options,
+            target,
+            inv_sigma,
+            ln_norm,
+            pool: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// The same posterior with other measured magnitudes (same points, same sigmas), e.g.
+    /// data simulated by [`Self::simulate`].
+    pub fn with_magnitude(&self, magnitude: Vec<f64>) -> Result<Self> {
+        let data = FrfData {
+            magnitude,
+            ..self.data.clone()
+        };
+        FrfPosterior::new(
+            self.forward.model().clone(),
+            data,
+            self.forward.variables().damping_model(),
+            &self.variables_config(),
+            self.options,
+        )
+    }
+
+    fn variables_config(&self) -> VariablesConfig {
+        let vars = self.forward.variables();
+        let mut c = VariablesConfig::default();
+        for v in vars.variables() {
+            if let Some(x) = v.fixed {
+                c.fixed.insert(v.name.clone(), x);
+            } else {
+                c.bounds.insert(v.name.clone(), [v.lower, v.upper]);
+                c.initial.insert(v.name.clone(), v.initial);
+            }
+        }
+        c
+    }
+
+    /// The forward model.
+    pub fn forward(&self) -> &ForwardModel {
+        &self.forward
+    }
+    /// The updating variables (layout of `theta`).
+    pub fn variables(&self) -> &Variables {
+        self.forward.variables()
+    }
+    /// The data.
+    pub fn data(&self) -> &FrfData {
+        &self.data
+    }
+    /// The prior.
+    pub fn prior(&self) -> &Prior {
+        &self.prior
+    }
+    /// The options.
+    pub fn options(&self) -> &PosteriorOptions {
+        &self.options
+    }
+    /// Number of free updating variables (`dim() - 1`).
+    pub fn n_free(&self) -> usize {
+        self.variables().free().len()
+    }
+
+    /// Names of the sampled coordinates: `k1`, `m2`, `ln_xi1`, `ln_a0`, ..., `ln_noise_scale`.
+    pub fn names(&self) -> Vec<String> {
+        let vars = self.variables();
+        vars.free()
+            .iter()
+            .map(|&i| {
+                let v = &vars.variables()[i];
+                match v.kind {
+                    VariableKind::Alpha(_) | VariableKind::Beta(_) => v.name.clone(),
+                    _ => format!("ln_{}", v.name),
+                }
+            })
+            .chain(std::iter::once("ln_noise_scale".to_string()))
+            .collect()
+    }
+
+    /// `theta` (full layout of [`Self::variables`]) of a sampled vector.
+    pub fn theta(&self, z: &[f64]) -> Vec<f64> {
+        self.variables().theta(&z[..self.n_free()])
+    }
+
+    /// The noise scale `s` of a sampled vector.
+    pub fn noise_scale(&self, z: &[f64]) -> f64 {
+        z[self.n_free()].exp()
+    }
+
+    /// Model magnitudes `|H^A|` at `z` in long-vector order.
+    pub fn magnitudes(&self, z: &[f64]) -> Result<Vec<f64>> {
+        self.check_dim(z)?;
+        let mut ws = self.take_workspace();
+        self.variables()
+            .from_internal(&z[..self.n_free()], &mut ws.theta);
+        let mut out = vec![0.0; self.data.len()];
+        let theta = std::mem::take(&mut ws.theta);
+        let r = self.forward.magnitudes(&theta, &mut ws, &mut out);
+        ws.theta = theta;
+        self.return_workspace(ws);
+        r.map(|()| out)
+    }
+
+    /// Log prior at `z` (`-inf` outside the box).
+    pub fn ln_prior(&self, z: &[f64]) -> f64 {
+        self.prior.ln_density(z)
+    }
+
+    /// Log-likelihood at `z`; fills `pointwise` (empty or one entry per point) with
+    /// the per-point terms.
+    pub fn ln_likelihood(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
+        self.check_dim(z)?;
+        let mut ws = self.take_workspace();
+        let r = self.ln_likelihood_with(z, &mut ws, pointwise);
+        self.return_workspace(ws);
+        r
+    }
+
+    fn ln_likelihood_with(
+        &self,
+        z: &[f64],
+        ws: &mut ForwardWorkspace,
+        pointwise: &mut [f64],
+    ) -> Result<f64> {
+        let n_free = self.n_free();
+        self.variables().from_internal(&z[..n_free], &mut ws.theta);
+        let mut mag = std::mem::take(&mut ws.magnitude);
+        let theta = std::mem::take(&mut ws.theta);
+        let r = self.forward.magnitudes(&theta, ws, &mut mag);
+        ws.theta = theta;
+        let result = r.map(|()| {
+            let ln_s = z[n_free];
+            let inv_s = (-ln_s).exp();
+            let log = self.data.residual == ResidualForm::LogMagnitude;
+            let mut ss = 0.0;
+            for (k, ((&h, &t), &w)) in mag
+                .iter()
+                .zip(&self.target)
+                .zip(&self.inv_sigma)
+                .enumerate()
+            {
+                let a = if log { h.ln() } else { h };
+                let e = (a - t) * w * inv_s;
+                ss += e * e;
+                if let Some(p) = pointwise.get_mut(k) {
+                    *p = -0.5 * e * e - ln_s + self.ln_norm[k];
+                }
+            }
+            -0.5 * ss - self.data.len() as f64 * ln_s + self.ln_norm_sum
+        });
+        ws.magnitude = mag;
+        result
+    }
+
+    /// One draw of the sampled vector from the prior.
+    pub fn sample_prior(&self, rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
+        self.prior.sample(rng)
+    }
+
+    /// Magnitudes simulated from the likelihood at `z`: `|H^A_k| + s sigma_k e_k`
+    /// (magnitude residuals) or `|H^A_k| exp(s sigma_k e_k)` (log residuals), `e_k`
+    /// standard normal. Magnitude-residual draws below zero are kept (the Gaussian
+    /// model allows them).
+    pub fn simulate(&self, z: &[f64], rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
+        let h = self.magnitudes(z)?;
+        let s = self.noise_scale(z);
+        let log = self.data.residual == ResidualForm::LogMagnitude;
+        Ok(h.iter()
+            .zip(&self.data.sigma)
+            .map(|(&h, &sigma)| {
+                let e: f64 = rng.sample(StandardNormal);
+                if log {
+                    h * (s * sigma * e).exp()
+                } else {
+                    h + s * sigma * e
+                }
+            })
+            .collect())
+    }
+
+    fn check_dim(&self, z: &[f64]) -> Result<()> {
+        if z.len() != self.dim() {
+            return Err(Error::Usage(format!(
+                "the sampled vector has {} entries, the posterior {} ({})",
+                z.len(),
+                self.dim(),
+                self.names().join(", ")
+            )));
+        }
+        Ok(())
+    }
+
+    fn take_workspace(&self) -> ForwardWorkspace {
+        let popped = self.pool.lock().ok().and_then(|mut p| p.pop());
+        popped.unwrap_or_else(|| self.forward.workspace())
+    }
+
+    fn return_workspace(&self, ws: ForwardWorkspace) {
+        if let Ok(mut p) = self.pool.lock() {
+            p.push(ws);
+        }
+    }
+
+    fn evaluate(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
+        self.check_dim(z)?;
+        let lp = self.prior.ln_density(z);
+        if lp == f64::NEG_INFINITY {
+            return Ok(lp);
+        }
+        let mut ws = self.take_workspace();
+        let ll = self.ln_likelihood_with(z, &mut ws, pointwise);
+        self.return_workspace(ws);
+        Ok(lp + ll?)
+    }
+}
+
+impl LogDensity for FrfPosterior {
+    fn dim(&self) -> usize {
+        self.prior.dim()
+    }
+
+    fn ln_density(&self, z: &[f64]) -> Result<f64> {
+        self.evaluate(z, &mut [])
+    }
+
+    fn n_pointwise(&self) -> usize {
+        self.data.len()
+    }
+
+    fn ln_density_with_pointwise(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
+        if pointwise.len() != self.data.len() {
+            return Err(Error::Usage(format!(
+                "{} pointwise slots for {} points",
+                pointwise.len(),
+                self.data.len()
+            )));
+        }
+        self.evaluate(z, pointwise)
+    }
+}

@@ -1,0 +1,469 @@
+//! A whole sampling run (`frfbayes sample`): campaign -> FRF estimates -> posterior ->
+//! maximum-likelihood start -> ensemble sampling with checkpoints -> outputs.
+//!
+//! Output folder:
+//! - `settings.toml`: everything that defines the run (`--resume` reads it back; TOML
+//!   round-trips every float exactly);
+//! - `start.json`: the multistart optimum the walkers started around;
+//! - `checkpoint.mcmc` while running (atomic; removed after a successful run);
+//! - `posterior.json` ([`PosteriorSummary`]), `draws.csv` and `draws.npy` (physical units,
+//!   `(chain, draw, parameter)`, parameter order as in `posterior.json`),
+//!   `ln_posterior.npy` `(chain, draw)`, `log_likelihood.npy` `(chain, draw, point)`;
+//! - figures `corner`, `traces`, `predictive`, `cv` (PNG and SVG), `run.json`.
+//!
+//! Every file is written atomically. Chains are walkers (chain = ensemble x walkers +
+//! walker), as ArviZ reads emcee output.
+
+use super::data::{FrfData, DEFAULT_REL_SIGMA_FLOOR};
+use super::figures::write_figures;
+use super::posterior::{FrfPosterior, PosteriorOptions};
+use super::start::{ball_positions, find_start, StartPoint};
+use super::summary::{output_params, physical_draws, stuck_walkers, summarize, PosteriorSummary};
+use crate::error::{Error, Result};
+use crate::experiment::config::{EstimateSection, ExperimentConfig};
+use crate::experiment::driver::resolve_data;
+use crate::experiment::runinfo::RunInfo;
+use crate::frf::FrfKind;
+use crate::io::{read_campaign, write_atomic};
+use crate::mcmc::{
+    Burn, CheckpointConfig, LogDensity, MoveSpec, Moves, ProgressFn, RunSummary, Sampler,
+    SamplerConfig, Start, StopReason, WeightedMove,
+};
+use crate::signal::{estimate_campaign, InputKind, TestFrf};
+use crate::update::{DampingModel, MultistartOptions, ResidualForm, VariablesConfig};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Which tests a run uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TestSelection {
+    /// Impact-hammer tests (force input).
+    Hammer,
+    /// Shake-table tests (ground input).
+    ShakeTable,
+    /// Both.
+    All,
+}
+
+impl TestSelection {
+    /// Whether a test estimate is selected.
+    pub fn includes(self, frf: &TestFrf) -> bool {
+        matches!(
+            (self, &frf.input),
+            (TestSelection::All, _)
+                | (TestSelection::Hammer, InputKind::Force { .. })
+                | (TestSelection::ShakeTable, InputKind::Ground { .. })
+        )
+    }
+}
+
+/// Everything that defines a run; stored as `settings.toml`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SampleSettings {
+    /// Campaign folder or `bundled:four-story`.
+    pub campaign: String,
+    pub damping: DampingModel,
+    pub frf: FrfKind,
+    pub tests: TestSelection,
+    /// Master seed (start design, initial ball, sampler).
+    pub seed: u64,
+    pub residual: ResidualForm,
+    /// Floor on the relative standard deviation of a magnitude.
+    pub rel_sigma_floor: f64,
+    /// Multistart local solves for the start point.
+    pub n_starts: usize,
+    /// Initial ball: this many Gauss-Newton standard deviations.
+    pub ball_factor: f64,
+    /// Walkers per ensemble = this x dimension.
+    pub walkers_per_dim: usize,
+    pub n_ensembles: usize,
+    pub max_steps: u64,
+    pub check_every: u64,
+    pub thin_by: u64,
+    /// Checkpoint every this many steps.
+    pub checkpoint_every: u64,
+    /// Posterior draws behind the predictive bands.
+    pub predictive_draws: usize,
+    pub moves: Vec<WeightedMove>,
+    pub posterior: PosteriorOptions,
+    pub estimate: EstimateSection,
+    pub variables: VariablesConfig,
+}
+
+impl SampleSettings {
+    /// Defaults: FRF estimation and bounds of `experiments/paper_repro.toml`, default
+    /// noise model and prior, 4 ensembles of 4 x dim walkers, [`default_moves`].
+    pub fn new(
+        campaign: String,
+        damping: DampingModel,
+        frf: FrfKind,
+        tests: TestSelection,
+        seed: u64,
+    ) -> Result<Self> {
+        let paper = ExperimentConfig::paper_repro()?;
+        Ok(SampleSettings {
+            campaign,
+            damping,
+            frf,
+            tests,
+            seed,
+            residual: ResidualForm::Magnitude,
+            rel_sigma_floor: DEFAULT_REL_SIGMA_FLOOR,
+            n_starts: 32,
+            ball_factor: 1.0,
+            walkers_per_dim: 4,
+            n_ensembles: 4,
+            max_steps: 20_000,
+            check_every: 100,
+            thin_by: 1,
+            checkpoint_every: 500,
+            predictive_draws: 200,
+            moves: default_moves(),
+            posterior: PosteriorOptions::default(),
+            estimate: paper.estimate,
+            variables: paper.update.variables,
+        })
+    }
+
+    /// Reads `settings.toml`.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))
+    }
+
+    /// The TOML text of [`Self::load`].
+    pub fn to_toml(&self) -> Result<String> {
+        toml::to_string(self).map_err(|e| Error::Usage(format!("settings: {e}")))
+    }
+}
+
+/// The default move mixture: 0.9 differential evolution + 0.1 stretch.
+///
+/// Measured on the four-story campaign (Caughey receptance, 13 parameters, 4 x 52
+/// walkers, seed 1; integrated autocorrelation time in steps, mean over parameters,
+/// hammer / shake table): DE alone 45 / 45, 0.9 DE + 0.1 stretch 47 / 46, 0.9 DE + 0.1
+/// snooker 50 / 48, 0.7 DE + 0.2 stretch + 0.1 snooker 55 / 54, 0.5 DE + 0.5 stretch
+/// 64 / 67, stretch alone 170 / 176. The stretch share keeps a move that rescales the
+/// ensemble at a 3 % cost.
+pub fn default_moves() -> Vec<WeightedMove> {
+    vec![
+        WeightedMove {
+            spec: MoveSpec::De {
+                gamma0: None,
+                sigma: 1e-5,
+            },
+            weight: 0.9,
+        },
+        WeightedMove {
+            spec: MoveSpec::Stretch { a: 2.0 },
+            weight: 0.1,
+        },
+    ]
+}
+
+/// The campaign's FRF estimates and the posterior of a run.
+pub struct Prepared {
+    pub frfs: Vec<TestFrf>,
+    pub posterior: FrfPosterior,
+}
+
+/// Reads the campaign, estimates its FRFs and builds the posterior.
+pub fn prepare(settings: &SampleSettings) -> Result<Prepared> {
+    let root = resolve_data(&settings.campaign)?;
+    let campaign = read_campaign(&root)?;
+    let model = campaign.nominal.structural_model()?;
+    let frfs = estimate_campaign(&campaign, &settings.estimate.options())?;
+    let chosen: Vec<&TestFrf> = frfs.iter().filter(|f| settings.tests.includes(f)).collect();
+    if chosen.is_empty() {
+        return Err(Error::Usage(format!(
+            "the campaign at {} has no {:?} tests",
+            root.display(),
+            settings.tests
+        )));
+    }
+    let data = FrfData::from_test_frfs(
+        &chosen,
+        settings.frf,
+        settings.residual,
+        settings.rel_sigma_floor,
+    )?;
+    let posterior = FrfPosterior::new(
+        model,
+        data,
+        settings.damping,
+        &settings.variables,
+        settings.posterior,
+    )?;
+    Ok(Prepared { frfs, posterior })
+}
+
+/// What a run produced.
+#[derive(Debug)]
+pub struct SampleOutcome {
+    pub out: PathBuf,
+    pub summary: PosteriorSummary,
+    pub start: Option<StartPoint>,
+    pub info: RunInfo,
+}
+
+const CHECKPOINT: &str = "checkpoint.mcmc";
+const SETTINGS: &str = "settings.toml";
+
+/// Path of the settings file of a run folder.
+pub fn settings_path(out: &Path) -> PathBuf {
+    out.join(SETTINGS)
+}
+
+/// Path of the checkpoint of a run folder.
+pub fn checkpoint_path(out: &Path) -> PathBuf {
+    out.join(CHECKPOINT)
+}
+
+/// Stage messages of a run (`"estimating FRFs"`, ...).
+pub type StageFn<'a> = &'a dyn Fn(&str);
+
+fn json<T: Serialize>(v: &T) -> Result<Vec<u8>> {
+    serde_json::to_vec_pretty(v).map_err(|e| Error::Numerical(format!("JSON: {e}")))
+}
+
+/// A fresh run into `out`. Refuses a folder holding a checkpoint (an unfinished run:
+/// resume it with [`resume_sample`] or delete it).
+pub fn run_sample(
+    settings: &SampleSettings,
+    out: &Path,
+    stage: StageFn,
+    progress: Option<&mut ProgressFn<'_>>,
+) -> Result<SampleOutcome> {
+    if checkpoint_path(out).exists() {
+        return Err(Error::Usage(format!(
+            "{} holds an unfinished run ({CHECKPOINT}); resume it with --resume or delete it",
+            out.display()
+        )));
+    }
+    let mut info = RunInfo::start(
+        settings.seed,
+        toml_value(settings)?,
+        settings.campaign.clone(),
+    );
+    write_atomic(&settings_path(out), settings.to_toml()?.as_bytes())?;
+    stage("estimating FRFs");
+    let prep = info.time("estimate_frfs", || prepare(settings))?;
+    let post = &prep.posterior;
+    stage("finding the maximum-likelihood start");
+    let ms = MultistartOptions {
+        n_starts: settings.n_starts,
+        seed: settings.seed,
+        ..Default::default()
+    };
+    let start = info.time("multistart", || find_start(post, &ms))?;
+    write_atomic(&out.join("start.json"), &json(&start_record(post, &start))?)?;
+    let config = sampler_config(settings, post.dim(), out)?;
+    let n = config.n_walkers * config.n_ensembles;
+    let positions = ball_positions(post, &start, n, settings.ball_factor, settings.seed)?;
+    let moves = Moves::from_specs(&settings.moves)?;
+    let mut sampler = Sampler::new(post, moves, config, Start::Positions(positions))?;
+    stage("sampling");
+    finish(
+        settings,
+        out,
+        &prep,
+        &mut sampler,
+        Some(start),
+        info,
+        stage,
+        progress,
+    )
+}
+
+/// Continues the run in `out` from its checkpoint with its stored settings
+/// (`max_steps` may be raised); ends bit-identical to an uninterrupted run.
+pub fn resume_sample(
+    out: &Path,
+    max_steps: Option<u64>,
+    stage: StageFn,
+    progress: Option<&mut ProgressFn<'_>>,
+) -> Result<SampleOutcome> {
+    let mut settings = SampleSettings::load(&settings_path(out))?;
+    if let Some(m) = max_steps {
+        settings.max_steps = m;
+    }
+    let cp = checkpoint_path(out);
+    if !cp.exists() {
+        return Err(Error::Usage(format!(
+            "{} has no checkpoint to resume (the run finished, or was stopped before its \
+             first checkpoint at step {}); start it again without --resume",
+            out.display(),
+            settings.checkpoint_every
+        )));
+    }
+    let mut info = RunInfo::start(
+        settings.seed,
+        toml_value(&settings)?,
+        settings.campaign.clone(),
+    );
+    stage("estimating FRFs");
+    let prep = info.time("estimate_frfs", || prepare(&settings))?;
+    let moves = Moves::from_specs(&settings.moves)?;
+    let mut sampler = Sampler::resume(&prep.posterior, moves, &cp)?;
+    sampler.set_checkpoint(Some(CheckpointConfig {
+        path: cp,
+        every_steps: settings.checkpoint_every,
+    }))?;
+    sampler.set_max_steps(settings.max_steps);
+    stage("sampling");
+    finish(
+        &settings,
+        out,
+        &prep,
+        &mut sampler,
+        None,
+        info,
+        stage,
+        progress,
+    )
+}
+
+fn toml_value(settings: &SampleSettings) -> Result<serde_json::Value> {
+    serde_json::to_value(settings).map_err(|e| Error::Numerical(format!("settings: {e}")))
+}
+
+fn sampler_config(settings: &SampleSettings, dim: usize, out: &Path) -> Result<SamplerConfig> {
+    if settings.walkers_per_dim < 2 {
+        return Err(Error::Usage(format!(
+            "walkers_per_dim must be at least 2, got {}",
+            settings.walkers_per_dim
+        )));
+    }
+    let mut c = SamplerConfig::new(settings.walkers_per_dim * dim, settings.seed);
+    c.n_ensembles = settings.n_ensembles;
+    c.max_steps = settings.max_steps;
+    c.check_every = settings.check_every;
+    c.thin_by = settings.thin_by;
+    if settings.checkpoint_every == 0 {
+        return Err(Error::Usage("checkpoint_every must be at least 1".into()));
+    }
+    c.checkpoint = Some(CheckpointConfig {
+        path: checkpoint_path(out),
+        every_steps: settings.checkpoint_every,
+    });
+    Ok(c)
+}
+
+#[derive(Serialize)]
+struct StartRecord<'a> {
+    names: Vec<String>,
+    physical: Vec<(String, f64)>,
+    #[serde(flatten)]
+    start: &'a StartPoint,
+}
+
+fn start_record<'a>(post: &FrfPosterior, start: &'a StartPoint) -> StartRecord<'a> {
+    let params = output_params(post);
+    let phys = super::summary::physical_values(post, &params, &start.z);
+    StartRecord {
+        names: post.names(),
+        physical: params.into_iter().map(|p| p.name).zip(phys).collect(),
+        start,
+    }
+}
+
+/// Runs until emcee's tau rule, then on (a convergence check at a time) until every
+/// parameter meets R-hat < 1.01 and bulk ESS > 400, or the step cap.
+fn sample_to_criterion(
+    post: &FrfPosterior,
+    sampler: &mut Sampler<'_, FrfPosterior>,
+    mut progress: Option<&mut ProgressFn<'_>>,
+) -> Result<RunSummary> {
+    loop {
+        let summary = sampler.run(progress.as_deref_mut())?;
+        if summary.stopped_because != StopReason::Converged {
+            return Ok(summary);
+        }
+        let draws = sampler.draws(Burn::Auto)?;
+        let tau = summary.tau_steps.clone();
+        let params = summarize(post, &output_params(post), &draws, &tau);
+        let done = PosteriorSummary::meets_criterion(&params) && stuck_walkers(&draws).is_empty();
+        if done || sampler.step_count() >= sampler.config().max_steps {
+            return Ok(summary);
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    settings: &SampleSettings,
+    out: &Path,
+    prep: &Prepared,
+    sampler: &mut Sampler<'_, FrfPosterior>,
+    start: Option<StartPoint>,
+    mut info: RunInfo,
+    stage: StageFn,
+    progress: Option<&mut ProgressFn<'_>>,
+) -> Result<SampleOutcome> {
+    let post = &prep.posterior;
+    let t0 = Instant::now();
+    let run = sample_to_criterion(post, sampler, progress)?;
+    let wall_s = t0.elapsed().as_secs_f64();
+    info.timings_s.push(("sampling".into(), wall_s));
+    stage("writing outputs");
+    let mut draws = sampler.draws(Burn::Auto).or_else(|_| {
+        let s = sampler.step_count();
+        sampler.draws(Burn::Steps {
+            discard: s / 2,
+            thin: 1,
+        })
+    })?;
+    info.time("pointwise_log_likelihood", || draws.compute_pointwise(post))?;
+    let params = output_params(post);
+    let tau = sampler
+        .tau_estimates()
+        .iter()
+        .map(|t| t.tau * settings.thin_by as f64)
+        .collect::<Vec<_>>();
+    let rows = summarize(post, &params, &draws, &tau);
+    let n_stuck_walkers = stuck_walkers(&draws).len();
+    let summary = PosteriorSummary {
+        converged: PosteriorSummary::meets_criterion(&rows) && n_stuck_walkers == 0,
+        n_stuck_walkers,
+        rhat_max: rows.iter().map(|p| p.rhat).fold(f64::NAN, f64::max),
+        ess_bulk_min: rows.iter().map(|p| p.ess_bulk).fold(f64::NAN, f64::min),
+        parameters: rows,
+        acceptance: run.acceptance,
+        n_walkers: sampler.config().n_walkers,
+        n_ensembles: sampler.config().n_ensembles,
+        n_steps: run.steps,
+        n_likelihood_evals: run.n_evaluations,
+        n_data_points: post.data().len(),
+        wall_s,
+        stopped_because: run.stopped_because,
+        n_draws_per_walker: draws.n_draws,
+        discarded_steps: draws.discarded_steps,
+        thin_steps: draws.thin_steps,
+    };
+    let phys = physical_draws(post, &params, &draws);
+    let names: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
+    info.time("write_draws", || -> Result<()> {
+        write_atomic(&out.join("posterior.json"), &json(&summary)?)?;
+        phys.write_csv(&out.join("draws.csv"), &names)?;
+        phys.write_npy(&out.join("draws.npy"))?;
+        phys.write_ln_density_npy(&out.join("ln_posterior.npy"))?;
+        phys.write_pointwise_npy(&out.join("log_likelihood.npy"))
+    })?;
+    info.time("figures", || {
+        write_figures(out, prep, sampler, &params, &draws, settings)
+    })?;
+    info.write(out)?;
+    let cp = checkpoint_path(out);
+    if cp.exists() {
+        std::fs::remove_file(&cp).map_err(|e| Error::io(&cp, e))?;
+    }
+    Ok(SampleOutcome {
+        out: out.to_path_buf(),
+        summary,
+        start,
+        info,
+    })
+}

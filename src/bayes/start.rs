@@ -1,0 +1,267 @@
+//! Where the walkers start: the maximum-likelihood point of the posterior's own model
+//! (multistart trust-region least squares, [`crate::update::lsq`], on the standardised
+//! residuals `(y_k - |H^A_k|) / sigma_k`, windows included), plus a ball of about the
+//! Gauss-Newton posterior width, truncated to the prior box.
+
+use super::forward::ForwardWorkspace;
+use super::posterior::FrfPosterior;
+use crate::error::{Error, Result};
+use crate::mcmc::LogDensity;
+use crate::update::lsq::{multistart, Bounds, LeastSquaresProblem, MultistartOptions};
+use crate::update::ResidualForm;
+use nalgebra::DMatrix;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde::Serialize;
+
+/// The optimum the sampler starts from.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StartPoint {
+    /// Sampled vector at the optimum; the noise scale is its maximum-likelihood value
+    /// `sqrt(sum r_k^2 / N)` given the structural optimum (clamped to its prior box).
+    pub z: Vec<f64>,
+    /// `0.5 sum r_k^2` at the optimum (standardised residuals, noise scale 1).
+    pub cost: f64,
+    /// Local solves run and how many reached the best cost.
+    pub n_starts: usize,
+    pub n_at_best: usize,
+    /// Gauss-Newton standard deviation of each sampled coordinate at the optimum
+    /// (infinite, written as `null`, along an exact ridge such as the mass-stiffness
+    /// scale of shake-table data).
+    pub sd: Vec<f64>,
+    /// Principal axes of the Gauss-Newton covariance in range-scaled coordinates
+    /// (`z_j / range_j`, range of the prior box), unit vectors ...
+    #[serde(skip)]
+    pub axes: Vec<Vec<f64>>,
+    /// ... and the standard deviation along each (range-scaled; may be infinite).
+    #[serde(skip)]
+    pub axis_sd: Vec<f64>,
+    /// Residual evaluations of all local solves (finite-difference Jacobians included).
+    pub n_evaluations: usize,
+}
+
+/// Standardised residuals of a posterior, noise scale 1, in the free structural
+/// coordinates; central finite-difference Jacobian.
+struct Residuals<'a> {
+    post: &'a FrfPosterior,
+}
+
+struct Scratch {
+    fws: ForwardWorkspace,
+    theta: Vec<f64>,
+    x: Vec<f64>,
+    plus: Vec<f64>,
+    minus: Vec<f64>,
+}
+
+impl LeastSquaresProblem for Residuals<'_> {
+    type Workspace = Scratch;
+
+    fn n_params(&self) -> usize {
+        self.post.n_free()
+    }
+    fn n_residuals(&self) -> usize {
+        self.post.data().len()
+    }
+    fn workspace(&self) -> Scratch {
+        let n = self.post.data().len();
+        Scratch {
+            fws: self.post.forward().workspace(),
+            theta: self.post.variables().initial(),
+            x: vec![0.0; self.post.n_free()],
+            plus: vec![0.0; n],
+            minus: vec![0.0; n],
+        }
+    }
+    fn residuals(&self, x: &[f64], ws: &mut Scratch, r: &mut [f64]) -> Result<()> {
+        self.post.variables().from_internal(x, &mut ws.theta);
+        self.post.forward().magnitudes(&ws.theta, &mut ws.fws, r)?;
+        let data = self.post.data();
+        let log = data.residual == ResidualForm::LogMagnitude;
+        for ((v, y), s) in r.iter_mut().zip(&data.magnitude).zip(&data.sigma) {
+            *v = if log {
+                (v.ln() - y.ln()) / s
+            } else {
+                (*v - y) / s
+            };
+        }
+        Ok(())
+    }
+    fn jacobian(&self, x: &[f64], ws: &mut Scratch, jac: &mut DMatrix<f64>) -> Result<()> {
+        let mut xs = std::mem::take(&mut ws.x);
+        let (mut plus, mut minus) = (std::mem::take(&mut ws.plus), std::mem::take(&mut ws.minus));
+        xs.copy_from_slice(x);
+        let mut result = Ok(());
+        for j in 0..x.len() {
+            // Central differences, step ~ eps^(1/3) relative: truncation and rounding
+            // errors both ~1e-10 relative.
+            let h = 6e-6 * x[j].abs().max(1.0);
+            xs[j] = x[j] + h;
+            result = self.residuals(&xs, ws, &mut plus);
+            if result.is_ok() {
+                xs[j] = x[j] - h;
+                result = self.residuals(&xs, ws, &mut minus);
+            }
+            xs[j] = x[j];
+            if result.is_err() {
+                break;
+            }
+            for (k, (p, m)) in plus.iter().zip(&minus).enumerate() {
+                jac[(k, j)] = (p - m) / (2.0 * h);
+            }
+        }
+        (ws.x, ws.plus, ws.minus) = (xs, plus, minus);
+        result
+    }
+}
+
+/// Multistart maximum likelihood (noise scale 1 in the residuals, then its optimum):
+/// the first start at the variables' start values, the others from a Latin hypercube
+/// over the box ([`multistart`]); deterministic for `options.seed`.
+pub fn find_start(post: &FrfPosterior, options: &MultistartOptions) -> Result<StartPoint> {
+    let problem = Residuals { post };
+    let vars = post.variables();
+    let z0 = vars.to_internal(&vars.initial());
+    let n_free = post.n_free();
+    let prior = post.prior();
+    let bounds = Bounds::new(
+        prior.lower()[..n_free].to_vec(),
+        prior.upper()[..n_free].to_vec(),
+    )?;
+    let ms = multistart(&problem, &bounds, Some(&z0), options)?;
+    let n_evaluations = ms
+        .starts
+        .iter()
+        .filter_map(|s| s.solution.as_ref().ok())
+        .map(|s| s.n_evaluations + 2 * n_free * s.n_jacobians)
+        .sum();
+    let n = post.data().len() as f64;
+    let s2 = (2.0 * ms.best.cost / n).max(f64::MIN_POSITIVE);
+    let (s_lo, s_hi) = (prior.lower()[n_free], prior.upper()[n_free]);
+    let mut z = ms.best.x.clone();
+    z.push((0.5 * s2.ln()).clamp(s_lo, s_hi));
+    let mut ws = problem.workspace();
+    let mut jac = DMatrix::zeros(post.data().len(), n_free);
+    problem.jacobian(&ms.best.x, &mut ws, &mut jac)?;
+    // Gauss-Newton posterior of the structural coordinates from the SVD of the
+    // Jacobian in range-scaled coordinates `u_j = z_j / range_j`: `J D = U S V^T`, so
+    // the covariance of `u` is `s^2 V S^-2 V^T`, principal axes `V` with standard
+    // deviations `s / S_k` (infinite along an exact ridge). Taken from the SVD, not
+    // from the covariance, so well-determined directions are not lost to rounding
+    // next to a ridge. `ln s` of N Gaussian residuals: sd 1/sqrt(2N), uncorrelated
+    // with the rest at the optimum.
+    let dim = n_free + 1;
+    let range: Vec<f64> = (0..dim)
+        .map(|i| prior.upper()[i] - prior.lower()[i])
+        .collect();
+    for (j, r) in range.iter().take(n_free).enumerate() {
+        jac.column_mut(j).scale_mut(*r);
+    }
+    let svd = jac.svd(false, true);
+    let mut axes = vec![vec![0.0; dim]; dim];
+    let mut axis_sd = vec![f64::INFINITY; dim];
+    if let Some(v_t) = &svd.v_t {
+        for k in 0..n_free.min(v_t.nrows()) {
+            axes[k][..n_free].copy_from_slice(&v_t.row(k).transpose().as_slice()[..n_free]);
+            axis_sd[k] = s2.sqrt() / svd.singular_values[k];
+        }
+    }
+    axes[n_free][n_free] = 1.0;
+    axis_sd[n_free] = 1.0 / (2.0 * n).sqrt() / range[n_free];
+    let sd = (0..dim)
+        .map(|i| {
+            let var: f64 = (0..dim).map(|k| (axes[k][i] * axis_sd[k]).powi(2)).sum();
+            var.sqrt() * range[i]
+        })
+        .collect();
+    Ok(StartPoint {
+        z,
+        cost: ms.best.cost,
+        n_starts: ms.starts.len(),
+        n_at_best: ms.n_at_best,
+        sd,
+        axes,
+        axis_sd,
+        n_evaluations,
+    })
+}
+
+/// Largest standard deviation of the initial ball along any direction, as a fraction of
+/// the box (coordinates scaled by their prior range).
+pub const BALL_MAX_SD: f64 = 0.05;
+
+/// `n` starting positions `z + f N(0, S)` inside the prior box: `S` is the start's
+/// Gauss-Newton covariance with every principal standard deviation capped at
+/// [`BALL_MAX_SD`] of the box (coordinates scaled by their ranges), so a ridge (e.g.
+/// the mass-stiffness scale of shake-table data) is followed while well-determined
+/// directions stay tight; when the start carries no usable axes, independent
+/// coordinates with sd 1e-3 of their ranges. Positions outside the box are redrawn whole (a center on a bound gives a
+/// half-normal spread inward). Deterministic for `seed`.
+pub fn ball_positions(
+    post: &FrfPosterior,
+    start: &StartPoint,
+    n: usize,
+    factor: f64,
+    seed: u64,
+) -> Result<Vec<Vec<f64>>> {
+    const MAX_TRIES: usize = 100_000;
+    let (lo, hi) = (post.prior().lower(), post.prior().upper());
+    let dim = post.dim();
+    if start.z.len() != dim {
+        return Err(Error::Usage(format!(
+            "start point has {} coordinates, the posterior {dim}",
+            start.z.len()
+        )));
+    }
+    if !(factor.is_finite() && factor > 0.0) {
+        return Err(Error::Usage(format!(
+            "ball factor must be positive, got {factor}"
+        )));
+    }
+    let range: Vec<f64> = (0..dim).map(|i| hi[i] - lo[i]).collect();
+    // Square root of the capped covariance: axis k contributes `axes[k] min(sd_k, cap)`.
+    let mut root = DMatrix::zeros(dim, dim);
+    let usable = start.axes.len() == dim
+        && start.axis_sd.len() == dim
+        && start.axes.iter().flatten().all(|v| v.is_finite())
+        && start.axis_sd.iter().all(|s| !s.is_nan() && *s > 0.0);
+    for k in 0..dim {
+        for i in 0..dim {
+            root[(i, k)] = if usable {
+                start.axes[k][i] * start.axis_sd[k].min(BALL_MAX_SD) * range[i]
+            } else if i == k {
+                1e-3 * range[i]
+            } else {
+                0.0
+            };
+        }
+    }
+    let center: Vec<f64> = (0..dim).map(|i| start.z[i].clamp(lo[i], hi[i])).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(0xBA11);
+    let mut out = Vec::with_capacity(n);
+    let mut e = vec![0.0; dim];
+    for _ in 0..n {
+        let mut placed = None;
+        for _ in 0..MAX_TRIES {
+            e.iter_mut().for_each(|v| *v = rng.sample(StandardNormal));
+            let z: Vec<f64> = (0..dim)
+                .map(|i| center[i] + factor * (0..dim).map(|k| root[(i, k)] * e[k]).sum::<f64>())
+                .collect();
+            if z.iter()
+                .zip(lo.iter().zip(hi))
+                .all(|(x, (l, h))| x > l && x < h)
+            {
+                placed = Some(z);
+                break;
+            }
+        }
+        out.push(placed.ok_or_else(|| {
+            Error::Numerical(format!(
+                "could not place a walker inside the prior box in {MAX_TRIES} draws around the start"
+            ))
+        })?);
+    }
+    Ok(out)
+}

@@ -1,0 +1,203 @@
+//! Unit tests of the posterior, its start and its summaries on the small SBC problem.
+
+use super::sbc::small_problem;
+use super::summary::stuck_walkers;
+use super::*;
+use crate::mcmc::{Draws, LogDensity};
+use crate::update::{Measurements, MultistartOptions, ObjectiveOptions, Problem, ResidualForm};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+fn inside(post: &FrfPosterior) -> Vec<f64> {
+    // k1, k2, k3, ln a0, ln s
+    let z = vec![0.05, -0.08, 0.1, 0.25f64.ln(), 1.3f64.ln()];
+    assert_eq!(z.len(), post.dim());
+    z
+}
+
+/// Oracle: the Gaussian log-likelihood written out with magnitudes from
+/// `update::Problem` (an independent path through the modal sums; no window here).
+#[test]
+fn log_density_is_the_stated_gaussian() {
+    for residual in [ResidualForm::Magnitude, ResidualForm::LogMagnitude] {
+        let post = small_problem(residual, PriorKind::Uniform).unwrap();
+        let data = post.data();
+        let z = inside(&post);
+        let theta = post.theta(&z);
+        let problem = Problem::new(
+            post.forward().model().clone(),
+            Measurements {
+                blocks: data.blocks.clone(),
+                magnitude: data.magnitude.clone(),
+                sigma: None,
+            },
+            post.variables().damping_model(),
+            &crate::update::VariablesConfig::default(),
+            ObjectiveOptions::default(),
+        )
+        .unwrap();
+        let h = problem.magnitudes(&theta).unwrap();
+        let s = 1.3;
+        let expect: Vec<f64> = h
+            .iter()
+            .zip(&data.magnitude)
+            .zip(&data.sigma)
+            .map(|((&h, &y), &sigma)| {
+                let sd = s * sigma;
+                let (a, b, jac) = match residual {
+                    ResidualForm::Magnitude => (h, y, 0.0),
+                    ResidualForm::LogMagnitude => (h.ln(), y.ln(), -y.ln()),
+                };
+                -0.5 * ((a - b) / sd).powi(2) - sd.ln() - 0.5 * (2.0 * std::f64::consts::PI).ln()
+                    + jac
+            })
+            .collect();
+        let mut pw = vec![0.0; post.n_pointwise()];
+        let lp = post.ln_density_with_pointwise(&z, &mut pw).unwrap();
+        let total: f64 = expect.iter().sum();
+        assert!(
+            (lp - total).abs() < 1e-9 * total.abs(),
+            "{residual:?}: {lp} vs {total}"
+        );
+        for (a, b) in pw.iter().zip(&expect) {
+            assert!((a - b).abs() < 1e-9 * b.abs().max(1.0));
+        }
+        assert_eq!(post.ln_density(&z).unwrap(), lp);
+        // ln L = sum of the pointwise terms; the uniform prior adds a constant 0.
+        assert!((post.ln_likelihood(&z, &mut []).unwrap() - lp).abs() < 1e-9 * lp.abs());
+    }
+}
+
+#[test]
+fn support_and_dimension() {
+    let post = small_problem(ResidualForm::Magnitude, PriorKind::Uniform).unwrap();
+    assert_eq!(post.names(), ["k1", "k2", "k3", "ln_a0", "ln_noise_scale"]);
+    let mut z = inside(&post);
+    z[1] = 0.2;
+    assert_eq!(post.ln_density(&z).unwrap(), f64::NEG_INFINITY);
+    z[1] = 0.0;
+    z[4] = 3f64.ln();
+    assert_eq!(post.ln_density(&z).unwrap(), f64::NEG_INFINITY);
+    assert!(post.ln_density(&z[..4]).is_err());
+    let e = post
+        .ln_density_with_pointwise(&inside(&post), &mut [0.0; 3])
+        .unwrap_err();
+    assert!(e.to_string().contains("pointwise"), "{e}");
+}
+
+/// Simulated data carry exactly the likelihood's noise: over 100 simulations x 80
+/// points, the standardised residuals `(y - h) / (s sigma)` have mean 0 (se
+/// 1/sqrt(8000) = 0.011) and variance 1 (se sqrt(2/8000) = 0.016); tolerances 5 se.
+#[test]
+fn simulated_noise_has_the_likelihood_law() {
+    for residual in [ResidualForm::Magnitude, ResidualForm::LogMagnitude] {
+        let post = small_problem(residual, PriorKind::Uniform).unwrap();
+        let z = inside(&post);
+        let h = post.magnitudes(&z).unwrap();
+        let s = post.noise_scale(&z);
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut e = Vec::new();
+        for _ in 0..100 {
+            let y = post.simulate(&z, &mut rng).unwrap();
+            for ((y, h), sigma) in y.iter().zip(&h).zip(&post.data().sigma) {
+                e.push(match residual {
+                    ResidualForm::Magnitude => (y - h) / (s * sigma),
+                    ResidualForm::LogMagnitude => (y / h).ln() / (s * sigma),
+                });
+            }
+        }
+        let n = e.len() as f64;
+        let mean = e.iter().sum::<f64>() / n;
+        let var = e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        assert!(mean.abs() < 5.0 / n.sqrt(), "{residual:?} mean {mean}");
+        assert!(
+            (var - 1.0).abs() < 5.0 * (2.0 / n).sqrt(),
+            "{residual:?} var {var}"
+        );
+    }
+}
+
+/// On noise-free data the maximum-likelihood start is the truth (to the solver's
+/// tolerance) and the noise scale sits on its lower bound.
+#[test]
+fn start_recovers_noise_free_truth() {
+    let base = small_problem(ResidualForm::Magnitude, PriorKind::Uniform).unwrap();
+    let truth = inside(&base);
+    let post = base
+        .with_magnitude(base.magnitudes(&truth).unwrap())
+        .unwrap();
+    assert_eq!(post.names(), base.names());
+    assert_eq!(post.prior(), base.prior());
+    let ms = MultistartOptions {
+        n_starts: 4,
+        seed: 1,
+        ..Default::default()
+    };
+    let start = find_start(&post, &ms).unwrap();
+    for j in 0..4 {
+        assert!(
+            (start.z[j] - truth[j]).abs() < 1e-6,
+            "{j}: {:?} vs {truth:?}",
+            start.z
+        );
+    }
+    assert_eq!(start.z[4], post.prior().lower()[4]);
+    assert!(start.cost < 1e-10, "{}", start.cost);
+}
+
+#[test]
+fn ball_is_inside_the_box_and_reproducible() {
+    let base = small_problem(ResidualForm::Magnitude, PriorKind::Uniform).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let truth = inside(&base);
+    let post = base
+        .with_magnitude(base.simulate(&truth, &mut rng).unwrap())
+        .unwrap();
+    let ms = MultistartOptions {
+        n_starts: 4,
+        seed: 1,
+        ..Default::default()
+    };
+    let mut start = find_start(&post, &ms).unwrap();
+    // A center on a bound still gives walkers strictly inside.
+    start.z[0] = post.prior().upper()[0];
+    let a = ball_positions(&post, &start, 40, 1.0, 5).unwrap();
+    let b = ball_positions(&post, &start, 40, 1.0, 5).unwrap();
+    assert_eq!(a, b);
+    assert_ne!(a, ball_positions(&post, &start, 40, 1.0, 6).unwrap());
+    for z in &a {
+        assert!(post.ln_density(z).unwrap().is_finite());
+        assert!(z[0] < post.prior().upper()[0]);
+    }
+    assert!(ball_positions(&post, &start, 4, 0.0, 5).is_err());
+}
+
+#[test]
+fn stuck_walkers_are_found() {
+    // 6 chains of 50 draws; chain 4 sits 40 log units below the others.
+    let (n_chains, n_draws) = (6, 50);
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let ln_density: Vec<f64> = (0..n_chains * n_draws)
+        .map(|i| {
+            let e: f64 = rand::RngExt::sample(&mut rng, rand_distr::StandardNormal);
+            e - if i / n_draws == 4 { 40.0 } else { 0.0 }
+        })
+        .collect();
+    let mut draws = Draws {
+        n_chains,
+        n_walkers: 3,
+        n_draws,
+        dim: 1,
+        n_pointwise: 0,
+        values: vec![0.0; n_chains * n_draws],
+        ln_density,
+        pointwise: Vec::new(),
+        discarded_steps: 0,
+        thin_steps: 1,
+    };
+    assert_eq!(stuck_walkers(&draws), vec![4]);
+    for v in &mut draws.ln_density[4 * n_draws..5 * n_draws] {
+        *v += 40.0;
+    }
+    assert!(stuck_walkers(&draws).is_empty());
+}

@@ -1,0 +1,314 @@
+//! `frfbayes sample`: posterior sampling of the model given a campaign's FRFs.
+
+use frfbayes::bayes::run::{
+    resume_sample, run_sample, SampleOutcome, SampleSettings, TestSelection,
+};
+use frfbayes::bayes::PriorKind;
+use frfbayes::frf::FrfKind;
+use frfbayes::mcmc::Progress;
+use frfbayes::update::{DampingModel, ResidualForm};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum DampingArg {
+    Rayleigh,
+    Caughey,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum FrfArg {
+    Receptance,
+    Accelerance,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum TestsArg {
+    Hammer,
+    #[value(name = "shake_table", alias = "shake-table")]
+    ShakeTable,
+    All,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ResidualArg {
+    Magnitude,
+    LogMagnitude,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum PriorArg {
+    /// Uniform masses and stiffnesses, log-uniform damping.
+    Uniform,
+    /// Uniform in physical units, damping included.
+    UniformPhysical,
+    /// Truncated lognormal (see --prior-cv, --prior-damping-ln-sd).
+    Lognormal,
+}
+
+/// Arguments of `frfbayes sample`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Output folder (posterior.json, draws, figures; checkpoint while running).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Continue the killed or stopped run in --out from its checkpoint, with its settings.
+    #[arg(long)]
+    pub resume: bool,
+    /// Step cap (default 20000; with --resume it may be raised).
+    #[arg(long)]
+    pub max_steps: Option<u64>,
+    /// Campaign folder, or bundled:four-story (the default).
+    #[arg(long)]
+    pub campaign: Option<String>,
+    /// Damping model [default: caughey].
+    #[arg(long, value_enum)]
+    pub damping: Option<DampingArg>,
+    /// FRF type [default: receptance].
+    #[arg(long, value_enum)]
+    pub frf: Option<FrfArg>,
+    /// Tests to use [default: hammer].
+    #[arg(long, value_enum)]
+    pub tests: Option<TestsArg>,
+    /// Master seed [default: 1].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Settings file to start from (a run's settings.toml); flags override it.
+    #[arg(long)]
+    pub settings: Option<PathBuf>,
+    /// Residuals on magnitudes (default) or log-magnitudes.
+    #[arg(long, value_enum)]
+    pub residual: Option<ResidualArg>,
+    /// Prior family [default: uniform].
+    #[arg(long, value_enum)]
+    pub prior: Option<PriorArg>,
+    /// Lognormal prior: coefficient of variation of masses and stiffnesses [default: 0.1].
+    #[arg(long)]
+    pub prior_cv: Option<f64>,
+    /// Lognormal prior: log standard deviation of damping [default: 1].
+    #[arg(long)]
+    pub prior_damping_ln_sd: Option<f64>,
+    /// Floor on the relative standard deviation of a magnitude [default: 0.001].
+    #[arg(long)]
+    pub rel_sigma_floor: Option<f64>,
+    /// Walkers per ensemble = this x number of parameters [default: 4].
+    #[arg(long)]
+    pub walkers_per_dim: Option<usize>,
+    /// Independent ensembles [default: 4].
+    #[arg(long)]
+    pub ensembles: Option<usize>,
+    /// Steps between checkpoints [default: 500].
+    #[arg(long)]
+    pub checkpoint_every: Option<u64>,
+    /// Multistart solves for the start point [default: 32].
+    #[arg(long)]
+    pub starts: Option<usize>,
+}
+
+impl Args {
+    fn problem_flags_given(&self) -> Vec<&'static str> {
+        let flags = [
+            ("--campaign", self.campaign.is_some()),
+            ("--damping", self.damping.is_some()),
+            ("--frf", self.frf.is_some()),
+            ("--tests", self.tests.is_some()),
+            ("--seed", self.seed.is_some()),
+            ("--settings", self.settings.is_some()),
+            ("--residual", self.residual.is_some()),
+            ("--prior", self.prior.is_some()),
+            ("--prior-cv", self.prior_cv.is_some()),
+            ("--prior-damping-ln-sd", self.prior_damping_ln_sd.is_some()),
+            ("--rel-sigma-floor", self.rel_sigma_floor.is_some()),
+            ("--walkers-per-dim", self.walkers_per_dim.is_some()),
+            ("--ensembles", self.ensembles.is_some()),
+            ("--checkpoint-every", self.checkpoint_every.is_some()),
+            ("--starts", self.starts.is_some()),
+        ];
+        flags.iter().filter(|f| f.1).map(|f| f.0).collect()
+    }
+
+    fn settings(&self) -> anyhow::Result<SampleSettings> {
+        let mut s = match &self.settings {
+            Some(p) => SampleSettings::load(p)?,
+            None => SampleSettings::new(
+                "bundled:four-story".into(),
+                DampingModel::Caughey,
+                FrfKind::Receptance,
+                TestSelection::Hammer,
+                1,
+            )?,
+        };
+        if let Some(c) = &self.campaign {
+            s.campaign = c.clone();
+        }
+        if let Some(d) = self.damping {
+            s.damping = match d {
+                DampingArg::Rayleigh => DampingModel::Rayleigh,
+                DampingArg::Caughey => DampingModel::Caughey,
+            };
+        }
+        if let Some(f) = self.frf {
+            s.frf = match f {
+                FrfArg::Receptance => FrfKind::Receptance,
+                FrfArg::Accelerance => FrfKind::Accelerance,
+            };
+        }
+        if let Some(t) = self.tests {
+            s.tests = match t {
+                TestsArg::Hammer => TestSelection::Hammer,
+                TestsArg::ShakeTable => TestSelection::ShakeTable,
+                TestsArg::All => TestSelection::All,
+            };
+        }
+        if let Some(v) = self.seed {
+            s.seed = v;
+        }
+        if let Some(r) = self.residual {
+            s.residual = match r {
+                ResidualArg::Magnitude => ResidualForm::Magnitude,
+                ResidualArg::LogMagnitude => ResidualForm::LogMagnitude,
+            };
+        }
+        let (cv0, sd0) = match s.posterior.prior {
+            PriorKind::LogNormal { cv, damping_ln_sd } => (cv, damping_ln_sd),
+            _ => (0.1, 1.0),
+        };
+        let (cv, sd) = (
+            self.prior_cv.unwrap_or(cv0),
+            self.prior_damping_ln_sd.unwrap_or(sd0),
+        );
+        match self.prior {
+            Some(PriorArg::Uniform) => s.posterior.prior = PriorKind::Uniform,
+            Some(PriorArg::UniformPhysical) => s.posterior.prior = PriorKind::UniformPhysical,
+            Some(PriorArg::Lognormal) => {
+                s.posterior.prior = PriorKind::LogNormal {
+                    cv,
+                    damping_ln_sd: sd,
+                }
+            }
+            None => {
+                if let PriorKind::LogNormal { .. } = s.posterior.prior {
+                    s.posterior.prior = PriorKind::LogNormal {
+                        cv,
+                        damping_ln_sd: sd,
+                    };
+                } else {
+                    anyhow::ensure!(
+                        self.prior_cv.is_none() && self.prior_damping_ln_sd.is_none(),
+                        "--prior-cv and --prior-damping-ln-sd need --prior lognormal"
+                    );
+                }
+            }
+        }
+        if let Some(v) = self.rel_sigma_floor {
+            s.rel_sigma_floor = v;
+        }
+        if let Some(v) = self.walkers_per_dim {
+            s.walkers_per_dim = v;
+        }
+        if let Some(v) = self.ensembles {
+            s.n_ensembles = v;
+        }
+        if let Some(v) = self.checkpoint_every {
+            s.checkpoint_every = v;
+        }
+        if let Some(v) = self.starts {
+            s.n_starts = v;
+        }
+        if let Some(v) = self.max_steps {
+            s.max_steps = v;
+        }
+        Ok(s)
+    }
+}
+
+fn progress_bar() -> ProgressBar {
+    let pb = ProgressBar::new(1);
+    pb.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} steps {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb
+}
+
+fn print(outcome: &SampleOutcome) {
+    let s = &outcome.summary;
+    println!("wrote {}", outcome.out.display());
+    println!(
+        "{} steps x {} walkers x {} ensembles, acceptance {:.3}, {} evaluations in {:.1} s ({:.0}/s), stopped: {}",
+        s.n_steps,
+        s.n_walkers,
+        s.n_ensembles,
+        s.acceptance,
+        s.n_likelihood_evals,
+        s.wall_s,
+        s.n_likelihood_evals as f64 / s.wall_s.max(1e-9),
+        s.stopped_because
+    );
+    println!(
+        "{:<12} {:>12} {:>11} {:>7} {:>12} {:>12} {:>7} {:>8} {:>7}  at bound",
+        "parameter", "mean", "sd", "cv %", "q2.5", "q97.5", "rhat", "ess_bulk", "tau"
+    );
+    for p in &s.parameters {
+        println!(
+            "{:<12} {:>12.5e} {:>11.3e} {:>7.3} {:>12.5e} {:>12.5e} {:>7.4} {:>8.0} {:>7.1}  {}",
+            format!("{} ({})", p.name, p.unit),
+            p.mean,
+            p.sd,
+            100.0 * p.cv,
+            p.q2_5,
+            p.q97_5,
+            p.rhat,
+            p.ess_bulk,
+            p.tau,
+            p.at_bound
+                .map_or(String::new(), |b| format!("{b:?}").to_lowercase())
+        );
+    }
+    if s.converged {
+        println!(
+            "converged: every R-hat < 1.01 (max {:.4}) and bulk ESS > 400 (min {:.0})",
+            s.rhat_max, s.ess_bulk_min
+        );
+    } else {
+        println!(
+            "NOT converged by R-hat < 1.01 and bulk ESS > 400 (max R-hat {:.4}, min ESS {:.0}); \
+             run again with a larger --max-steps",
+            s.rhat_max, s.ess_bulk_min
+        );
+    }
+}
+
+/// Runs or resumes a sampling run.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let pb = progress_bar();
+    let stage = |msg: &str| pb.set_message(msg.to_string());
+    let mut on_step = |p: &Progress| {
+        pb.set_length(p.max_steps);
+        pb.set_position(p.step);
+        let tau = p
+            .tau_steps
+            .map(|t| format!(", tau max {:.1}", t.iter().copied().fold(0.0, f64::max)))
+            .unwrap_or_default();
+        pb.set_message(format!("acceptance {:.3}{tau}", p.acceptance));
+        ControlFlow::Continue(())
+    };
+    let outcome = if args.resume {
+        let given = args.problem_flags_given();
+        anyhow::ensure!(
+            given.is_empty(),
+            "--resume continues with the run's own settings ({}); drop {}",
+            args.out.join("settings.toml").display(),
+            given.join(", ")
+        );
+        resume_sample(&args.out, args.max_steps, &stage, Some(&mut on_step))
+    } else {
+        let settings = args.settings()?;
+        run_sample(&settings, &args.out, &stage, Some(&mut on_step))
+    };
+    pb.finish_and_clear();
+    print(&outcome?);
+    Ok(())
+}

@@ -1,0 +1,392 @@
+//! `identifiability.md` and its figures from [`super::identifiability`]: every number is
+//! computed from the runs; the prose states what the numbers show.
+
+use super::identifiability::{fisher_analysis, half_power_bias, FisherAnalysis};
+use super::pipeline::{TableId, VariantRun};
+use crate::error::Result;
+use crate::io::write_atomic;
+use crate::modal::Modes;
+use crate::plot::{self, BarChartSpec, BarGroup, HeatmapSpec, LineChartSpec, Mark, Scale, Series};
+use crate::signal::TestFrf;
+use crate::update::DampingModel;
+use std::fmt::Write;
+use std::path::Path;
+
+fn fmt_cv(v: Option<f64>) -> String {
+    v.map(|x| {
+        if x < 0.01 {
+            format!("{x:.1e}")
+        } else {
+            format!("{x:.3}")
+        }
+    })
+    .unwrap_or_else(|| "unidentified".into())
+}
+
+/// CV bar charts (one per table), correlation heatmaps and eigenvalue spectra.
+fn figures(analyses: &[FisherAnalysis], dir: &Path) -> Result<()> {
+    for table in ["table1", "table2"] {
+        let sel: Vec<&FisherAnalysis> = analyses
+            .iter()
+            .filter(|a| a.variant.starts_with(table))
+            .collect();
+        if sel.is_empty() {
+            continue;
+        }
+        let mut categories: Vec<String> = Vec::new();
+        for a in &sel {
+            for n in &a.names {
+                if !categories.contains(n) {
+                    categories.push(n.clone());
+                }
+            }
+        }
+        let groups = sel
+            .iter()
+            .map(|a| BarGroup {
+                label: a.variant.trim_start_matches(table).trim().to_string(),
+                values: categories
+                    .iter()
+                    .map(|c| {
+                        a.names
+                            .iter()
+                            .position(|n| n == c)
+                            .and_then(|i| a.cv_percent[i])
+                            .unwrap_or(f64::NAN)
+                    })
+                    .collect(),
+            })
+            .collect();
+        plot::bar_chart(
+            &BarChartSpec {
+                title: format!("{table}: asymptotic coefficient of variation of every parameter (Fisher information at the optimum)"),
+                x_label: "parameter".into(),
+                y_label: "CV (%)".into(),
+                categories,
+                groups,
+                y_scale: Scale::Log,
+                show_values: false,
+                size_px: Some((1300, 650)),
+            },
+            &dir.join(format!("identifiability_cv_{table}")),
+        )?;
+    }
+    let series = analyses
+        .iter()
+        .map(|a| Series {
+            label: a.variant.clone(),
+            x: (1..=a.eigenvalues.len()).map(|i| i as f64).collect(),
+            y: a.eigenvalues.iter().map(|v| v.max(1e-30)).collect(),
+            mark: Mark::LineAndPoints,
+        })
+        .collect();
+    plot::line_chart(
+        &LineChartSpec {
+            title: "Eigenvalues of the Fisher information (log-parameter coordinates), descending"
+                .into(),
+            x_label: "index".into(),
+            y_label: "eigenvalue".into(),
+            series,
+            x_scale: Scale::Linear,
+            y_scale: Scale::Log,
+            x_refs: vec![],
+            y_refs: vec![],
+            size_px: Some((1200, 700)),
+        },
+        &dir.join("identifiability_fisher_eigenvalues"),
+    )?;
+    for a in analyses
+        .iter()
+        .filter(|a| a.variant.ends_with("caughey_receptance"))
+    {
+        let n = a.names.len();
+        plot::heatmap(
+            &HeatmapSpec {
+                title: format!("{}: asymptotic correlation of the parameters", a.variant),
+                x_label: String::new(),
+                y_label: String::new(),
+                row_labels: a.names.clone(),
+                col_labels: a.names.clone(),
+                values: (0..n)
+                    .map(|i| (0..n).map(|j| a.correlation[(i, j)]).collect())
+                    .collect(),
+                colour_label: "correlation".into(),
+                limit: Some(1.0),
+                show_values: true,
+                size_px: Some((1000, 900)),
+            },
+            &dir.join(format!(
+                "identifiability_correlation_{}",
+                a.variant.split(' ').next().unwrap_or("t")
+            )),
+        )?;
+    }
+    Ok(())
+}
+
+/// Writes `identifiability.md` and its figures into `dir`; returns the analyses.
+pub fn write_identifiability(
+    runs: &[VariantRun],
+    frfs: &[TestFrf],
+    dir: &Path,
+) -> Result<Vec<FisherAnalysis>> {
+    let analyses: Vec<FisherAnalysis> = runs
+        .iter()
+        .map(|r| fisher_analysis(r, frfs))
+        .collect::<Result<_>>()?;
+    figures(&analyses, dir)?;
+    let mut md = String::from("# Why damping is poorly identified\n\n");
+    md += "Asymptotic (Gauss-Newton) analysis of every updating problem of `frfbayes repro` at its optimum: the Fisher information of the plain magnitude residuals in log-parameter coordinates, with the residual variance estimated from the fit. Coefficients of variation (CV) are relative standard deviations. Figures: `identifiability_cv_table1.png`, `identifiability_cv_table2.png`, `identifiability_fisher_eigenvalues.png`, `identifiability_correlation_table*.png`.\n\n";
+    // 1. CV table.
+    md += "## Coefficient of variation of every parameter (%)\n\n";
+    let mut names: Vec<String> = Vec::new();
+    for a in &analyses {
+        for n in &a.names {
+            if !names.contains(n) {
+                names.push(n.clone());
+            }
+        }
+    }
+    let _ = writeln!(
+        md,
+        "| parameter | {} |",
+        analyses
+            .iter()
+            .map(|a| a.variant.clone())
+            .collect::<Vec<_>>()
+            .join(" | ")
+    );
+    let _ = writeln!(md, "|---|{}", "---|".repeat(analyses.len()));
+    for n in &names {
+        let cells: Vec<String> = analyses
+            .iter()
+            .map(|a| {
+                a.names
+                    .iter()
+                    .position(|x| x == n)
+                    .map(|i| fmt_cv(a.cv_percent[i]))
+                    .unwrap_or_else(|| "-".into())
+            })
+            .collect();
+        let _ = writeln!(md, "| {n} | {} |", cells.join(" | "));
+    }
+    let range = |pred: &dyn Fn(&str) -> bool| {
+        let v: Vec<f64> = analyses
+            .iter()
+            .flat_map(|a| {
+                a.names
+                    .iter()
+                    .zip(&a.cv_percent)
+                    .filter(|(n, _)| pred(n))
+                    .filter_map(|(_, c)| *c)
+            })
+            .collect();
+        (
+            v.iter().copied().fold(f64::INFINITY, f64::min),
+            v.iter().copied().fold(0.0_f64, f64::max),
+        )
+    };
+    let ms = range(&|n: &str| n.starts_with('m') || n.starts_with('k'));
+    let d = range(&|n: &str| n.starts_with("xi") || n.starts_with('a'));
+    let _ = writeln!(md, "\nIdentified mass and stiffness parameters have CVs of {:.3} % to {:.3} %; damping parameters {:.3} % to {:.3} %.\n", ms.0, ms.1, d.0, d.1);
+    // 2. Fisher eigen-decomposition.
+    md += "## Eigen-decomposition of the Fisher information\n\n| variant | largest eigenvalue | smallest | condition number | unidentified directions | weakest direction (largest components) |\n|---|---|---|---|---|---|\n";
+    for a in &analyses {
+        let (l0, l1) = (a.eigenvalues[0], *a.eigenvalues.last().unwrap_or(&0.0));
+        let nnull = a
+            .eigenvalues
+            .iter()
+            .filter(|&&l| l <= super::identifiability::NULL_RTOL * l0)
+            .count();
+        let last = a.eigenvectors.ncols() - 1;
+        let mut comps: Vec<(f64, &String)> = a
+            .names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (a.eigenvectors[(i, last)], n))
+            .collect();
+        comps.sort_by(|x, y| y.0.abs().total_cmp(&x.0.abs()));
+        let top: Vec<String> = comps
+            .iter()
+            .take(8)
+            .map(|(v, n)| format!("{n} {v:+.2}"))
+            .collect();
+        let _ = writeln!(
+            md,
+            "| {} | {l0:.3e} | {l1:.3e} | {:.2e} | {nnull} | {} |",
+            a.variant,
+            l0 / l1.max(f64::MIN_POSITIVE),
+            top.join(", ")
+        );
+    }
+    md += "\nUnder ground excitation (table2) the weakest direction has equal-sign components of the same size on every mass and stiffness: scaling M and K together (k/m = constant) leaves every ground FRF unchanged (Eqs. 15-16), so the shake table alone cannot identify the common scale. Hammer data (table1) have no such null direction.\n\n";
+    // 3. Band share and Au's law.
+    md += "## Where the damping information comes from, and Au's uncertainty law\n\nFor the Caughey variants: natural frequency and its CV, damping ratio and its CV, their ratio, the ratio times xi (Au's law: of order one and similar for every mode), and the share of the information on xi_i from points inside mode i's own half-power band (every selected point lies in some mode's band; the rest would come from the other modes' bands). Xi here is the damping of the FRFs as fitted (window included, the effective damping of the data).\n\n| variant | mode | f (Hz) | CV f (%) | xi (fitted) | CV xi (%) | CV xi / CV f | xi x ratio | share from own band |\n|---|---|---|---|---|---|---|---|---|\n";
+    for (a, r) in analyses.iter().zip(runs) {
+        if r.variant.damping != DampingModel::Caughey {
+            continue;
+        }
+        for (i, f) in a.freq_hz.iter().enumerate() {
+            let xi = r
+                .fitted
+                .iter()
+                .find(|(n, _)| *n == format!("xi{}", i + 1))
+                .map(|x| x.1)
+                .unwrap_or(f64::NAN);
+            let cvx = a
+                .names
+                .iter()
+                .position(|n| *n == format!("xi{}", i + 1))
+                .and_then(|j| a.cv_percent[j]);
+            let cvf = a.freq_cv_percent.get(i).copied().flatten();
+            let ratio = match (cvx, cvf) {
+                (Some(x), Some(f)) if f > 0.0 => Some(x / f),
+                _ => None,
+            };
+            let _ = writeln!(
+                md,
+                "| {} | {} | {f:.3} | {} | {xi:.4} | {} | {} | {} | {} |",
+                a.variant,
+                i + 1,
+                fmt_cv(cvf),
+                fmt_cv(cvx),
+                ratio
+                    .map(|v| format!("{v:.0}"))
+                    .unwrap_or_else(|| "-".into()),
+                ratio
+                    .map(|v| format!("{:.2}", v * xi))
+                    .unwrap_or_else(|| "-".into()),
+                a.band_share
+                    .get(i)
+                    .copied()
+                    .flatten()
+                    .map(|s| format!("{:.0} %", 100.0 * s))
+                    .unwrap_or_else(|| "-".into())
+            );
+        }
+    }
+    md += "\nThe damping ratio of a mode is set almost entirely by the few points in its own half-power band, while the frequencies (and through them mass and stiffness) are fixed by the peak positions of every FRF at once. The exact window correction shifts xi but not its absolute uncertainty.\n\n";
+    // 4. Resolution and window bias.
+    if let Some(r) = runs
+        .iter()
+        .find(|r| r.variant.table == TableId::Table1 && r.variant.damping == DampingModel::Caughey)
+    {
+        let theta = &r.result.best.theta;
+        let (alpha, beta, _) = r.problem.variables().split(theta);
+        let m = r.problem.model();
+        let modes = Modes::solve(
+            &m.stiffness(alpha),
+            &m.mass(beta),
+            m.ground_influence(),
+            None,
+        )?;
+        let xi: Vec<f64> = r.damping_ratios.clone();
+        let block = frfs
+            .iter()
+            .find(|f| TableId::Table1.includes(f))
+            .map(|f| f.block_s)
+            .unwrap_or(58.0);
+        let biases = half_power_bias(
+            &modes,
+            &xi,
+            &[block, block / 2.0, block / 4.0],
+            &[None, Some(40.0), Some(20.0), Some(10.0)],
+        );
+        md += "## What frequency resolution and windowing do to half-power damping\n\nHalf-power damping read off the analytic driving-point receptance of the Caughey hammer model (each mode at the floor where its shape is largest) (no noise), sampled every 1/T Hz, exponentially windowed with time constant tau and window-corrected (xi - 1/(tau omega)). Relative bias against the model's damping, per mode:\n\n| block T (s) | window tau (s) | mode 1 | mode 2 | mode 3 | mode 4 |\n|---|---|---|---|---|---|\n";
+        for b in &biases {
+            let cells: Vec<String> = b
+                .rel_bias
+                .iter()
+                .map(|v| {
+                    v.map(|x| format!("{:+.0} %", 100.0 * x))
+                        .unwrap_or_else(|| "unresolved".into())
+                })
+                .collect();
+            let _ = writeln!(
+                md,
+                "| {:.1} | {} | {} |",
+                b.block_s,
+                b.tau_s
+                    .map(|t| format!("{t:.0}"))
+                    .unwrap_or_else(|| "none".into()),
+                cells.join(" | ")
+            );
+        }
+        let bins: Vec<String> = modes
+            .freq_hz()
+            .iter()
+            .zip(&xi)
+            .map(|(f, x)| format!("{:.1}", 2.0 * x * f * block))
+            .collect();
+        let _ = writeln!(md, "\nAt T = {block:.1} s the half-power bands of the four modes span [{}] bins: a lightly damped mode's band is narrower than the bin spacing, so read-off damping is set by the grid and the window, not by the structure. Fitting the model at the same bins (as `repro` does) has no resolution bias, and the window's shift of every pole by 1/tau is removed exactly.\n", bins.join(", "));
+    }
+    // 5. What it says about the paper's finding.
+    md += "## What this says about the paper's finding\n\nThe paper finds mass and stiffness consistent across tests and FRF types while damping differs. Differences between our variants, in units of their combined asymptotic standard deviation (z):\n\n| parameter | compared | values | z |\n|---|---|---|---|\n";
+    // Differences of the window-corrected values; standard deviations from the fitted
+    // values (the correction is a known shift).
+    let value = |r: &VariantRun, n: &str| r.corrected.iter().find(|(k, _)| k == n).map(|x| x.1);
+    let fitted = |r: &VariantRun, n: &str| r.fitted.iter().find(|(k, _)| k == n).map(|x| x.1);
+    let cv = |a: &FisherAnalysis, n: &str| {
+        a.names
+            .iter()
+            .position(|k| k == n)
+            .and_then(|i| a.cv_percent[i])
+    };
+    let pairs: Vec<(usize, usize, &str)> = {
+        let find = |t: TableId, d: DampingModel, k: crate::frf::FrfKind| {
+            runs.iter()
+                .position(|r| r.variant.table == t && r.variant.damping == d && r.variant.kind == k)
+        };
+        use crate::frf::FrfKind::{Accelerance, Receptance};
+        let mut v = Vec::new();
+        for t in [TableId::Table1, TableId::Table2] {
+            if let (Some(a), Some(b)) = (
+                find(t, DampingModel::Caughey, Receptance),
+                find(t, DampingModel::Caughey, Accelerance),
+            ) {
+                v.push((a, b, "receptance vs accelerance"));
+            }
+        }
+        if let (Some(a), Some(b)) = (
+            find(TableId::Table1, DampingModel::Caughey, Receptance),
+            find(TableId::Table2, DampingModel::Caughey, Receptance),
+        ) {
+            v.push((a, b, "hammer vs shake table"));
+        }
+        v
+    };
+    let mut zmax_mk = 0.0_f64;
+    let mut zmax_xi = 0.0_f64;
+    for (ia, ib, what) in pairs {
+        let (ra, rb) = (&runs[ia], &runs[ib]);
+        for n in ["m1", "k1", "k4", "xi1", "xi2", "xi3", "xi4"] {
+            if let (Some(va), Some(vb), Some(fa), Some(fb), Some(ca), Some(cb)) = (
+                value(ra, n),
+                value(rb, n),
+                fitted(ra, n),
+                fitted(rb, n),
+                cv(&analyses[ia], n),
+                cv(&analyses[ib], n),
+            ) {
+                let sd = ((fa * ca / 100.0).powi(2) + (fb * cb / 100.0).powi(2)).sqrt();
+                let z = (va - vb) / sd.max(f64::MIN_POSITIVE);
+                if n.starts_with("xi") {
+                    zmax_xi = zmax_xi.max(z.abs());
+                } else {
+                    zmax_mk = zmax_mk.max(z.abs());
+                }
+                let _ = writeln!(
+                    md,
+                    "| {n} | {what} ({}) | {va:.4} / {vb:.4} | {z:.1} |",
+                    ra.variant.table.key()
+                );
+            }
+        }
+    }
+    let _ = writeln!(
+        md,
+        "\nLargest |z|: {zmax_mk:.1} for mass and stiffness, {zmax_xi:.1} for damping. Where |z| is large the variants disagree by more than their statistical uncertainty allows, so the difference is systematic (model form, sensors, estimator), not noise. Damping is the least precise parameter (its CV is tens to hundreds of times that of the natural frequencies, as Au's law predicts) and the most exposed to such systematic effects, because all of its information sits in a few points at each peak, where sensor dynamics, windowing and frequency resolution act. On these data the window-corrected damping of the hammer and shake-table fits agrees, while receptance and accelerance fits of the same hammer tests disagree on mass and stiffness far beyond their uncertainty: the accelerometer and displacement channels do not describe the same linear structure (see the missing-physics work)."
+    );
+    write_atomic(&dir.join("identifiability.md"), md.as_bytes())?;
+    Ok(analyses)
+}
