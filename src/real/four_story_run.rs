@@ -13,7 +13,7 @@ use super::four_story::{
     Prediction, TableModel, K_INITIAL_N_PER_M, MASSES_KG, N_FLOORS,
 };
 use super::posterior::{
-    near_bound, row_from_chains, sample_to_targets, ParamRow, Sampled, Targets,
+    near_bound, row_from_chains, sample_to_targets, OnStep, ParameterSummary, Sampled, Targets,
 };
 use crate::error::Result;
 use crate::mcmc::{Ball, LogDensity, Start};
@@ -58,7 +58,7 @@ pub struct Variant {
     pub lik: ModalLikelihood,
     pub sampled: Sampled,
     /// Rows in physical units (k in N/m, masses in kg, noise scales).
-    pub rows: Vec<ParamRow>,
+    pub rows: Vec<ParameterSummary>,
 }
 
 /// Posterior-predictive summary of one mode.
@@ -193,6 +193,7 @@ pub fn sample_variant(
     modes: Vec<usize>,
     mass_model: MassModel,
     seed: u64,
+    on_step: &mut OnStep<'_>,
 ) -> Result<Variant> {
     let lik = ModalLikelihood::new(data.clone(), modes, mass_model)?;
     let sampled = sample_to_targets(
@@ -201,6 +202,8 @@ pub fn sample_variant(
         N_WALKERS,
         seed,
         &Targets::default(),
+        label,
+        on_step,
     )?;
     let bounds = prior_bounds(mass_model);
     let ns = lik.n_structural();
@@ -385,7 +388,7 @@ pub fn frequency_only_fit(data: &ModalData) -> Result<FrequencyOnlyFit> {
 }
 
 /// Runs the whole study on the data in `data_dir`.
-pub fn run(data_dir: &Path, seed: u64) -> Result<FourStoryStudy> {
+pub fn run(data_dir: &Path, seed: u64, on_step: &mut OnStep<'_>) -> Result<FourStoryStudy> {
     let data = load(data_dir)?;
     let all = vec![0, 1, 2, 3];
     let main = sample_variant(
@@ -394,6 +397,7 @@ pub fn run(data_dir: &Path, seed: u64) -> Result<FourStoryStudy> {
         all.clone(),
         MassModel::Fixed,
         seed,
+        on_step,
     )?;
     let main_ppc = ppc(&main, seed ^ 0x5eed_0001)?;
     let holdout = sample_variant(
@@ -402,6 +406,7 @@ pub fn run(data_dir: &Path, seed: u64) -> Result<FourStoryStudy> {
         vec![0, 1, 2],
         MassModel::Fixed,
         seed.wrapping_add(1),
+        on_step,
     )?;
     let holdout_ppc = ppc(&holdout, seed ^ 0x5eed_0002)?;
     let free_mass = sample_variant(
@@ -410,6 +415,7 @@ pub fn run(data_dir: &Path, seed: u64) -> Result<FourStoryStudy> {
         all,
         MassModel::FreeRatios,
         seed.wrapping_add(2),
+        on_step,
     )?;
     let free_mass_ppc = ppc(&free_mass, seed ^ 0x5eed_0003)?;
     let unit: Vec<Vec<f64>> = (0..4).map(|i| data.unit_shape(i)).collect();
@@ -498,8 +504,19 @@ mod tests {
             x + 0.02 * z
         });
         let data = ModalData { freq_hz, shapes };
-        let v = sample_variant("synthetic", &data, vec![0, 1, 2, 3], MassModel::Fixed, 11).unwrap();
-        assert_eq!(v.sampled.stopped_because, "converged");
+        let v = sample_variant(
+            "synthetic",
+            &data,
+            vec![0, 1, 2, 3],
+            MassModel::Fixed,
+            11,
+            &mut |_, _| {},
+        )
+        .unwrap();
+        assert_eq!(
+            v.sampled.stopped_because,
+            crate::mcmc::StopReason::Converged
+        );
         for (r, k) in v.rows.iter().zip(&k_true) {
             let z = (r.mean - k) / r.sd;
             assert!(

@@ -6,12 +6,12 @@
 //! - [`mat`]: MATLAB v5 reader (through the `matfile` crate) with errors naming the file
 //!   and variable.
 //! - [`posterior`]: sampling to R-hat/ESS targets and the `posterior.json` schema.
-//! - [`four_story`], [`four_story_run`], [`four_story_report`]: identified modes of the
-//!   four-story frame against a shear-frame modal likelihood (`four-story-modal`).
+//! - [`four_story`], [`four_story_run`], [`four_story_report`], [`four_story_figures`]:
+//!   identified modes of the four-story frame against a shear-frame modal likelihood (`four-story-modal`).
 //! - [`wheel`], [`wheel_run`], [`wheel_report`]: Bayesian modal parameters from the
 //!   measured accelerance of a wheel, damping against frequency uncertainty
 //!   (`wheel-frf`).
-//! - [`tower`], [`tower_model`], [`tower_run`]: FRFs from a building's mass-damper force,
+//! - [`tower`], [`tower_model`], [`tower_run`], [`tower_report`]: FRFs from a building's mass-damper force,
 //!   a 5-story shear model with uncertain channel gains, and where its fit fails
 //!   (`tower-hmd`).
 //!
@@ -19,6 +19,7 @@
 //! into its output folder.
 
 pub mod four_story;
+pub mod four_story_figures;
 pub mod four_story_report;
 pub mod four_story_run;
 pub mod mat;
@@ -26,6 +27,7 @@ pub mod posterior;
 pub mod report;
 pub mod tower;
 pub mod tower_model;
+pub mod tower_report;
 pub mod tower_run;
 pub mod wheel;
 pub mod wheel_report;
@@ -34,8 +36,10 @@ pub mod wheel_run;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::experiment::runinfo::RunInfo;
+use crate::io::StagedDir;
+use posterior::OnStep;
 
 /// The datasets with a study.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -56,40 +60,61 @@ impl Dataset {
     }
 }
 
-/// `<shared>/data/real/<dataset>`, `<shared>` being `$FRFBAYES_SHARED_DIR` when set,
-/// else `../shared` beside the current directory.
-pub fn default_data_dir(dataset: Dataset) -> PathBuf {
-    let shared = std::env::var_os("FRFBAYES_SHARED_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("../shared"));
+/// The shared folder: `shared` when given, else `$FRFBAYES_SHARED_DIR` when set, else
+/// `../shared` beside the current directory.
+pub fn shared_dir(shared: Option<&Path>) -> PathBuf {
+    shared.map(Path::to_path_buf).unwrap_or_else(|| {
+        std::env::var_os("FRFBAYES_SHARED_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from("../shared"))
+    })
+}
+
+/// `<shared>/data/real/<dataset>`.
+pub fn data_dir(shared: &Path, dataset: Dataset) -> PathBuf {
     shared.join("data/real").join(dataset.name())
 }
 
-/// Runs the study of `dataset` on `data_dir` and writes its outputs into `out_dir`;
-/// returns the wall-clock seconds of each stage.
+/// Runs the study of `dataset` on the data in `data_dir` and writes `report.md`,
+/// `posterior.json`, `run.json` and the figures into `out_dir`, atomically: the folder
+/// is built aside ([`StagedDir`]) and replaces `out_dir` only when complete. `on_step`
+/// sees every sampler step. Returns the wall-clock seconds of each stage.
 pub fn run(
     dataset: Dataset,
     data_dir: &Path,
     out_dir: &Path,
     seed: u64,
+    on_step: &mut OnStep<'_>,
 ) -> Result<Vec<(String, f64)>> {
+    if !data_dir.is_dir() {
+        return Err(Error::Usage(format!(
+            "data folder {} not found: pass --shared <DIR> with <DIR>/data/real/{} (or set \
+             FRFBAYES_SHARED_DIR)",
+            data_dir.display(),
+            dataset.name()
+        )));
+    }
     let config = serde_json::json!({ "dataset": dataset.name(), "seed": seed });
     let mut info = RunInfo::start(seed, config, data_dir.display().to_string());
+    let staged = StagedDir::new(out_dir)?;
+    let out = staged.path().to_path_buf();
     let t0 = Instant::now();
     match dataset {
         Dataset::FourStoryModal => {
             let study = info.time("sample three variants and check", || {
-                four_story_run::run(data_dir, seed)
+                four_story_run::run(data_dir, seed, on_step)
             })?;
             let mut timings = info.timings_s.clone();
             timings.push(("total before writing".into(), t0.elapsed().as_secs_f64()));
             info.time("write report and figures", || {
-                four_story_report::write(&study, out_dir, &timings)
+                four_story_report::write(&study, &out, &timings)
             })?;
         }
         Dataset::WheelFrf => {
             let data = info.time("read data", || wheel::load(data_dir))?;
-            let bands = info.time("fit and sample bands", || wheel_run::run(&data, seed))?;
+            let bands = info.time("fit and sample bands", || {
+                wheel_run::run(&data, seed, on_step)
+            })?;
             let scatter = info.time("channel-by-channel fits", || {
                 bands
                     .iter()
@@ -103,20 +128,21 @@ pub fn run(
             };
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
-                wheel_report::write(&study, &data, out_dir, &timings)
+                wheel_report::write(&study, &data, &out, &timings)
             })?;
         }
         Dataset::TowerHmd => {
             let study = info.time("estimate FRFs, fit and sample", || {
-                tower_run::run(data_dir, seed)
+                tower_run::run(data_dir, seed, on_step)
             })?;
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
-                tower_run::write(&study, out_dir, &timings)
+                tower_report::write(&study, &out, &timings)
             })?;
         }
     }
-    info.write(out_dir)?;
+    info.write(&out)?;
+    staged.commit()?;
     Ok(info.timings_s)
 }
 

@@ -1,70 +1,81 @@
 //! Sampling to a convergence target and the `posterior.json` summary shared by the
 //! real-data studies.
 //!
-//! `posterior.json` follows the schema of `frfbayes sample` (to be unified later):
-//! `{"parameters": [{"name", "unit", "mean", "sd", "cv", "q2.5", "q50", "q97.5", "rhat",
-//! "ess_bulk", "ess_tail", "tau", "at_bound"}], "acceptance", "n_walkers", "n_steps",
-//! "n_likelihood_evals", "n_data_points", "wall_s", "stopped_because"}`.
+//! `posterior.json` is the [`PosteriorSummary`] of `frfbayes sample`
+//! ([`crate::bayes::summary`]): one [`ParameterSummary`] per reported quantity, then the
+//! sampler's bookkeeping. A study that samples several independent posteriors (the
+//! wheel's bands) reports them in one file ([`posterior_summary`] states how the
+//! bookkeeping fields combine).
 
+use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::Instant;
 
-use serde::Serialize;
-
+use crate::bayes::summary::{stuck_walkers, AT_BOUND_FRACTION};
+pub use crate::bayes::summary::{AtBound, ParameterSummary, PosteriorSummary};
 use crate::error::{Error, Result};
 use crate::io::write_atomic;
 use crate::mcmc::{
-    ensemble_diagnostics, Burn, DifferentialEvolution, Draws, LogDensity, Moves, Sampler,
-    SamplerConfig, Start, Stretch,
+    ensemble_diagnostics, Burn, DifferentialEvolution, Draws, LogDensity, Moves, Progress, Sampler,
+    SamplerConfig, Start, StopReason, Stretch,
 };
 
-/// One parameter (or derived quantity) of `posterior.json`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ParamRow {
-    pub name: String,
-    pub unit: String,
-    pub mean: f64,
-    pub sd: f64,
-    /// `sd / |mean|`.
-    pub cv: f64,
-    #[serde(rename = "q2.5")]
-    pub q2_5: f64,
-    pub q50: f64,
-    #[serde(rename = "q97.5")]
-    pub q97_5: f64,
-    pub rhat: f64,
-    pub ess_bulk: f64,
-    pub ess_tail: f64,
-    /// Integrated autocorrelation time in steps (of the sampled coordinate this quantity
-    /// is a monotone function of; NaN for quantities derived from several coordinates).
-    pub tau: f64,
-    /// The central 95% interval reaches within 1% of the prior range of a bound.
-    pub at_bound: bool,
+/// Progress of a study's sampling: called after every sampler step with the label of the
+/// posterior being sampled (the CLI draws a progress bar from it).
+pub type OnStep<'a> = dyn FnMut(&str, &Progress) + 'a;
+
+/// Writes `posterior.json` atomically (pretty JSON).
+pub fn write_summary(summary: &PosteriorSummary, path: &Path) -> Result<()> {
+    let json = serde_json::to_vec_pretty(summary).map_err(|e| Error::Numerical(e.to_string()))?;
+    write_atomic(path, &json)
 }
 
-/// The whole `posterior.json`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct PosteriorFile {
-    pub parameters: Vec<ParamRow>,
-    pub acceptance: f64,
-    pub n_walkers: usize,
-    pub n_steps: u64,
-    pub n_likelihood_evals: u64,
-    pub n_data_points: usize,
-    pub wall_s: f64,
-    pub stopped_because: String,
-}
-
-impl PosteriorFile {
-    /// Writes the file atomically (pretty JSON).
-    pub fn write(&self, path: &Path) -> Result<()> {
-        let json = serde_json::to_vec_pretty(self).map_err(|e| Error::Numerical(e.to_string()))?;
-        write_atomic(path, &json)
-    }
-
-    /// The row named `name`.
-    pub fn row(&self, name: &str) -> Option<&ParamRow> {
-        self.parameters.iter().find(|r| r.name == name)
+/// The [`PosteriorSummary`] of one or more independent runs with `parameters` already
+/// summarised. Combined over `runs`: `acceptance` is the mean, `n_steps`,
+/// `discarded_steps` and `thin_steps` the largest, `n_likelihood_evals`, `wall_s` and
+/// `n_stuck_walkers` the sums, `n_draws_per_walker` the smallest, and
+/// `stopped_because` is `converged` only when every run converged (else `step_cap`).
+/// `converged` applies the criterion of `frfbayes sample` to `parameters`.
+pub fn posterior_summary(
+    runs: &[&Sampled],
+    parameters: Vec<ParameterSummary>,
+    n_data_points: usize,
+) -> PosteriorSummary {
+    let n = runs.len().max(1) as f64;
+    let n_stuck_walkers = runs.iter().map(|r| stuck_walkers(&r.draws).len()).sum();
+    PosteriorSummary {
+        converged: PosteriorSummary::meets_criterion(&parameters) && n_stuck_walkers == 0,
+        n_stuck_walkers,
+        rhat_max: parameters.iter().map(|p| p.rhat).fold(f64::NAN, f64::max),
+        ess_bulk_min: parameters
+            .iter()
+            .map(|p| p.ess_bulk)
+            .fold(f64::NAN, f64::min),
+        parameters,
+        acceptance: runs.iter().map(|r| r.acceptance).sum::<f64>() / n,
+        n_walkers: runs.first().map_or(0, |r| r.n_walkers),
+        n_ensembles: runs
+            .first()
+            .map_or(0, |r| r.draws.n_chains / r.n_walkers.max(1)),
+        n_steps: runs.iter().map(|r| r.n_steps).max().unwrap_or(0),
+        n_likelihood_evals: runs.iter().map(|r| r.n_evaluations).sum(),
+        n_data_points,
+        wall_s: runs.iter().map(|r| r.wall_s).sum(),
+        stopped_because: if runs
+            .iter()
+            .all(|r| r.stopped_because == StopReason::Converged)
+        {
+            StopReason::Converged
+        } else {
+            StopReason::StepCap
+        },
+        n_draws_per_walker: runs.iter().map(|r| r.draws.n_draws).min().unwrap_or(0),
+        discarded_steps: runs
+            .iter()
+            .map(|r| r.draws.discarded_steps)
+            .max()
+            .unwrap_or(0),
+        thin_steps: runs.iter().map(|r| r.draws.thin_steps).max().unwrap_or(0),
     }
 }
 
@@ -82,25 +93,31 @@ pub fn quantile_sorted(sorted: &[f64], p: f64) -> f64 {
     }
 }
 
-/// True when the central 95% interval of `chains` reaches within 1% of the range
-/// `(lo, hi)` of a bound. Judge it in the sampled coordinate (e.g. `ln sigma`), where the
-/// prior is uniform.
-pub fn near_bound(chains: &[Vec<f64>], (lo, hi): (f64, f64)) -> bool {
+/// Which prior bound (if any) the central 95% interval of `chains` reaches within
+/// [`AT_BOUND_FRACTION`] of the range `(lo, hi)`, as in `frfbayes sample`. Judge it in
+/// the sampled coordinate (e.g. `ln sigma`), where the prior is uniform.
+pub fn near_bound(chains: &[Vec<f64>], (lo, hi): (f64, f64)) -> Option<AtBound> {
     let mut all: Vec<f64> = chains.iter().flatten().copied().collect();
     all.sort_by(f64::total_cmp);
-    let tol = 0.01 * (hi - lo);
-    quantile_sorted(&all, 0.025) - lo < tol || hi - quantile_sorted(&all, 0.975) < tol
+    let tol = AT_BOUND_FRACTION * (hi - lo);
+    if quantile_sorted(&all, 0.025) - lo < tol {
+        Some(AtBound::Lower)
+    } else if hi - quantile_sorted(&all, 0.975) < tol {
+        Some(AtBound::Upper)
+    } else {
+        None
+    }
 }
 
-/// A [`ParamRow`] from walker chains of one quantity (`n_walkers` chains per ensemble).
+/// A [`ParameterSummary`] from walker chains of one quantity (`n_walkers` chains per ensemble).
 pub fn row_from_chains(
     name: &str,
     unit: &str,
     chains: &[Vec<f64>],
     n_walkers: usize,
     tau_steps: f64,
-    at_bound: bool,
-) -> ParamRow {
+    at_bound: Option<AtBound>,
+) -> ParameterSummary {
     let mut all: Vec<f64> = chains.iter().flatten().copied().collect();
     let n = all.len() as f64;
     let mean = all.iter().sum::<f64>() / n;
@@ -112,7 +129,7 @@ pub fn row_from_chains(
         quantile_sorted(&all, 0.975),
     );
     let d = ensemble_diagnostics(chains, n_walkers);
-    ParamRow {
+    ParameterSummary {
         name: name.to_string(),
         unit: unit.to_string(),
         mean,
@@ -164,8 +181,9 @@ pub struct Sampled {
     /// Integrated autocorrelation time per coordinate, in steps.
     pub tau_steps: Vec<f64>,
     pub wall_s: f64,
-    /// `converged` when emcee's tau rule and the targets hold, else why not.
-    pub stopped_because: String,
+    /// `Converged` when emcee's tau rule and the targets hold, `StepCap` when the hard
+    /// cap came first.
+    pub stopped_because: StopReason,
     pub worst_rhat: f64,
     pub min_ess: f64,
     /// The whole chain from step 0, thinned to at most ~500 kept steps, for trace plots.
@@ -190,12 +208,15 @@ pub fn default_moves() -> Result<Moves> {
 
 /// Runs the ensemble sampler on `density` from `start` until emcee's stopping rule and
 /// `targets` hold (or the hard cap), and returns the draws after [`Burn::Auto`].
+/// `on_step` is called with `label` after every step.
 pub fn sample_to_targets<D: LogDensity + ?Sized>(
     density: &D,
     start: Start,
     n_walkers: usize,
     seed: u64,
     targets: &Targets,
+    label: &str,
+    on_step: &mut OnStep<'_>,
 ) -> Result<Sampled> {
     let t0 = Instant::now();
     let mut config = SamplerConfig::new(n_walkers, seed);
@@ -203,8 +224,12 @@ pub fn sample_to_targets<D: LogDensity + ?Sized>(
     let mut sampler = Sampler::new(density, default_moves()?, config, start)?;
     let mut cap = targets.first_cap_steps;
     loop {
-        let summary = sampler.run(None)?;
-        let done_tau = summary.stopped_because == crate::mcmc::StopReason::Converged;
+        let mut cb = |p: &Progress| {
+            on_step(label, p);
+            ControlFlow::Continue(())
+        };
+        let summary = sampler.run(Some(&mut cb))?;
+        let done_tau = summary.stopped_because == StopReason::Converged;
         let (worst_rhat, min_ess) = match sampler.draws(Burn::Auto) {
             Ok(d) => worst_diagnostics(&d),
             Err(_) => (f64::INFINITY, 0.0),
@@ -216,12 +241,9 @@ pub fn sample_to_targets<D: LogDensity + ?Sized>(
             let thin = (sampler.step_count() / 500).max(1);
             let full = sampler.draws(Burn::Steps { discard: 0, thin })?;
             let stopped_because = if done_tau && met {
-                "converged".to_string()
+                StopReason::Converged
             } else {
-                format!(
-                    "step_cap ({} steps; worst R-hat {worst_rhat:.4}, smallest ESS {min_ess:.0})",
-                    sampler.step_count()
-                )
+                StopReason::StepCap
             };
             return Ok(Sampled {
                 draws,
@@ -283,18 +305,33 @@ mod tests {
             center: vec![0.5, -0.5],
             scale: vec![0.1, 0.1],
         });
-        let s = sample_to_targets(&d, start, 16, 3, &Targets::default()).unwrap();
-        assert_eq!(s.stopped_because, "converged");
+        let mut steps = 0u64;
+        let s = sample_to_targets(
+            &d,
+            start,
+            16,
+            3,
+            &Targets::default(),
+            "gaussian",
+            &mut |label, p| {
+                assert_eq!(label, "gaussian");
+                steps = p.step;
+            },
+        )
+        .unwrap();
+        assert_eq!(steps, s.n_steps, "the callback sees every step");
+        assert_eq!(s.stopped_because, StopReason::Converged);
         assert!(s.worst_rhat < 1.01 && s.min_ess > 400.0);
         for (p, sd) in [(0, s1), (1, s2)] {
-            let row = row_from_chains("x", "", &s.chains(p, |v| v), 16, s.tau_steps[p], false);
+            let row = row_from_chains("x", "", &s.chains(p, |v| v), 16, s.tau_steps[p], None);
             let mcse = row.sd / row.ess_bulk.sqrt();
             assert!(row.mean.abs() < 5.0 * mcse, "{row:?}");
             assert!((row.sd / sd - 1.0).abs() < 0.15, "{row:?}");
             assert!((row.q97_5 - row.q2_5) / (2.0 * 1.96 * sd) > 0.85);
         }
-        let file = PosteriorFile {
-            parameters: vec![row_from_chains(
+        let file = posterior_summary(
+            &[&s],
+            vec![row_from_chains(
                 "x",
                 "m",
                 &s.chains(0, |v| v),
@@ -302,17 +339,11 @@ mod tests {
                 1.0,
                 near_bound(&s.chains(0, |v| v), (-1.0, 1.0)),
             )],
-            acceptance: s.acceptance,
-            n_walkers: 16,
-            n_steps: s.n_steps,
-            n_likelihood_evals: s.n_evaluations,
-            n_data_points: 0,
-            wall_s: s.wall_s,
-            stopped_because: s.stopped_because.clone(),
-        };
+            0,
+        );
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("posterior.json");
-        file.write(&path).unwrap();
+        write_summary(&file, &path).unwrap();
         let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
         let p = &v["parameters"][0];
         for key in [
@@ -322,7 +353,9 @@ mod tests {
             assert!(p.get(key).is_some(), "missing {key}");
         }
         // A unit-sd variable with bounds (-1, 1) has its 95% interval beyond them.
-        assert_eq!(p["at_bound"], serde_json::Value::Bool(true));
+        assert_eq!(p["at_bound"], serde_json::json!("lower"));
+        assert_eq!(v["stopped_because"], serde_json::json!("converged"));
+        assert_eq!(v["n_ensembles"], serde_json::json!(4));
         for key in [
             "acceptance",
             "n_walkers",
@@ -331,6 +364,13 @@ mod tests {
             "n_data_points",
             "wall_s",
             "stopped_because",
+            "converged",
+            "n_stuck_walkers",
+            "rhat_max",
+            "ess_bulk_min",
+            "n_draws_per_walker",
+            "discarded_steps",
+            "thin_steps",
         ] {
             assert!(v.get(key).is_some(), "missing {key}");
         }

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::posterior::{ParamRow, Sampled};
+use super::posterior::{AtBound, ParameterSummary, Sampled};
 use crate::error::Result;
 use crate::plot::{traces, TraceParam, TracesSpec};
 
@@ -33,7 +33,7 @@ pub fn sig(x: f64, sig: usize) -> String {
 }
 
 /// The standard posterior table: mean, sd, c.o.v., 95% interval, R-hat, ESS.
-pub fn posterior_table(rows: &[ParamRow]) -> String {
+pub fn posterior_table(rows: &[ParameterSummary]) -> String {
     let body: Vec<Vec<String>> = rows
         .iter()
         .map(|r| {
@@ -47,10 +47,10 @@ pub fn posterior_table(rows: &[ParamRow]) -> String {
                 format!("{:.4}", r.rhat),
                 format!("{:.0}", r.ess_bulk),
                 format!("{:.0}", r.ess_tail),
-                if r.at_bound {
-                    "yes".into()
-                } else {
-                    "no".into()
+                match r.at_bound {
+                    Some(AtBound::Lower) => "lower".into(),
+                    Some(AtBound::Upper) => "upper".into(),
+                    None => "no".into(),
                 },
             ]
         })

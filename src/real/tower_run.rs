@@ -5,25 +5,18 @@
 // than zipped iterators here.
 #![allow(clippy::needless_range_loop)]
 
-use std::fmt::Write as _;
 use std::path::Path;
 
 use super::posterior::{
-    near_bound, quantile_sorted, row_from_chains, sample_to_targets, ParamRow, PosteriorFile,
+    near_bound, quantile_sorted, row_from_chains, sample_to_targets, OnStep, ParameterSummary,
     Sampled, Targets,
 };
-use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
-use super::tower::{
-    estimate_frf, load, TowerFrf, AUTHOR_GAINS, DAMPER_MASS_KG, FLOOR_COLUMN, FLOOR_MASS_KG,
-};
+use super::tower::{estimate_frf, load, TowerFrf};
 use super::tower_model::{
     model_frf, natural_freq_hz, TowerData, TowerLikelihood, TowerLsq, K_CENTRE_N_PER_M, N,
 };
 use crate::error::Result;
 use crate::mcmc::{Ball, LogDensity, Start};
-use crate::plot::{
-    band_overlay, heatmap, BandOverlaySpec, BandPanel, Curve, HeatmapSpec, Interval, Scale,
-};
 use crate::update::lsq::{multistart, Bounds, MultistartOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -59,9 +52,9 @@ pub struct TowerFit {
     pub n_at_best: usize,
     pub sampled: Sampled,
     /// `k`, `xi`, `s`, then the gains.
-    pub rows: Vec<ParamRow>,
+    pub rows: Vec<ParameterSummary>,
     /// Natural frequencies (derived).
-    pub freq_rows: Vec<ParamRow>,
+    pub freq_rows: Vec<ParameterSummary>,
     /// Posterior median of the coordinates and the conditional-mean gains there.
     pub median: Vec<f64>,
     pub g_median: [f64; N],
@@ -84,11 +77,11 @@ pub struct TowerStudy {
 }
 
 /// Runs the study on the records in `dir`.
-pub fn run(dir: &Path, seed: u64) -> Result<TowerStudy> {
+pub fn run(dir: &Path, seed: u64, on_step: &mut OnStep<'_>) -> Result<TowerStudy> {
     let records = load(dir)?;
     let frf = estimate_frf(&records, SEGMENT_LEN)?;
-    let full = fit_band(&frf, BAND_HZ, seed)?;
-    let low = fit_band(&frf, LOW_BAND_HZ, seed.wrapping_add(1))?;
+    let full = fit_band(&frf, BAND_HZ, seed, on_step)?;
+    let low = fit_band(&frf, LOW_BAND_HZ, seed.wrapping_add(1), on_step)?;
     let rms_z = rms_map(&full.lik, &full.median, &full.g_median)?;
     let rms_z_low = rms_map(&full.lik, &low.median, &low.g_median)?;
     let lik = &full.lik;
@@ -151,7 +144,12 @@ fn rms_map(lik: &TowerLikelihood, t: &[f64], g: &[f64; N]) -> Result<Vec<Vec<f64
 }
 
 /// Least-squares start and ensemble sampling of the shear model on `band`.
-pub fn fit_band(frf: &TowerFrf, band: (f64, f64), seed: u64) -> Result<TowerFit> {
+pub fn fit_band(
+    frf: &TowerFrf,
+    band: (f64, f64),
+    seed: u64,
+    on_step: &mut OnStep<'_>,
+) -> Result<TowerFit> {
     let data = TowerData::from_frf(frf, band.0, band.1)?;
     let bounds = TowerLikelihood::bounds();
     let mut lo: Vec<f64> = bounds[..2 * N].iter().map(|b| b.0).collect();
@@ -192,6 +190,8 @@ pub fn fit_band(frf: &TowerFrf, band: (f64, f64), seed: u64) -> Result<TowerFit>
             hard_cap_steps: 40_000,
             ..Default::default()
         },
+        &format!("tower: band {}-{} Hz", band.0, band.1),
+        on_step,
     )?;
     let tau = &sampled.tau_steps;
     let mut rows = Vec::new();
@@ -233,7 +233,7 @@ pub fn fit_band(frf: &TowerFrf, band: (f64, f64), seed: u64) -> Result<TowerFit>
             g,
             N_WALKERS,
             f64::NAN,
-            false,
+            None,
         ));
     }
     let fchains: Vec<Vec<Vec<f64>>> = (0..N)
@@ -247,7 +247,7 @@ pub fn fit_band(frf: &TowerFrf, band: (f64, f64), seed: u64) -> Result<TowerFit>
     let freq_rows = fchains
         .iter()
         .enumerate()
-        .map(|(r, c)| row_from_chains(&format!("f{}", r + 1), "Hz", c, N_WALKERS, f64::NAN, false))
+        .map(|(r, c)| row_from_chains(&format!("f{}", r + 1), "Hz", c, N_WALKERS, f64::NAN, None))
         .collect();
     let median: Vec<f64> = (0..lik.dim())
         .map(|q| {
@@ -268,380 +268,4 @@ pub fn fit_band(frf: &TowerFrf, band: (f64, f64), seed: u64) -> Result<TowerFit>
         median,
         g_median,
     })
-}
-
-/// `posterior.json`: the full-band fit's parameters (k, xi, s, gains) then the derived
-/// frequencies.
-pub fn posterior_file(s: &TowerStudy) -> PosteriorFile {
-    let f = &s.full;
-    PosteriorFile {
-        parameters: f.rows.iter().chain(&f.freq_rows).cloned().collect(),
-        acceptance: f.sampled.acceptance,
-        n_walkers: f.sampled.n_walkers,
-        n_steps: f.sampled.n_steps,
-        n_likelihood_evals: f.sampled.n_evaluations,
-        n_data_points: f.lik.data.n_points(),
-        wall_s: f.sampled.wall_s,
-        stopped_because: f.sampled.stopped_because.clone(),
-    }
-}
-
-/// Writes `report.md`, `posterior.json` and figures into `out`.
-pub fn write(s: &TowerStudy, out: &Path, timings: &[(String, f64)]) -> Result<()> {
-    posterior_file(s).write(&out.join("posterior.json"))?;
-    figures(s, out)?;
-    crate::io::write_atomic(&out.join("report.md"), report(s, timings).as_bytes())
-}
-
-fn band_label(b: (f64, f64)) -> String {
-    format!("{}-{} Hz", b.0, b.1)
-}
-
-fn rms_table(m: &[Vec<f64>]) -> String {
-    let headers: Vec<String> = std::iter::once("floor".to_string())
-        .chain(SUB_BANDS_HZ.iter().map(|&b| band_label(b)))
-        .collect();
-    let hdr: Vec<&str> = headers.iter().map(String::as_str).collect();
-    let rows: Vec<Vec<String>> = m
-        .iter()
-        .enumerate()
-        .map(|(c, v)| {
-            std::iter::once(format!("{}", c + 1))
-                .chain(v.iter().map(|x| format!("{x:.1}")))
-                .collect()
-        })
-        .collect();
-    md_table(&hdr, &rows)
-}
-
-fn fit_section(r: &mut String, f: &TowerFit) {
-    let _ = writeln!(r, "{}", posterior_table(&f.rows));
-    let _ = writeln!(
-        r,
-        "(`g_c` are drawn conditionally, so their `tau` is not defined.)\n"
-    );
-    let _ = writeln!(r, "Natural frequencies of the sampled models:\n");
-    let _ = writeln!(r, "{}", posterior_table(&f.freq_rows));
-    let _ = writeln!(r, "Sampler: {}\n", run_line(&f.sampled));
-    let _ = writeln!(
-        r,
-        "Start: 32-start least squares with signed gains, {} of which reached the best cost.\n",
-        f.n_at_best
-    );
-}
-
-fn report(s: &TowerStudy, timings: &[(String, f64)]) -> String {
-    let mut r = String::new();
-    let f = &s.full;
-    let _ = writeln!(
-        r,
-        "# Unison Tower: damper-force FRFs against a 5-story shear model\n"
-    );
-    let _ = writeln!(
-        r,
-        "Data: three white-noise records (40960 samples at 100 Hz each) of a building \
-         forced by its hybrid mass damper on the 5th floor (repository \
-         eunchurn/system-identification-unison-tower-matlab; no licence, used for \
-         validation only). Generated by `frfbayes real tower-hmd`; every number below \
-         comes from the run.\n"
-    );
-    let _ = writeln!(r, "## FRF estimation\n");
-    let _ = writeln!(
-        r,
-        "Input: the damper force on the building `F = -m_d a_d`, `m_d` = {} kg (the \
-         author's 1.5 tf), `a_d` = column 2 x {}. Outputs: floors 1-5 (columns {}) with \
-         the author's gains {}. Welch H1 with Hann segments of {} samples ({:.2} s, \
-         {:.4} Hz resolution), 50% overlap, {} segments over the three records.\n",
-        DAMPER_MASS_KG,
-        AUTHOR_GAINS[1],
-        FLOOR_COLUMN
-            .iter()
-            .map(|c| (c + 1).to_string())
-            .collect::<Vec<_>>()
-            .join(", "),
-        FLOOR_COLUMN
-            .iter()
-            .map(|&c| format!("{}", AUTHOR_GAINS[c]))
-            .collect::<Vec<_>>()
-            .join(", "),
-        s.frf.segment_len,
-        s.frf.segment_len as f64 / 100.0,
-        100.0 / s.frf.segment_len as f64,
-        s.frf.n_segments
-    );
-    let _ = writeln!(r, "## Model\n");
-    let _ = writeln!(
-        r,
-        "5-story shear frame, floor masses fixed at the author's {:.1} kg (a mass scale and \
-         a gain scale cannot be told apart), story stiffnesses `k1-k5`, modal damping \
-         `xi1-xi5`, a real gain `g_c` per floor channel relative to the author's \
-         calibration (force and acceleration gains together), and a noise scale `s` on \
-         the H1 variance `|H|^2 (1 - gamma^2) / (n_d gamma^2)`: `s = 1` means the \
-         estimator noise explains the scatter. The gains are integrated out exactly \
-         (flat prior on the real line) and drawn from their conditional Gaussian for \
-         every posterior draw; the sampler explores `ln k`, `ln xi`, `ln s` (priors \
-         log-uniform: `k` within a factor 10 of 2.5e6 N/m, `xi` in [0.002, 0.3]). Two \
-         fits: the whole band {} ({} bins x 5 floors; the posterior of `posterior.json`) \
-         and the band of the first two modes only, {}.\n",
-        FLOOR_MASS_KG,
-        band_label(f.band_hz),
-        f.lik.data.freq_hz.len(),
-        band_label(s.low.band_hz)
-    );
-    let _ = writeln!(r, "## Posterior, whole band {}\n", band_label(f.band_hz));
-    fit_section(&mut r, f);
-    let neg = |fit: &TowerFit| -> Vec<usize> {
-        (0..N)
-            .filter(|&c| fit.rows[2 * N + 1 + c].q97_5 < 0.0)
-            .collect()
-    };
-    let flipped = neg(f);
-    let _ = writeln!(
-        r,
-        "Gains whose 95% interval is negative: {}{}. Gain magnitudes relative to floor \
-         1: {}.\n",
-        if flipped.is_empty() {
-            "none".to_string()
-        } else {
-            flipped
-                .iter()
-                .map(|c| format!("floor {}", c + 1))
-                .collect::<Vec<_>>()
-                .join(", ")
-        },
-        if flipped.len() == N {
-            " (all five: the sign of the force, i.e. of the damper acceleration channel, \
-             is opposite to the author's convention, rather than five calibration errors)"
-        } else {
-            ""
-        },
-        (0..N)
-            .map(|c| format!("{:.2}", f.rows[2 * N + 1 + c].q50 / f.rows[2 * N + 1].q50))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    let _ = writeln!(
-        r,
-        "## Posterior, first two modes only ({})\n",
-        band_label(s.low.band_hz)
-    );
-    fit_section(&mut r, &s.low);
-
-    let _ = writeln!(r, "## Where the shear model fails\n");
-    let _ = writeln!(
-        r,
-        "RMS of the standardised residual `|H1 - H_model| / sd(H1)` over the whole band, \
-         sd from the coherence and {} segments (`s = 1`: 1 is consistent with the \
-         estimator noise). Whole-band fit (posterior median, s = {}):\n",
-        s.frf.n_segments,
-        sig(f.rows[2 * N].q50, 3)
-    );
-    let _ = writeln!(r, "{}", rms_table(&s.rms_z));
-    let _ = writeln!(
-        r,
-        "Fit to the first two modes ({}; s = {}), residuals over the whole band (the \
-         bands above {} Hz are predictions):\n",
-        band_label(s.low.band_hz),
-        sig(s.low.rows[2 * N].q50, 3),
-        s.low.band_hz.1
-    );
-    let _ = writeln!(r, "{}", rms_table(&s.rms_z_low));
-    let _ = writeln!(r, "{}", failure_summary(s));
-    let _ = writeln!(r, "## Figures\n");
-    let _ = writeln!(r, "- `frf_fit.png/.svg`: measured |H1| and the posterior of the whole-band model |H| per floor");
-    let _ = writeln!(r, "- `residual_map.png/.svg`, `residual_map_low.png/.svg`: log10 RMS standardised residual per floor and sub-band (whole-band fit; fit to the first two modes)");
-    let _ = writeln!(
-        r,
-        "- `traces.png/.svg`: walker traces of the stiffnesses (whole-band fit)\n"
-    );
-    let _ = writeln!(r, "## Timings\n");
-    for (stage, t) in timings {
-        let _ = writeln!(r, "- {stage}: {t:.2} s");
-    }
-    r
-}
-
-/// The computed account of where the fit fails.
-fn failure_summary(s: &TowerStudy) -> String {
-    let f = &s.full;
-    let mut out = String::new();
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let floor_mean: Vec<f64> = s.rms_z.iter().map(|v| mean(v)).collect();
-    let band_mean: Vec<f64> = (0..SUB_BANDS_HZ.len())
-        .map(|b| mean(&s.rms_z.iter().map(|v| v[b]).collect::<Vec<_>>()))
-        .collect();
-    let worst_floor = (0..N)
-        .max_by(|&a, &b| floor_mean[a].total_cmp(&floor_mean[b]))
-        .unwrap_or(0);
-    let best_floor = (0..N)
-        .min_by(|&a, &b| floor_mean[a].total_cmp(&floor_mean[b]))
-        .unwrap_or(0);
-    let worst_band = (0..band_mean.len())
-        .max_by(|&a, &b| band_mean[a].total_cmp(&band_mean[b]))
-        .unwrap_or(0);
-    let mut cells: Vec<(f64, usize, usize)> = s
-        .rms_z
-        .iter()
-        .enumerate()
-        .flat_map(|(c, v)| v.iter().enumerate().map(move |(b, &x)| (x, c, b)))
-        .collect();
-    cells.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let _ = writeln!(
-        out,
-        "- Whole-band fit: the model misses the data by s = {} times the estimator noise. \
-         Largest cells: {}. By floor (mean over sub-bands): {}; worst floor {}, best floor \
-         {}. Worst sub-band (mean over floors): {}.",
-        sig(f.rows[2 * N].q50, 3),
-        cells
-            .iter()
-            .take(4)
-            .map(|&(x, c, b)| format!(
-                "floor {} at {} ({x:.1})",
-                c + 1,
-                band_label(SUB_BANDS_HZ[b])
-            ))
-            .collect::<Vec<_>>()
-            .join("; "),
-        floor_mean
-            .iter()
-            .map(|x| format!("{x:.1}"))
-            .collect::<Vec<_>>()
-            .join(", "),
-        worst_floor + 1,
-        best_floor + 1,
-        band_label(SUB_BANDS_HZ[worst_band])
-    );
-    let at_bound: Vec<String> = f
-        .rows
-        .iter()
-        .filter(|r| r.at_bound)
-        .map(|r| r.name.clone())
-        .collect();
-    if !at_bound.is_empty() {
-        let _ = writeln!(
-            out,
-            "- At a prior bound in the whole-band fit: {}. Stiffnesses at the upper bound \
-             mean the fit wants those stories rigid (the floors above and below moving \
-             as one), which a shear chain can only do by giving up its own modes there.",
-            at_bound.join(", ")
-        );
-    }
-    let low_in: Vec<f64> = s
-        .rms_z_low
-        .iter()
-        .flat_map(|v| v[..3].iter().copied())
-        .collect();
-    let low_out: Vec<f64> = s
-        .rms_z_low
-        .iter()
-        .flat_map(|v| v[3..].iter().copied())
-        .collect();
-    let _ = writeln!(
-        out,
-        "- Fit to the first two modes: s = {}; mean RMS |z| {:.1} inside its band and {:.1} \
-         above it. Natural frequencies {} Hz (whole band: {} Hz).",
-        sig(s.low.rows[2 * N].q50, 3),
-        mean(&low_in),
-        mean(&low_out),
-        s.low
-            .freq_rows
-            .iter()
-            .take(2)
-            .map(|r| sig(r.q50, 3))
-            .collect::<Vec<_>>()
-            .join(", "),
-        f.freq_rows
-            .iter()
-            .take(2)
-            .map(|r| sig(r.q50, 3))
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
-    let _ = writeln!(
-        out,
-        "- Reading: where the residuals exceed the estimator noise by an order of \
-         magnitude (s ~ 10), the shear model of five lumped floors lacks physics. \
-         Candidates, to be tested by model extensions: flexural (cantilever) behaviour of \
-         a tall building whose higher modes a shear chain places wrongly; more storeys \
-         than the five measured (the 'floors' are then not lumped masses of a chain); \
-         torsion excited by an eccentric damper; a local response of the damper floor; \
-         and, on single channels, calibration or mounting problems."
-    );
-    out
-}
-
-fn figures(s: &TowerStudy, out: &Path) -> Result<()> {
-    let f = &s.full.lik.data.freq_hz;
-    let panels = (0..N)
-        .map(|c| {
-            let q = &s.bands_abs[c];
-            BandPanel {
-                title: format!("floor {}", c + 1),
-                y_label: "|H| ((m/s²)/N)".into(),
-                y_scale: Scale::Log,
-                freq_hz: f.clone(),
-                median: q[2].clone(),
-                band_50: Some(Interval {
-                    lo: q[1].clone(),
-                    hi: q[3].clone(),
-                }),
-                band_95: Some(Interval {
-                    lo: q[0].clone(),
-                    hi: q[4].clone(),
-                }),
-                measured: Some(Curve {
-                    freq_hz: f.clone(),
-                    values: s.full.lik.data.y[c].iter().map(|h| h.norm()).collect(),
-                }),
-                bands: vec![],
-            }
-        })
-        .collect();
-    band_overlay(
-        &BandOverlaySpec {
-            title: "Unison Tower: damper force to floor acceleration".into(),
-            panels,
-            size_px: None,
-        },
-        &out.join("frf_fit"),
-    )?;
-    for (m, stem, what) in [
-        (&s.rms_z, "residual_map", "whole-band fit"),
-        (
-            &s.rms_z_low,
-            "residual_map_low",
-            "fit to the first two modes",
-        ),
-    ] {
-        heatmap(
-            &HeatmapSpec {
-                title: format!(
-                    "Where the shear model fails ({what}): log10 RMS standardised residual"
-                ),
-                x_label: "Frequency band".into(),
-                y_label: "Floor".into(),
-                row_labels: (1..=N).map(|c| format!("floor {c}")).collect(),
-                col_labels: SUB_BANDS_HZ.iter().map(|&b| band_label(b)).collect(),
-                values: m
-                    .iter()
-                    .map(|v| v.iter().map(|x| x.log10()).collect())
-                    .collect(),
-                colour_label: "log10 RMS |z|".into(),
-                limit: None,
-                show_values: true,
-                size_px: None,
-            },
-            &out.join(stem),
-        )?;
-    }
-    let names: Vec<(String, String)> = (0..N)
-        .map(|i| (format!("ln k{}", i + 1), String::new()))
-        .collect();
-    trace_figure(
-        &s.full.sampled,
-        &names,
-        &|_, x| x,
-        "Tower: walker traces (ln stiffness)",
-        &out.join("traces"),
-    )
 }

@@ -3,7 +3,9 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::posterior::{ParamRow, PosteriorFile};
+use super::posterior::{
+    posterior_summary, write_summary, ParameterSummary, PosteriorSummary, Sampled,
+};
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use super::wheel::WheelData;
 use super::wheel_run::{
@@ -26,7 +28,7 @@ pub struct WheelStudy {
 }
 
 /// Rows of every band with globally numbered names (`f1`, `xi1`, `s_band1`, ...).
-pub fn all_rows(s: &WheelStudy) -> Vec<ParamRow> {
+pub fn all_rows(s: &WheelStudy) -> Vec<ParameterSummary> {
     let mut out = Vec::new();
     let mut mode = 0;
     for (bi, b) in s.bands.iter().enumerate() {
@@ -57,34 +59,15 @@ pub fn all_rows(s: &WheelStudy) -> Vec<ParamRow> {
     out
 }
 
-/// `posterior.json`: all bands (each sampled separately; the bookkeeping fields are
-/// totals, `n_steps` the longest run, `acceptance` the mean, `stopped_because`
-/// `converged` only when every band converged).
-pub fn posterior_file(s: &WheelStudy) -> PosteriorFile {
-    let sm = |f: &dyn Fn(&BandResult) -> f64| s.bands.iter().map(f).sum::<f64>();
-    let all_conv = s
-        .bands
-        .iter()
-        .all(|b| b.sampled.stopped_because == "converged");
-    PosteriorFile {
-        parameters: all_rows(s),
-        acceptance: sm(&|b| b.sampled.acceptance) / s.bands.len() as f64,
-        n_walkers: s.bands.first().map_or(0, |b| b.sampled.n_walkers),
-        n_steps: s.bands.iter().map(|b| b.sampled.n_steps).max().unwrap_or(0),
-        n_likelihood_evals: s.bands.iter().map(|b| b.sampled.n_evaluations).sum(),
-        n_data_points: s.bands.iter().map(|b| b.lik.data.n_points()).sum(),
-        wall_s: s.wall_s,
-        stopped_because: if all_conv {
-            "converged".into()
-        } else {
-            s.bands
-                .iter()
-                .filter(|b| b.sampled.stopped_because != "converged")
-                .map(|b| format!("{}: {}", b.lik.spec.label, b.sampled.stopped_because))
-                .collect::<Vec<_>>()
-                .join("; ")
-        },
-    }
+/// `posterior.json`: all bands, each sampled separately (see [`posterior_summary`] for
+/// how the bookkeeping fields combine).
+pub fn posterior_file(s: &WheelStudy) -> PosteriorSummary {
+    let runs: Vec<&Sampled> = s.bands.iter().map(|b| &b.sampled).collect();
+    posterior_summary(
+        &runs,
+        all_rows(s),
+        s.bands.iter().map(|b| b.lik.data.n_points()).sum(),
+    )
 }
 
 /// Writes everything into `out`.
@@ -94,7 +77,7 @@ pub fn write(
     out: &Path,
     timings: &[(String, f64)],
 ) -> Result<()> {
-    posterior_file(s).write(&out.join("posterior.json"))?;
+    write_summary(&posterior_file(s), &out.join("posterior.json"))?;
     figures(s, data, out)?;
     crate::io::write_atomic(&out.join("report.md"), report(s, timings).as_bytes())
 }

@@ -29,7 +29,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::posterior::{
-    near_bound, quantile_sorted, row_from_chains, sample_to_targets, ParamRow, Sampled, Targets,
+    near_bound, quantile_sorted, row_from_chains, sample_to_targets, OnStep, ParameterSummary,
+    Sampled, Targets,
 };
 use super::wheel::{BandLikelihood, BandSpec, WheelData, N_CHANNELS};
 use crate::error::{Error, Result};
@@ -199,7 +200,7 @@ pub struct BandResult {
     pub sampled: Sampled,
     /// Rows: per mode `f`, `xi`, then `s`, then per mode `|A|` at its reference channel,
     /// then `|B|`, `|D|` at the first mode's reference channel.
-    pub rows: Vec<ParamRow>,
+    pub rows: Vec<ParameterSummary>,
     /// Reference channel (0-based) of each mode: the largest `|A|` at the start.
     pub ref_channel: Vec<usize>,
     /// Posterior bands of the model `|H|` on the band grid, per channel of
@@ -246,7 +247,12 @@ fn draw_residues(
 }
 
 /// Samples one band and derives residues, predictive bands and residual statistics.
-pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResult> {
+pub fn run_band(
+    data: &WheelData,
+    spec: BandSpec,
+    seed: u64,
+    on_step: &mut OnStep<'_>,
+) -> Result<BandResult> {
     let lik = BandLikelihood::new(data, spec)?;
     let start = varpro_start(&lik)?;
     let dim = lik.dim();
@@ -265,6 +271,8 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
         N_WALKERS,
         seed,
         &Targets::default(),
+        &format!("wheel: band {}", lik.spec.label),
+        on_step,
     )?;
     let fits0 = lik
         .fit_channels(&lik.poles(&start))
@@ -359,7 +367,7 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
             &lin_chains[r],
             N_WALKERS,
             f64::NAN,
-            false,
+            None,
         ));
     }
     rows.push(row_from_chains(
@@ -368,7 +376,7 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
         &lin_chains[m],
         N_WALKERS,
         f64::NAN,
-        false,
+        None,
     ));
     rows.push(row_from_chains(
         &format!("|D| ch{}", ref_channel[0] + 1),
@@ -376,7 +384,7 @@ pub fn run_band(data: &WheelData, spec: BandSpec, seed: u64) -> Result<BandResul
         &lin_chains[m + 1],
         N_WALKERS,
         f64::NAN,
-        false,
+        None,
     ));
     let bands_abs = abs_samples
         .into_iter()
@@ -516,11 +524,11 @@ pub fn cov_comparison(bands: &[BandResult]) -> Vec<CovComparison> {
 }
 
 /// Samples every band of [`bands`] (band `i` with seed `seed + i`).
-pub fn run(data: &WheelData, seed: u64) -> Result<Vec<BandResult>> {
+pub fn run(data: &WheelData, seed: u64, on_step: &mut OnStep<'_>) -> Result<Vec<BandResult>> {
     bands()
         .into_iter()
         .enumerate()
-        .map(|(i, spec)| run_band(data, spec, seed.wrapping_add(i as u64)))
+        .map(|(i, spec)| run_band(data, spec, seed.wrapping_add(i as u64), on_step))
         .collect()
 }
 
@@ -654,8 +662,11 @@ mod tests {
             f_guess_hz: vec![2850.0],
             xi_guess: 0.006,
         };
-        let b = run_band(&data, spec, 5).unwrap();
-        assert_eq!(b.sampled.stopped_because, "converged");
+        let b = run_band(&data, spec, 5, &mut |_, _| {}).unwrap();
+        assert_eq!(
+            b.sampled.stopped_because,
+            crate::mcmc::StopReason::Converged
+        );
         let (f, xi, s) = (&b.rows[0], &b.rows[1], &b.rows[2]);
         assert!(((f.mean - 2848.6) / f.sd).abs() < 3.3, "{f:?}");
         assert!(((xi.mean - 0.0056) / xi.sd).abs() < 3.3, "{xi:?}");
