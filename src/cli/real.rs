@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use frfbayes::mcmc::Progress;
+use frfbayes::real::posterior::Sampling;
 use frfbayes::real::{data_dir, run, shared_dir, Dataset};
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -53,7 +54,7 @@ pub fn run_cmd(args: Args) -> anyhow::Result<()> {
     .unwrap_or_else(|_| ProgressStyle::default_bar())
     .progress_chars("=> ");
     let mut bar: Option<(String, ProgressBar)> = None;
-    let mut on_step = |label: &str, p: &Progress| {
+    let on_step = |label: &str, p: &Progress| {
         if bar.as_ref().is_none_or(|(l, _)| l != label) {
             if let Some((_, b)) = bar.take() {
                 b.finish();
@@ -68,10 +69,8 @@ pub fn run_cmd(args: Args) -> anyhow::Result<()> {
             b.set_message(format!("acceptance {:.3}", p.acceptance));
         }
     };
-    let timings = run(dataset, &data, &out, args.seed, &mut on_step)?;
-    if let Some((_, b)) = bar.take() {
-        b.finish();
-    }
+    let timings = run(dataset, &data, &out, args.seed, &mut Sampling::new(on_step));
+    let timings = timings?;
     for (stage, t) in &timings {
         println!("{stage}: {t:.2} s");
     }

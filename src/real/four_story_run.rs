@@ -13,7 +13,7 @@ use super::four_story::{
     Prediction, TableModel, K_INITIAL_N_PER_M, MASSES_KG, N_FLOORS,
 };
 use super::posterior::{
-    near_bound, row_from_chains, sample_to_targets, OnStep, ParameterSummary, Sampled, Targets,
+    near_bound, row_from_chains, sample_to_targets, ParameterSummary, Sampled, Sampling, Targets,
 };
 use crate::error::Result;
 use crate::mcmc::{Ball, LogDensity, Start};
@@ -193,7 +193,7 @@ pub fn sample_variant(
     modes: Vec<usize>,
     mass_model: MassModel,
     seed: u64,
-    on_step: &mut OnStep<'_>,
+    sampling: &mut Sampling<'_>,
 ) -> Result<Variant> {
     let lik = ModalLikelihood::new(data.clone(), modes, mass_model)?;
     let sampled = sample_to_targets(
@@ -203,7 +203,7 @@ pub fn sample_variant(
         seed,
         &Targets::default(),
         label,
-        on_step,
+        sampling,
     )?;
     let bounds = prior_bounds(mass_model);
     let ns = lik.n_structural();
@@ -388,7 +388,7 @@ pub fn frequency_only_fit(data: &ModalData) -> Result<FrequencyOnlyFit> {
 }
 
 /// Runs the whole study on the data in `data_dir`.
-pub fn run(data_dir: &Path, seed: u64, on_step: &mut OnStep<'_>) -> Result<FourStoryStudy> {
+pub fn run(data_dir: &Path, seed: u64, sampling: &mut Sampling<'_>) -> Result<FourStoryStudy> {
     let data = load(data_dir)?;
     let all = vec![0, 1, 2, 3];
     let main = sample_variant(
@@ -397,7 +397,7 @@ pub fn run(data_dir: &Path, seed: u64, on_step: &mut OnStep<'_>) -> Result<FourS
         all.clone(),
         MassModel::Fixed,
         seed,
-        on_step,
+        sampling,
     )?;
     let main_ppc = ppc(&main, seed ^ 0x5eed_0001)?;
     let holdout = sample_variant(
@@ -406,7 +406,7 @@ pub fn run(data_dir: &Path, seed: u64, on_step: &mut OnStep<'_>) -> Result<FourS
         vec![0, 1, 2],
         MassModel::Fixed,
         seed.wrapping_add(1),
-        on_step,
+        sampling,
     )?;
     let holdout_ppc = ppc(&holdout, seed ^ 0x5eed_0002)?;
     let free_mass = sample_variant(
@@ -415,7 +415,7 @@ pub fn run(data_dir: &Path, seed: u64, on_step: &mut OnStep<'_>) -> Result<FourS
         all,
         MassModel::FreeRatios,
         seed.wrapping_add(2),
-        on_step,
+        sampling,
     )?;
     let free_mass_ppc = ppc(&free_mass, seed ^ 0x5eed_0003)?;
     let unit: Vec<Vec<f64>> = (0..4).map(|i| data.unit_shape(i)).collect();
@@ -510,7 +510,7 @@ mod tests {
             vec![0, 1, 2, 3],
             MassModel::Fixed,
             11,
-            &mut |_, _| {},
+            &mut Sampling::quiet(),
         )
         .unwrap();
         assert_eq!(

@@ -11,7 +11,8 @@
 //! - [`wheel`], [`wheel_run`], [`wheel_report`]: Bayesian modal parameters from the
 //!   measured accelerance of a wheel, damping against frequency uncertainty
 //!   (`wheel-frf`).
-//! - [`tower`], [`tower_model`], [`tower_run`], [`tower_report`]: FRFs from a building's mass-damper force,
+//! - [`tower`], [`tower_model`], [`tower_run`], [`tower_residuals`], [`tower_report`]: FRFs
+//!   from a building's mass-damper force,
 //!   a 5-story shear model with uncertain channel gains, and where its fit fails
 //!   (`tower-hmd`).
 //!
@@ -28,6 +29,7 @@ pub mod report;
 pub mod tower;
 pub mod tower_model;
 pub mod tower_report;
+pub mod tower_residuals;
 pub mod tower_run;
 pub mod wheel;
 pub mod wheel_report;
@@ -39,7 +41,7 @@ use std::time::Instant;
 use crate::error::{Error, Result};
 use crate::experiment::runinfo::RunInfo;
 use crate::io::StagedDir;
-use posterior::OnStep;
+use posterior::Sampling;
 
 /// The datasets with a study.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -77,14 +79,14 @@ pub fn data_dir(shared: &Path, dataset: Dataset) -> PathBuf {
 
 /// Runs the study of `dataset` on the data in `data_dir` and writes `report.md`,
 /// `posterior.json`, `run.json` and the figures into `out_dir`, atomically: the folder
-/// is built aside ([`StagedDir`]) and replaces `out_dir` only when complete. `on_step`
+/// is built aside ([`StagedDir`]) and replaces `out_dir` only when complete. `sampling`
 /// sees every sampler step. Returns the wall-clock seconds of each stage.
 pub fn run(
     dataset: Dataset,
     data_dir: &Path,
     out_dir: &Path,
     seed: u64,
-    on_step: &mut OnStep<'_>,
+    sampling: &mut Sampling<'_>,
 ) -> Result<Vec<(String, f64)>> {
     if !data_dir.is_dir() {
         return Err(Error::Usage(format!(
@@ -102,7 +104,7 @@ pub fn run(
     match dataset {
         Dataset::FourStoryModal => {
             let study = info.time("sample three variants and check", || {
-                four_story_run::run(data_dir, seed, on_step)
+                four_story_run::run(data_dir, seed, sampling)
             })?;
             let mut timings = info.timings_s.clone();
             timings.push(("total before writing".into(), t0.elapsed().as_secs_f64()));
@@ -113,7 +115,7 @@ pub fn run(
         Dataset::WheelFrf => {
             let data = info.time("read data", || wheel::load(data_dir))?;
             let bands = info.time("fit and sample bands", || {
-                wheel_run::run(&data, seed, on_step)
+                wheel_run::run(&data, seed, sampling)
             })?;
             let scatter = info.time("channel-by-channel fits", || {
                 bands
@@ -133,7 +135,7 @@ pub fn run(
         }
         Dataset::TowerHmd => {
             let study = info.time("estimate FRFs, fit and sample", || {
-                tower_run::run(data_dir, seed, on_step)
+                tower_run::run(data_dir, seed, sampling)
             })?;
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
@@ -167,3 +169,6 @@ pub(crate) fn shared_dataset(dataset: Dataset) -> Option<PathBuf> {
     }
     found
 }
+
+#[cfg(test)]
+mod smoke_tests;

@@ -24,6 +24,36 @@ use crate::mcmc::{
 /// posterior being sampled (the CLI draws a progress bar from it).
 pub type OnStep<'a> = dyn FnMut(&str, &Progress) + 'a;
 
+/// How a study samples: the progress callback, and an optional cap on the steps of
+/// every run (smoke tests; `None` samples to the study's [`Targets`]).
+pub struct Sampling<'a> {
+    pub on_step: Box<OnStep<'a>>,
+    pub step_cap: Option<u64>,
+}
+
+impl<'a> Sampling<'a> {
+    /// Sampling to the targets, reporting every step to `on_step`.
+    pub fn new(on_step: impl FnMut(&str, &Progress) + 'a) -> Self {
+        Sampling {
+            on_step: Box::new(on_step),
+            step_cap: None,
+        }
+    }
+
+    /// Silent sampling with every run capped at `steps` steps.
+    pub fn capped(steps: u64) -> Self {
+        Sampling {
+            on_step: Box::new(|_, _| {}),
+            step_cap: Some(steps),
+        }
+    }
+
+    /// Silent sampling to the targets.
+    pub fn quiet() -> Self {
+        Sampling::new(|_, _| {})
+    }
+}
+
 /// Writes `posterior.json` atomically (pretty JSON).
 pub fn write_summary(summary: &PosteriorSummary, path: &Path) -> Result<()> {
     let json = serde_json::to_vec_pretty(summary).map_err(|e| Error::Numerical(e.to_string()))?;
@@ -208,7 +238,8 @@ pub fn default_moves() -> Result<Moves> {
 
 /// Runs the ensemble sampler on `density` from `start` until emcee's stopping rule and
 /// `targets` hold (or the hard cap), and returns the draws after [`Burn::Auto`].
-/// `on_step` is called with `label` after every step.
+/// `sampling.on_step` is called with `label` after every step; `sampling.step_cap`
+/// lowers both step caps of `targets`.
 pub fn sample_to_targets<D: LogDensity + ?Sized>(
     density: &D,
     start: Start,
@@ -216,9 +247,15 @@ pub fn sample_to_targets<D: LogDensity + ?Sized>(
     seed: u64,
     targets: &Targets,
     label: &str,
-    on_step: &mut OnStep<'_>,
+    sampling: &mut Sampling<'_>,
 ) -> Result<Sampled> {
     let t0 = Instant::now();
+    let mut targets = targets.clone();
+    if let Some(n) = sampling.step_cap {
+        targets.first_cap_steps = targets.first_cap_steps.min(n);
+        targets.hard_cap_steps = targets.hard_cap_steps.min(n);
+    }
+    let on_step = &mut sampling.on_step;
     let mut config = SamplerConfig::new(n_walkers, seed);
     config.max_steps = targets.first_cap_steps;
     let mut sampler = Sampler::new(density, default_moves()?, config, start)?;
@@ -237,7 +274,15 @@ pub fn sample_to_targets<D: LogDensity + ?Sized>(
         let met = worst_rhat < targets.max_rhat && min_ess > targets.min_ess;
         let at_cap = sampler.step_count() >= cap;
         if (done_tau && met) || (at_cap && cap >= targets.hard_cap_steps) {
-            let draws = sampler.draws(Burn::Auto)?;
+            // Burn::Auto needs a tau estimate; a capped smoke run may stop before one
+            // exists, and then keeps the second half as `frfbayes sample` does.
+            let draws = sampler.draws(Burn::Auto).or_else(|_| {
+                let s = sampler.step_count();
+                sampler.draws(Burn::Steps {
+                    discard: s / 2,
+                    thin: 1,
+                })
+            })?;
             let thin = (sampler.step_count() / 500).max(1);
             let full = sampler.draws(Burn::Steps { discard: 0, thin })?;
             let stopped_because = if done_tau && met {
@@ -313,10 +358,10 @@ mod tests {
             3,
             &Targets::default(),
             "gaussian",
-            &mut |label, p| {
+            &mut Sampling::new(|label: &str, p: &Progress| {
                 assert_eq!(label, "gaussian");
                 steps = p.step;
-            },
+            }),
         )
         .unwrap();
         assert_eq!(steps, s.n_steps, "the callback sees every step");

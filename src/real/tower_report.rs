@@ -4,11 +4,15 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::posterior::{posterior_summary, write_summary, PosteriorSummary};
+use super::posterior::{posterior_summary, write_summary, AtBound, PosteriorSummary};
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use super::tower::{AUTHOR_GAINS, DAMPER_MASS_KG, FLOOR_COLUMN, FLOOR_MASS_KG};
 use super::tower_model::N;
-use super::tower_run::{TowerFit, TowerStudy, SUB_BANDS_HZ};
+use super::tower_residuals::{
+    PeakResidual, ResidualAnalysis, MODE_HALF_WIDTH_HZ, PEAK_HALF_WINDOW_HZ, PEAK_MIN_RATIO,
+    REPRODUCED_FREQ_TOL, REPRODUCED_MAC,
+};
+use super::tower_run::{TowerFit, TowerStudy};
 use crate::error::Result;
 use crate::plot::{
     band_overlay, heatmap, BandOverlaySpec, BandPanel, Curve, HeatmapSpec, Interval, Scale,
@@ -36,21 +40,45 @@ fn band_label(b: (f64, f64)) -> String {
     format!("{}-{} Hz", b.0, b.1)
 }
 
-fn rms_table(m: &[Vec<f64>]) -> String {
-    let headers: Vec<String> = std::iter::once("floor".to_string())
-        .chain(SUB_BANDS_HZ.iter().map(|&b| band_label(b)))
-        .collect();
+fn peak_table(a: &ResidualAnalysis) -> String {
+    let mut headers = vec![
+        "measured peak (Hz)".to_string(),
+        "nearest model mode".into(),
+        "model f (Hz)".into(),
+        "f error (%)".into(),
+        "MAC".into(),
+    ];
+    headers.extend((1..=N).map(|c| format!("RMS z floor {c}")));
+    headers.push("reproduced".into());
     let hdr: Vec<&str> = headers.iter().map(String::as_str).collect();
-    let rows: Vec<Vec<String>> = m
+    let rows: Vec<Vec<String>> = a
+        .peaks
         .iter()
-        .enumerate()
-        .map(|(c, v)| {
-            std::iter::once(format!("{}", c + 1))
-                .chain(v.iter().map(|x| format!("{x:.1}")))
-                .collect()
+        .map(|p| {
+            let mut row = vec![
+                format!("{:.3}", p.peak.freq_hz),
+                format!("{}", p.mode + 1),
+                format!("{:.3}", p.model_freq_hz),
+                format!("{:+.1}", 100.0 * p.freq_error()),
+                format!("{:.3}", p.mac),
+            ];
+            row.extend(p.rms_z.iter().map(|z| format!("{z:.1}")));
+            row.push(if p.reproduced() { "yes" } else { "no" }.into());
+            row
         })
         .collect();
     md_table(&hdr, &rows)
+}
+
+fn floor_list(v: &[usize]) -> String {
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.iter()
+            .map(|c| format!("{}", c + 1))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
 }
 
 fn fit_section(r: &mut String, f: &TowerFit) {
@@ -149,8 +177,8 @@ fn report(s: &TowerStudy, timings: &[(String, f64)]) -> String {
                 .join(", ")
         },
         if flipped.len() == N {
-            " (all five: the sign of the force, i.e. of the damper acceleration channel, \
-             is opposite to the author's convention, rather than five calibration errors)"
+            " (all five: most simply one sign, that of the force channel, opposite to the \
+             author's convention, rather than five calibration errors)"
         } else {
             ""
         },
@@ -166,29 +194,42 @@ fn report(s: &TowerStudy, timings: &[(String, f64)]) -> String {
     );
     fit_section(&mut r, &s.low);
 
-    let _ = writeln!(r, "## Where the shear model fails\n");
     let _ = writeln!(
         r,
-        "RMS of the standardised residual `|H1 - H_model| / sd(H1)` over the whole band, \
-         sd from the coherence and {} segments (`s = 1`: 1 is consistent with the \
-         estimator noise). Whole-band fit (posterior median, s = {}):\n",
+        "## Where the shear model fails: per mode and per floor\n"
+    );
+    let _ = writeln!(
+        r,
+        "Measured resonances are found from the data alone (local maxima of the \
+         channel-normalised power within +-{PEAK_HALF_WINDOW_HZ} Hz, above \
+         {PEAK_MIN_RATIO} times its median). For each: the nearest model mode, the MAC of \
+         the measured operating shape `Im(H1_c) / g_c` with that mode's shape, and the RMS \
+         standardised residual `|H1 - H_model| / sd(H1)` of each floor within \
+         +-{MODE_HALF_WIDTH_HZ} Hz (sd from the coherence and {} segments; 1 is the \
+         estimator noise). Reproduced: frequency within {:.0} % and MAC above \
+         {REPRODUCED_MAC}.\n",
         s.frf.n_segments,
+        100.0 * REPRODUCED_FREQ_TOL
+    );
+    let _ = writeln!(
+        r,
+        "Whole-band fit (posterior median, s = {}):\n",
         sig(f.rows[2 * N].q50, 3)
     );
-    let _ = writeln!(r, "{}", rms_table(&s.rms_z));
+    let _ = writeln!(r, "{}", peak_table(&s.residuals));
     let _ = writeln!(
         r,
-        "Fit to the first two modes ({}; s = {}), residuals over the whole band (the \
-         bands above {} Hz are predictions):\n",
+        "Fit to the first two modes ({}; s = {}), evaluated over the whole band (peaks \
+         above {} Hz are predictions):\n",
         band_label(s.low.band_hz),
         sig(s.low.rows[2 * N].q50, 3),
         s.low.band_hz.1
     );
-    let _ = writeln!(r, "{}", rms_table(&s.rms_z_low));
+    let _ = writeln!(r, "{}", peak_table(&s.residuals_low));
     let _ = writeln!(r, "{}", failure_summary(s));
     let _ = writeln!(r, "## Figures\n");
     let _ = writeln!(r, "- `frf_fit.png/.svg`: measured |H1| and the posterior of the whole-band model |H| per floor");
-    let _ = writeln!(r, "- `residual_map.png/.svg`, `residual_map_low.png/.svg`: log10 RMS standardised residual per floor and sub-band (whole-band fit; fit to the first two modes)");
+    let _ = writeln!(r, "- `residual_map.png/.svg`, `residual_map_low.png/.svg`: log10 RMS standardised residual per floor at each measured peak (whole-band fit; fit to the first two modes)");
     let _ = writeln!(
         r,
         "- `traces.png/.svg`: walker traces of the stiffnesses (whole-band fit)\n"
@@ -203,108 +244,148 @@ fn report(s: &TowerStudy, timings: &[(String, f64)]) -> String {
 /// The computed account of where the fit fails.
 fn failure_summary(s: &TowerStudy) -> String {
     let f = &s.full;
+    let a = &s.residuals;
     let mut out = String::new();
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let floor_mean: Vec<f64> = s.rms_z.iter().map(|v| mean(v)).collect();
-    let band_mean: Vec<f64> = (0..SUB_BANDS_HZ.len())
-        .map(|b| mean(&s.rms_z.iter().map(|v| v[b]).collect::<Vec<_>>()))
-        .collect();
-    let worst_floor = (0..N)
-        .max_by(|&a, &b| floor_mean[a].total_cmp(&floor_mean[b]))
-        .unwrap_or(0);
-    let best_floor = (0..N)
-        .min_by(|&a, &b| floor_mean[a].total_cmp(&floor_mean[b]))
-        .unwrap_or(0);
-    let worst_band = (0..band_mean.len())
-        .max_by(|&a, &b| band_mean[a].total_cmp(&band_mean[b]))
-        .unwrap_or(0);
-    let mut cells: Vec<(f64, usize, usize)> = s
-        .rms_z
+    let missed: Vec<String> = a
+        .peaks
         .iter()
-        .enumerate()
-        .flat_map(|(c, v)| v.iter().enumerate().map(move |(b, &x)| (x, c, b)))
+        .filter(|p| !p.reproduced())
+        .map(|p| {
+            format!(
+                "{:.2} Hz (model mode {} at {:.2} Hz, MAC {:.2})",
+                p.peak.freq_hz,
+                p.mode + 1,
+                p.model_freq_hz,
+                p.mac
+            )
+        })
         .collect();
-    cells.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let hit: Vec<String> = a
+        .peaks
+        .iter()
+        .filter(|p| p.reproduced())
+        .map(|p| format!("{:.2} Hz", p.peak.freq_hz))
+        .collect();
     let _ = writeln!(
         out,
-        "- Whole-band fit: the model misses the data by s = {} times the estimator noise. \
-         Largest cells: {}. By floor (mean over sub-bands): {}; worst floor {}, best floor \
-         {}. Worst sub-band (mean over floors): {}.",
+        "- Whole-band fit: {} of {} measured resonances reproduced ({}); not reproduced: \
+         {}. Model modes in the band that no measured peak is nearest to: {}. The model \
+         misses the data by s = {} times the estimator noise overall (RMS |z| {:.1}).",
+        hit.len(),
+        a.peaks.len(),
+        if hit.is_empty() {
+            "none".into()
+        } else {
+            hit.join(", ")
+        },
+        if missed.is_empty() {
+            "none".into()
+        } else {
+            missed.join("; ")
+        },
+        if a.unmatched_modes.is_empty() {
+            "none".to_string()
+        } else {
+            a.unmatched_modes
+                .iter()
+                .map(|&r| format!("mode {} ({:.2} Hz)", r + 1, a.model_freq_hz[r]))
+                .collect::<Vec<_>>()
+                .join(", ")
+        },
         sig(f.rows[2 * N].q50, 3),
-        cells
+        a.rms_z_total
+    );
+    let mut order: Vec<usize> = (0..N).collect();
+    order.sort_by(|&x, &y| a.rms_z_floor[y].total_cmp(&a.rms_z_floor[x]));
+    let median_floor = {
+        let mut v = a.rms_z_floor.to_vec();
+        v.sort_by(f64::total_cmp);
+        v[N / 2]
+    };
+    let outliers: Vec<usize> = (0..N)
+        .filter(|&c| a.rms_z_floor[c] > 1.5 * median_floor)
+        .collect();
+    let _ = writeln!(
+        out,
+        "- Per floor over the whole band, RMS |z| = {} (floors 1-5); worst floor {}, best \
+         floor {}. Floors above 1.5 times the median floor: {}.",
+        a.rms_z_floor
             .iter()
-            .take(4)
-            .map(|&(x, c, b)| format!(
-                "floor {} at {} ({x:.1})",
-                c + 1,
-                band_label(SUB_BANDS_HZ[b])
-            ))
-            .collect::<Vec<_>>()
-            .join("; "),
-        floor_mean
-            .iter()
-            .map(|x| format!("{x:.1}"))
+            .map(|z| format!("{z:.1}"))
             .collect::<Vec<_>>()
             .join(", "),
-        worst_floor + 1,
-        best_floor + 1,
-        band_label(SUB_BANDS_HZ[worst_band])
+        order[0] + 1,
+        order[N - 1] + 1,
+        floor_list(&outliers)
     );
     let at_bound: Vec<String> = f
         .rows
         .iter()
-        .filter(|r| r.at_bound.is_some())
-        .map(|r| r.name.clone())
+        .filter_map(|r| {
+            r.at_bound.map(|b| {
+                format!(
+                    "{} ({})",
+                    r.name,
+                    match b {
+                        AtBound::Lower => "lower",
+                        AtBound::Upper => "upper",
+                    }
+                )
+            })
+        })
         .collect();
     if !at_bound.is_empty() {
         let _ = writeln!(
             out,
-            "- At a prior bound in the whole-band fit: {}. Stiffnesses at the upper bound \
-             mean the fit wants those stories rigid (the floors above and below moving \
-             as one), which a shear chain can only do by giving up its own modes there.",
+            "- At a prior bound in the whole-band fit: {}. A stiffness at its upper bound \
+             means the fit wants that story rigid (the floors above and below moving as \
+             one): the five-floor chain gives up one of its own modes to reach the \
+             measured shapes.",
             at_bound.join(", ")
         );
     }
-    let low_in: Vec<f64> = s
-        .rms_z_low
+    let low = &s.residuals_low;
+    let (lo_in, lo_out): (Vec<&PeakResidual>, Vec<&PeakResidual>) = low
+        .peaks
         .iter()
-        .flat_map(|v| v[..3].iter().copied())
-        .collect();
-    let low_out: Vec<f64> = s
-        .rms_z_low
-        .iter()
-        .flat_map(|v| v[3..].iter().copied())
-        .collect();
+        .partition(|p| p.peak.freq_hz <= s.low.band_hz.1);
+    let rms = |v: &[&PeakResidual]| -> f64 {
+        let all: Vec<f64> = v.iter().flat_map(|p| p.rms_z.iter().copied()).collect();
+        (all.iter().map(|x| x * x).sum::<f64>() / all.len().max(1) as f64).sqrt()
+    };
     let _ = writeln!(
         out,
-        "- Fit to the first two modes: s = {}; mean RMS |z| {:.1} inside its band and {:.1} \
-         above it. Natural frequencies {} Hz (whole band: {} Hz).",
+        "- Fit to the first two modes: s = {}; at the measured peaks RMS |z| {:.1} inside \
+         its band ({} peaks, {} reproduced) and {:.1} above it ({} peaks, {} reproduced: \
+         the low modes do not predict the higher ones). Natural frequencies {} Hz (whole \
+         band: {} Hz).",
         sig(s.low.rows[2 * N].q50, 3),
-        mean(&low_in),
-        mean(&low_out),
+        rms(&lo_in),
+        lo_in.len(),
+        lo_in.iter().filter(|p| p.reproduced()).count(),
+        rms(&lo_out),
+        lo_out.len(),
+        lo_out.iter().filter(|p| p.reproduced()).count(),
         s.low
             .freq_rows
             .iter()
-            .take(2)
             .map(|r| sig(r.q50, 3))
             .collect::<Vec<_>>()
             .join(", "),
         f.freq_rows
             .iter()
-            .take(2)
             .map(|r| sig(r.q50, 3))
             .collect::<Vec<_>>()
             .join(", ")
     );
     let _ = writeln!(
         out,
-        "- Reading: where the residuals exceed the estimator noise by an order of \
-         magnitude (s ~ 10), the shear model of five lumped floors lacks physics. \
-         Candidates, to be tested by model extensions: flexural (cantilever) behaviour of \
-         a tall building whose higher modes a shear chain places wrongly; more storeys \
-         than the five measured (the 'floors' are then not lumped masses of a chain); \
-         torsion excited by an eccentric damper; a local response of the damper floor; \
-         and, on single channels, calibration or mounting problems."
+        "- Reading: residuals an order of magnitude above the estimator noise at resonances \
+         the chain cannot place, or with shapes it cannot form, are missing physics, not \
+         noise. Candidates to test as model extensions (the `diagnose` command): \
+         flexural (cantilever) behaviour; more storeys than the five measured; torsion \
+         from an eccentric damper; a local response of the damper floor; and, where one \
+         floor stands out, calibration or mounting of that channel."
     );
     out
 }
@@ -344,10 +425,10 @@ fn figures(s: &TowerStudy, out: &Path) -> Result<()> {
         },
         &out.join("frf_fit"),
     )?;
-    for (m, stem, what) in [
-        (&s.rms_z, "residual_map", "whole-band fit"),
+    for (a, stem, what) in [
+        (&s.residuals, "residual_map", "whole-band fit"),
         (
-            &s.rms_z_low,
+            &s.residuals_low,
             "residual_map_low",
             "fit to the first two modes",
         ),
@@ -357,13 +438,16 @@ fn figures(s: &TowerStudy, out: &Path) -> Result<()> {
                 title: format!(
                     "Where the shear model fails ({what}): log10 RMS standardised residual"
                 ),
-                x_label: "Frequency band".into(),
+                x_label: "Measured resonance".into(),
                 y_label: "Floor".into(),
                 row_labels: (1..=N).map(|c| format!("floor {c}")).collect(),
-                col_labels: SUB_BANDS_HZ.iter().map(|&b| band_label(b)).collect(),
-                values: m
+                col_labels: a
+                    .peaks
                     .iter()
-                    .map(|v| v.iter().map(|x| x.log10()).collect())
+                    .map(|p| format!("{:.2} Hz", p.peak.freq_hz))
+                    .collect(),
+                values: (0..N)
+                    .map(|c| a.peaks.iter().map(|p| p.rms_z[c].log10()).collect())
                     .collect(),
                 colour_label: "log10 RMS |z|".into(),
                 limit: None,

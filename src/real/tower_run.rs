@@ -8,13 +8,14 @@
 use std::path::Path;
 
 use super::posterior::{
-    near_bound, quantile_sorted, row_from_chains, sample_to_targets, OnStep, ParameterSummary,
-    Sampled, Targets,
+    near_bound, quantile_sorted, row_from_chains, sample_to_targets, ParameterSummary, Sampled,
+    Sampling, Targets,
 };
 use super::tower::{estimate_frf, load, TowerFrf};
 use super::tower_model::{
     model_frf, natural_freq_hz, TowerData, TowerLikelihood, TowerLsq, K_CENTRE_N_PER_M, N,
 };
+use super::tower_residuals::{shear_model_residuals, ResidualAnalysis};
 use crate::error::Result;
 use crate::mcmc::{Ball, LogDensity, Start};
 use crate::update::lsq::{multistart, Bounds, MultistartOptions};
@@ -26,17 +27,8 @@ use rand_distr::{Distribution, StandardNormal};
 pub const SEGMENT_LEN: usize = 4096;
 /// Fitted band (Hz).
 pub const BAND_HZ: (f64, f64) = (0.4, 6.2);
-/// Sub-bands of the residual map (Hz).
-pub const SUB_BANDS_HZ: [(f64, f64); 6] = [
-    (0.4, 0.8),
-    (0.8, 1.4),
-    (1.4, 2.2),
-    (2.2, 3.5),
-    (3.5, 4.6),
-    (4.6, 6.2),
-];
-/// Walkers per ensemble (>= 2 x 11).
-pub const N_WALKERS: usize = 32;
+/// Walkers per ensemble (>= 2 x 11 coordinates).
+pub const N_WALKERS: usize = 24;
 /// Posterior draws for the predictive bands.
 pub const MAX_BAND_DRAWS: usize = 800;
 
@@ -68,22 +60,22 @@ pub struct TowerStudy {
     pub full: TowerFit,
     /// Fit to [`LOW_BAND_HZ`].
     pub low: TowerFit,
-    /// RMS of |standardised residual| (s = 1) per floor and sub-band over [`BAND_HZ`],
-    /// at the posterior median of the full fit and of the low-band fit.
-    pub rms_z: Vec<Vec<f64>>,
-    pub rms_z_low: Vec<Vec<f64>>,
+    /// Per-mode and per-channel residuals over [`BAND_HZ`] at the posterior median of
+    /// the whole-band fit, and of the low-band fit (above [`LOW_BAND_HZ`]: predictions).
+    pub residuals: ResidualAnalysis,
+    pub residuals_low: ResidualAnalysis,
     /// Model |H| quantiles (2.5, 25, 50, 75, 97.5 %) per floor on the full band grid.
     pub bands_abs: Vec<[Vec<f64>; 5]>,
 }
 
 /// Runs the study on the records in `dir`.
-pub fn run(dir: &Path, seed: u64, on_step: &mut OnStep<'_>) -> Result<TowerStudy> {
+pub fn run(dir: &Path, seed: u64, sampling: &mut Sampling<'_>) -> Result<TowerStudy> {
     let records = load(dir)?;
     let frf = estimate_frf(&records, SEGMENT_LEN)?;
-    let full = fit_band(&frf, BAND_HZ, seed, on_step)?;
-    let low = fit_band(&frf, LOW_BAND_HZ, seed.wrapping_add(1), on_step)?;
-    let rms_z = rms_map(&full.lik, &full.median, &full.g_median)?;
-    let rms_z_low = rms_map(&full.lik, &low.median, &low.g_median)?;
+    let full = fit_band(&frf, BAND_HZ, seed, sampling)?;
+    let low = fit_band(&frf, LOW_BAND_HZ, seed.wrapping_add(1), sampling)?;
+    let residuals = shear_model_residuals(&full.lik, &full.median, &full.g_median)?;
+    let residuals_low = shear_model_residuals(&full.lik, &low.median, &low.g_median)?;
     let lik = &full.lik;
     let d = &full.sampled.draws;
     let total = d.n_chains * d.n_draws;
@@ -118,29 +110,10 @@ pub fn run(dir: &Path, seed: u64, on_step: &mut OnStep<'_>) -> Result<TowerStudy
         frf,
         full,
         low,
-        rms_z,
-        rms_z_low,
+        residuals,
+        residuals_low,
         bands_abs,
     })
-}
-
-/// RMS |z| per floor and sub-band of [`SUB_BANDS_HZ`] on `lik`'s grid at `t`, `g`.
-fn rms_map(lik: &TowerLikelihood, t: &[f64], g: &[f64; N]) -> Result<Vec<Vec<f64>>> {
-    let z = lik.residuals(t, g)?;
-    Ok((0..N)
-        .map(|c| {
-            SUB_BANDS_HZ
-                .iter()
-                .map(|&(a, b)| {
-                    let v: Vec<f64> = (0..lik.data.freq_hz.len())
-                        .filter(|&i| lik.data.freq_hz[i] >= a && lik.data.freq_hz[i] < b)
-                        .map(|i| z[c][i].norm_sqr())
-                        .collect();
-                    (v.iter().sum::<f64>() / v.len().max(1) as f64).sqrt()
-                })
-                .collect()
-        })
-        .collect())
 }
 
 /// Least-squares start and ensemble sampling of the shear model on `band`.
@@ -148,7 +121,7 @@ pub fn fit_band(
     frf: &TowerFrf,
     band: (f64, f64),
     seed: u64,
-    on_step: &mut OnStep<'_>,
+    sampling: &mut Sampling<'_>,
 ) -> Result<TowerFit> {
     let data = TowerData::from_frf(frf, band.0, band.1)?;
     let bounds = TowerLikelihood::bounds();
@@ -187,11 +160,11 @@ pub fn fit_band(
         seed,
         &Targets {
             first_cap_steps: 4000,
-            hard_cap_steps: 40_000,
+            hard_cap_steps: 12_000,
             ..Default::default()
         },
         &format!("tower: band {}-{} Hz", band.0, band.1),
-        on_step,
+        sampling,
     )?;
     let tau = &sampled.tau_steps;
     let mut rows = Vec::new();

@@ -29,8 +29,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::posterior::{
-    near_bound, quantile_sorted, row_from_chains, sample_to_targets, OnStep, ParameterSummary,
-    Sampled, Targets,
+    near_bound, quantile_sorted, row_from_chains, sample_to_targets, ParameterSummary, Sampled,
+    Sampling, Targets,
 };
 use super::wheel::{BandLikelihood, BandSpec, WheelData, N_CHANNELS};
 use crate::error::{Error, Result};
@@ -251,7 +251,7 @@ pub fn run_band(
     data: &WheelData,
     spec: BandSpec,
     seed: u64,
-    on_step: &mut OnStep<'_>,
+    sampling: &mut Sampling<'_>,
 ) -> Result<BandResult> {
     let lik = BandLikelihood::new(data, spec)?;
     let start = varpro_start(&lik)?;
@@ -272,7 +272,7 @@ pub fn run_band(
         seed,
         &Targets::default(),
         &format!("wheel: band {}", lik.spec.label),
-        on_step,
+        sampling,
     )?;
     let fits0 = lik
         .fit_channels(&lik.poles(&start))
@@ -524,11 +524,11 @@ pub fn cov_comparison(bands: &[BandResult]) -> Vec<CovComparison> {
 }
 
 /// Samples every band of [`bands`] (band `i` with seed `seed + i`).
-pub fn run(data: &WheelData, seed: u64, on_step: &mut OnStep<'_>) -> Result<Vec<BandResult>> {
+pub fn run(data: &WheelData, seed: u64, sampling: &mut Sampling<'_>) -> Result<Vec<BandResult>> {
     bands()
         .into_iter()
         .enumerate()
-        .map(|(i, spec)| run_band(data, spec, seed.wrapping_add(i as u64), on_step))
+        .map(|(i, spec)| run_band(data, spec, seed.wrapping_add(i as u64), sampling))
         .collect()
 }
 
@@ -662,7 +662,7 @@ mod tests {
             f_guess_hz: vec![2850.0],
             xi_guess: 0.006,
         };
-        let b = run_band(&data, spec, 5, &mut |_, _| {}).unwrap();
+        let b = run_band(&data, spec, 5, &mut Sampling::quiet()).unwrap();
         assert_eq!(
             b.sampled.stopped_because,
             crate::mcmc::StopReason::Converged
