@@ -22,6 +22,9 @@ use crate::update::lsq::{Bounds, LeastSquaresProblem, Trf, TrfOptions};
 
 /// Walkers per ensemble (>= 2 x 9 coordinates of the largest variant).
 pub const N_WALKERS: usize = 32;
+/// Step cap of every variant: the free-mass variant mixes slowly (its emcee tau rule
+/// needs about 28 000 steps) and stops here, past R-hat 1.01 and ESS 400.
+pub const MAX_STEPS: u64 = 10_000;
 /// Most posterior draws used for predictive checks.
 pub const MAX_PPC_DRAWS: usize = 4000;
 
@@ -201,7 +204,10 @@ pub fn sample_variant(
         start_balls(mass_model),
         N_WALKERS,
         seed,
-        &Targets::default(),
+        &Targets {
+            hard_cap_steps: MAX_STEPS,
+            ..Targets::default()
+        },
         label,
         sampling,
     )?;
