@@ -8,7 +8,7 @@
 //! - [`posterior`]: sampling to R-hat/ESS targets and the `posterior.json` schema.
 //! - [`four_story`], [`four_story_run`], [`four_story_report`], [`four_story_figures`]:
 //!   identified modes of the four-story frame against a shear-frame modal likelihood (`four-story-modal`).
-//! - [`wheel`], [`wheel_run`], [`wheel_report`]: Bayesian modal parameters from the
+//! - [`wheel`], [`wheel_run`], [`wheel_scatter`], [`wheel_report`]: Bayesian modal parameters from the
 //!   measured accelerance of a wheel, damping against frequency uncertainty
 //!   (`wheel-frf`).
 //! - [`tower`], [`tower_model`], [`tower_run`], [`tower_residuals`], [`tower_report`]: FRFs
@@ -34,6 +34,7 @@ pub mod tower_run;
 pub mod wheel;
 pub mod wheel_report;
 pub mod wheel_run;
+pub mod wheel_scatter;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
