@@ -7,14 +7,15 @@
 //!   and variable.
 //! - [`posterior`]: sampling to R-hat/ESS targets and the `posterior.json` schema.
 //! - [`four_story`], [`four_story_run`], [`four_story_report`], [`four_story_figures`]:
-//!   identified modes of the four-story frame against a shear-frame modal likelihood (`four-story-modal`).
-//! - [`wheel`], [`wheel_run`], [`wheel_scatter`], [`wheel_report`]: Bayesian modal parameters from the
-//!   measured accelerance of a wheel, damping against frequency uncertainty
-//!   (`wheel-frf`).
-//! - [`tower`], [`tower_model`], [`tower_run`], [`tower_residuals`], [`tower_report`]: FRFs
-//!   from a building's mass-damper force,
-//!   a 5-story shear model with uncertain channel gains, and where its fit fails
-//!   (`tower-hmd`).
+//!   identified modes of the four-story frame against a shear-frame modal likelihood
+//!   (`four-story-modal`).
+//! - [`wheel`], [`wheel_run`], [`wheel_scatter`], [`wheel_report`]: Bayesian modal
+//!   parameters from the measured accelerance of a wheel, damping against frequency
+//!   uncertainty (`wheel-frf`).
+//! - [`tower`], [`tower_model`], [`tower_run`], [`tower_residuals`], [`tower_report`]:
+//!   FRFs from a building's mass-damper force, a 5-story shear model with uncertain
+//!   channel gains, and where its fit fails, per mode and per floor
+//!   ([`tower_residuals::shear_model_residuals`]) (`tower-hmd`).
 //!
 //! Each study writes `report.md`, `posterior.json`, `run.json` and figures (PNG + SVG)
 //! into its output folder.
