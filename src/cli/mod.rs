@@ -6,6 +6,7 @@ pub mod diagnose;
 pub mod frf;
 pub mod modes;
 pub mod multistart;
+pub mod real;
 pub mod repro;
 pub mod sample;
 pub mod simulate;
