@@ -7,6 +7,8 @@ pub mod hypotheses;
 pub mod hypothesis;
 pub mod location;
 pub mod posterior;
+#[cfg(test)]
+mod tests;
 
 pub use data::{ChannelData, DataOptions, DiagnosisData, SegmentData};
 pub use fit::{effect_starts, fit_map, frame_starts, nominal_start, MapFit, MapOptions};

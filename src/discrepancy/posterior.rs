@@ -307,6 +307,21 @@ impl ModelPosterior {
         q / (2.0 * pred.len().max(1) as f64)
     }
 
+    /// Chi2 per dof of the points `range` (flat layout) of a full prediction.
+    pub fn chi2_per_dof_of_range(
+        &self,
+        pred: &[Complex64],
+        eta: f64,
+        range: std::ops::Range<usize>,
+    ) -> f64 {
+        let eta2 = eta * eta;
+        let n = range.len();
+        let q: f64 = range
+            .map(|i| (pred[i] - self.h[i]).norm_sqr() / ((self.eps2[i] + eta2) * self.abs2[i]))
+            .sum();
+        q / (2.0 * n.max(1) as f64)
+    }
+
     /// The `eta` in the prior box that maximises the likelihood of a prediction
     /// (golden-section search on `ln eta`; the profile is unimodal in practice).
     pub fn profile_eta(&self, pred: &[Complex64]) -> f64 {
