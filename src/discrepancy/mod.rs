@@ -1,10 +1,12 @@
 //! Diagnosis of missing physics (issue 5): data, hypotheses, forward models, posteriors.
 
+mod amplitude;
 pub mod data;
 pub mod fit;
 pub mod forward;
 pub mod hypotheses;
 pub mod hypothesis;
+mod input_noise;
 pub mod location;
 pub mod posterior;
 #[cfg(test)]

@@ -67,6 +67,7 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
         bands: Vec::new(),
         channels,
         story_drift_ms_m2: vec![Some(1e-6), Some(2e-6), Some(0.5e-6), Some(3e-6)],
+        input_gain: None,
     }
 }
 
@@ -500,9 +501,13 @@ fn every_hypothesis_has_locations_priors_and_nests_the_nominal_model() {
                     {
                         0.0
                     }
-                    Some(v) if v == 0.0 => p.lower,
+                    Some(0.0) => p.lower,
                     Some(_) => p.upper,
-                    None if p.name.ends_with("damping_ratio") => p.upper,
+                    None if p.name.ends_with("damping_ratio")
+                        || p.name == "oscillator_frequency" =>
+                    {
+                        p.upper
+                    }
                     None => z[j],
                 };
             }
@@ -515,10 +520,20 @@ fn every_hypothesis_has_locations_priors_and_nests_the_nominal_model() {
                 .unwrap()
                 .predict(&b, &[])
                 .unwrap();
-            let rel = near
+            // Largest change relative to each channel's largest magnitude.
+            let model = post.model();
+            let rel = model
+                .layout()
                 .iter()
-                .zip(&nom)
-                .map(|(a, c)| (a - c).norm() / c.norm())
+                .flatten()
+                .map(|r| {
+                    let scale = nom[r.clone()].iter().map(|c| c.norm()).fold(0.0, f64::max);
+                    near[r.clone()]
+                        .iter()
+                        .zip(&nom[r.clone()])
+                        .map(|(a, c)| (a - c).norm() / scale)
+                        .fold(0.0, f64::max)
+                })
                 .fold(0.0, f64::max);
             assert!(rel < 0.1, "{} at {loc}: {rel}", h.name());
         }
@@ -575,4 +590,68 @@ fn posterior_prior_is_normalised_and_likelihood_is_the_gaussian() {
     assert!((best - 0.0141).abs() < 0.001, "{best}");
     let chi2 = post.chi2_per_dof_of(&pred, best);
     assert!((chi2 - 1.0).abs() < 0.05, "{chi2}");
+}
+
+#[test]
+fn correlated_gain_likelihood_is_the_dense_gaussian() {
+    // One hammer segment on 6 frequencies with a random rank-2 gain basis: ln L and the
+    // whitened residuals against the dense complex covariance D + V V^*.
+    let mut data = (*synthetic()).clone();
+    let freq: Vec<f64> = (1..=6).map(|i| 0.7 * i as f64).collect();
+    let mut seg = segment(
+        "h1",
+        InputKind::Force {
+            floor: 2,
+            channel: "force".into(),
+        },
+        Some(19.4),
+        &freq,
+    );
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut c = || Complex64::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5);
+    let rank = 2;
+    let u: Vec<Complex64> = (0..6 * rank).map(|_| c() * 0.05).collect();
+    seg.input_gain = Some(super::data::InputGainBasis { rank, u: u.clone() });
+    for ch in &mut seg.channels {
+        for (h, e) in ch.h.iter_mut().zip(ch.rel_err.iter_mut()) {
+            *h = c() * 0.01;
+            *e = 0.02 + 0.1 * c().re.abs();
+        }
+    }
+    data.segments = vec![seg.clone()];
+    let post = ModelPosterior::new(Arc::new(data), None).unwrap();
+    let z = post.z_of(&base(), 0.01, &[]);
+    let pred = post.predict(&z).unwrap();
+    let n = pred.len();
+    let h = post.measured().to_vec();
+    let eta2 = 1e-4;
+    let mut sigma = DMatrix::<Complex64>::zeros(n, n);
+    let mut v = DMatrix::<Complex64>::zeros(n, rank);
+    let mut i = 0;
+    for ch in &seg.channels {
+        for (p, &k) in ch.freq_index.iter().enumerate() {
+            let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * ch.h[p].norm_sqr();
+            sigma[(i, i)] = Complex64::new(d, 0.0);
+            for m in 0..rank {
+                v[(i, m)] = ch.h[p] * u[k * rank + m];
+            }
+            i += 1;
+        }
+    }
+    let sigma = sigma + &v * v.adjoint();
+    let e = DVector::from_iterator(n, h.iter().zip(&pred).map(|(a, b)| a - b));
+    let chol = sigma.clone().cholesky().unwrap();
+    let quad = (e.adjoint() * chol.solve(&e))[(0, 0)].re;
+    let ln_det: f64 = chol.l().diagonal().iter().map(|d| 2.0 * d.re.ln()).sum();
+    let expect = -quad - ln_det - n as f64 * std::f64::consts::PI.ln();
+    let got = post.ln_likelihood_of(&pred, 0.01);
+    assert!(
+        (got - expect).abs() < 1e-9 * expect.abs(),
+        "{got} vs {expect}"
+    );
+    let mut r = vec![0.0; post.n_whitened_residuals()];
+    post.whitened_residuals(&z, 0.01, &mut r).unwrap();
+    let half: f64 = 0.5 * r.iter().map(|x| x * x).sum::<f64>();
+    assert!((half - quad).abs() < 1e-9 * quad, "{half} vs {quad}");
+    assert!((post.chi2_per_dof_of(&pred, 0.01) - quad / n as f64).abs() < 1e-9 * quad);
 }
