@@ -238,7 +238,7 @@ fn solve_start(
             free: free.clone(),
             template: z.clone(),
             steps: steps.clone(),
-            n_res: 2 * post.n_points(),
+            n_res: post.n_whitened_residuals(),
         };
         let mut ws = problem.workspace();
         let x0: Vec<f64> = free.iter().map(|&i| z[i]).collect();
@@ -276,9 +276,10 @@ pub fn nominal_start(post: &ModelPosterior, xi0: f64) -> Vec<f64> {
 }
 
 /// Starts for a hypothesis: the frame part of `base` (a nominal fit's `z`, whose length
-/// is `eta_index + 1`), effect coordinates from an `n` point Latin hypercube over the
-/// effect's box (seeded), plus a first start at the box's end nearest to no effect when
-/// `near_nominal` is true.
+/// is at least `eta_index + 1`) with, first, the effect at the end of its box nearest to
+/// no effect (each parameter's [`super::EffectParam::no_effect`]; the middle where it
+/// has none), then `n` effect points of a Latin hypercube over the effect's box
+/// (seeded).
 pub fn effect_starts(
     post: &ModelPosterior,
     base: &[f64],
@@ -300,7 +301,20 @@ pub fn effect_starts(
     }
     let b = Bounds::new(lo[ie + 1..].to_vec(), hi[ie + 1..].to_vec())?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let pts = latin_hypercube(&b, n, &mut rng)?;
+    let mut pts = latin_hypercube(&b, n, &mut rng)?;
+    let near_nominal: Vec<f64> = post
+        .effect_params()
+        .iter()
+        .map(|p| match (p.no_effect, p.coordinate) {
+            (Some(v), super::hypothesis::Coordinate::Linear { .. }) => {
+                p.coordinate_of(v).clamp(p.lower, p.upper)
+            }
+            (Some(0.0), _) => p.lower,
+            (Some(_), _) => p.upper,
+            (None, _) => 0.5 * (p.lower + p.upper),
+        })
+        .collect();
+    pts.insert(0, near_nominal);
     Ok(pts
         .into_iter()
         .map(|p| {

@@ -376,11 +376,20 @@ impl ExtendedModel {
                 }
             }
         }
+        // Sensor factors per (sensor, slot), computed once.
+        let n_slots = self.slots.len();
+        let mut factors = Vec::new();
+        if let Some((hy, l)) = &self.hypothesis {
+            factors.reserve(self.sensors.len() * n_slots);
+            for c in &self.sensors {
+                factors.extend(
+                    self.slots
+                        .iter()
+                        .map(|slot| hy.sensor_factor(l, effect, c, slot.s)),
+                );
+            }
+        }
         let one = Complex64::new(1.0, 0.0);
-        let (hyp, loc) = match &self.hypothesis {
-            Some((h, l)) => (Some(h), Some(l)),
-            None => (None, None),
-        };
         for (o, p) in out.iter_mut().zip(&self.points) {
             let slot = &self.slots[p.slot as usize];
             let s = slot.s;
@@ -393,13 +402,11 @@ impl ExtendedModel {
             if p.add_one {
                 h += one;
             }
-            if let (Some(hy), Some(l)) = (hyp, loc) {
-                if let Some(i) = p.resp_sensor {
-                    h *= hy.sensor_factor(l, effect, &self.sensors[i as usize], s);
-                }
-                if let Some(i) = p.input_sensor {
-                    h /= hy.sensor_factor(l, effect, &self.sensors[i as usize], s);
-                }
+            if let Some(i) = p.resp_sensor {
+                h *= factors[i as usize * n_slots + p.slot as usize];
+            }
+            if let Some(i) = p.input_sensor {
+                h /= factors[i as usize * n_slots + p.slot as usize];
             }
             *o = h;
         }

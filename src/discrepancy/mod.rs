@@ -2,6 +2,7 @@
 //! (hypotheses) that add what the nominal model left out, compare them by marginal
 //! likelihood and held-out prediction, and decide (issue 5).
 
+mod amplitude;
 pub mod benchmark;
 pub mod data;
 pub mod diagnose;
@@ -11,11 +12,14 @@ pub mod fit;
 pub mod forward;
 pub mod hypotheses;
 pub mod hypothesis;
+mod input_noise;
 pub mod location;
 pub mod output;
 pub mod posterior;
 pub mod report;
 pub mod search;
+#[cfg(test)]
+mod tests;
 pub mod verdict;
 
 pub use data::{ChannelData, DataOptions, DiagnosisData, SegmentData};

@@ -16,8 +16,19 @@
 //! standard deviation): `ln L = -sum_i [ |H_i - h_i|^2 / (2 sigma_i^2) + ln(2 pi
 //! sigma_i^2) ]`. (DIAGNOSE.md writes `|r|^2 / sigma^2 + ln(pi sigma^2)`, the density
 //! for `E|r|^2 = sigma^2`; with `sigma^2` the per-component variance the above is the
-//! consistent form.) `chi2 per dof` below is `sum |r|^2 / sigma^2 / (2 N)`: 1 when the
-//! noise model is right.
+//! consistent form.)
+//!
+//! Single-impact hammer segments add the input channel's correlated relative error
+//! ([`super::data::InputGainBasis`]): `h = H (1 + delta) + noise`, `delta ~ CN(0, U U^*)`
+//! over the segment's frequencies, shared by its channels. With `H` replaced by the
+//! measured `h` (plug-in, so the covariance does not depend on the parameters), the
+//! residual `e = h - H` of a segment has the complex covariance `Sigma = D + V V^*`,
+//! `D = diag(2 sigma_i^2)`, `V_i = h_i U_k(i)` (rank `r`, a few), and by Woodbury
+//! `e^* Sigma^-1 e = e^* D^-1 e - b^* G^-1 b`, `ln det Sigma = ln det D + ln det G`
+//! with `G = I + V^* D^-1 V = I + sum_k U_k^* U_k sum_(i at k) 1 / (2 (eps_i^2 +
+//! eta^2))` and `b = V^* D^-1 e`: `O(N + M r^2)` per segment. `ln L = -e^* Sigma^-1 e -
+//! ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`: 1 when the noise model is
+//! right.
 
 use super::data::DiagnosisData;
 use super::forward::{BaseParams, ExtendedModel};
@@ -36,9 +47,6 @@ pub const MULTIPLIER_BOUNDS: (f64, f64) = (0.5, 2.0);
 pub const XI_BOUNDS: (f64, f64) = (1e-4, 0.2);
 /// Box of the relative error floor.
 pub const ETA_BOUNDS: (f64, f64) = (1e-4, 0.3);
-
-/// `ln(2 pi)`.
-const LN_2PI: f64 = 1.837_877_066_409_345_5;
 
 /// A reported value.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,6 +71,85 @@ pub struct ModelPosterior {
     eps2: Vec<f64>,
     abs2: Vec<f64>,
     n_floors: usize,
+    /// Segments with a correlated input-noise gain error.
+    gains: Vec<GainSegment>,
+    /// Extra whitened residuals (2 per gain coefficient).
+    n_gain_residuals: usize,
+}
+
+/// A segment's [`super::data::InputGainBasis`] on the flat layout.
+#[derive(Debug, Clone)]
+struct GainSegment {
+    rank: usize,
+    u: Vec<Complex64>,
+    n_freq: usize,
+    /// Flat range of the segment's points and the frequency index of each.
+    start: usize,
+    freq_of: Vec<u32>,
+}
+
+/// `G = I + sum_k w_k U_k^* U_k`, `b = sum_k U_k^* b_k`; returns `g = G^-1 b`,
+/// `b^* G^-1 b` and `ln det G` (see the module docs).
+fn gain_solve(gs: &GainSegment, w: &[f64], bk: &[Complex64]) -> (Vec<Complex64>, f64, f64) {
+    let r = gs.rank;
+    let mut g = vec![Complex64::new(0.0, 0.0); r * r];
+    let mut b = vec![Complex64::new(0.0, 0.0); r];
+    for i in 0..r {
+        g[i * r + i] = Complex64::new(1.0, 0.0);
+    }
+    for k in 0..gs.n_freq {
+        let uk = &gs.u[k * r..(k + 1) * r];
+        if w[k] != 0.0 {
+            for m in 0..r {
+                let cm = uk[m].conj() * w[k];
+                for n in m..r {
+                    g[m * r + n] += cm * uk[n];
+                }
+            }
+        }
+        for m in 0..r {
+            b[m] += uk[m].conj() * bk[k];
+        }
+    }
+    // Cholesky G = L L^* (upper triangle filled; Hermitian positive definite).
+    let mut l = vec![Complex64::new(0.0, 0.0); r * r];
+    let mut ln_det = 0.0;
+    for j in 0..r {
+        let mut d = g[j * r + j].re;
+        for k in 0..j {
+            d -= l[j * r + k].norm_sqr();
+        }
+        let d = d.max(1e-300).sqrt();
+        ln_det += 2.0 * d.ln();
+        l[j * r + j] = Complex64::new(d, 0.0);
+        for i in j + 1..r {
+            // G_ij with i > j is conj(G_ji) (upper triangle stored).
+            let mut v = g[j * r + i].conj();
+            for k in 0..j {
+                v -= l[i * r + k] * l[j * r + k].conj();
+            }
+            l[i * r + j] = v / d;
+        }
+    }
+    // Solve L y = b, then L^* x = y.
+    let mut y = b.clone();
+    for i in 0..r {
+        let mut v = y[i];
+        for k in 0..i {
+            v -= l[i * r + k] * y[k];
+        }
+        y[i] = v / l[i * r + i].re;
+    }
+    let quad: f64 = y.iter().map(|v| v.norm_sqr()).sum();
+    let mut x = y;
+    for i in (0..r).rev() {
+        let mut v = x[i];
+        for k in i + 1..r {
+            v -= l[k * r + i].conj() * x[k];
+        }
+        x[i] = v / l[i * r + i].re;
+    }
+    (x, quad, ln_det)
 }
 
 impl ModelPosterior {
@@ -116,7 +203,32 @@ impl ModelPosterior {
             }
         }
         let abs2 = h.iter().map(|v| v.norm_sqr()).collect();
+        let mut gains = Vec::new();
+        for (seg, ranges) in data.segments.iter().zip(model.layout()) {
+            let Some(basis) = &seg.input_gain else {
+                continue;
+            };
+            if basis.rank == 0 || ranges.is_empty() {
+                continue;
+            }
+            let start = ranges[0].start;
+            let mut freq_of = Vec::new();
+            for (ch, r) in seg.channels.iter().zip(ranges) {
+                debug_assert_eq!(r.start, start + freq_of.len());
+                freq_of.extend(ch.freq_index.iter().map(|&k| k as u32));
+            }
+            gains.push(GainSegment {
+                rank: basis.rank,
+                u: basis.u.clone(),
+                n_freq: seg.freq_hz.len(),
+                start,
+                freq_of,
+            });
+        }
+        let n_gain_residuals = gains.iter().map(|g| 2 * g.rank).sum();
         Ok(ModelPosterior {
+            gains,
+            n_gain_residuals,
             model,
             effect_params,
             names,
@@ -155,7 +267,7 @@ impl ModelPosterior {
         let mut u = vec!["1".to_string(); 3 * self.n_floors + 1];
         u.extend(self.effect_params.iter().map(|p| match p.coordinate {
             super::hypothesis::Coordinate::Log => "1".to_string(),
-            super::hypothesis::Coordinate::Linear { factor } if factor == 1.0 => p.unit.to_string(),
+            super::hypothesis::Coordinate::Linear { factor: 1.0 } => p.unit.to_string(),
             super::hypothesis::Coordinate::Linear { .. } => "1".to_string(),
         }));
         u
@@ -287,43 +399,73 @@ impl ModelPosterior {
 
     /// Log-likelihood of a prediction at error floor `eta`.
     pub fn ln_likelihood_of(&self, pred: &[Complex64], eta: f64) -> f64 {
-        let eta2 = eta * eta;
-        let mut q = 0.0;
-        let mut ln_det = 0.0;
-        for i in 0..pred.len() {
-            let var = (self.eps2[i] + eta2) * self.abs2[i];
-            q += (pred[i] - self.h[i]).norm_sqr() / var;
-            ln_det += var.ln();
-        }
-        -0.5 * q - ln_det - pred.len() as f64 * LN_2PI
+        let (quad, ln_det) = self.quadratic_and_ln_det(pred, eta, None);
+        -quad - ln_det - pred.len() as f64 * std::f64::consts::PI.ln()
     }
 
-    /// `sum |r|^2 / sigma^2 / (2 N)` of a prediction at error floor `eta`.
-    pub fn chi2_per_dof_of(&self, pred: &[Complex64], eta: f64) -> f64 {
+    /// `e^* Sigma^-1 e` and `ln det Sigma` of the residual `e = h - pred` (complex
+    /// covariance `Sigma = D + V V^*`, `D = diag(2 sigma_i^2)`, see the module docs);
+    /// `gains` receives each gain segment's `g`.
+    fn quadratic_and_ln_det(
+        &self,
+        pred: &[Complex64],
+        eta: f64,
+        mut gains: Option<&mut Vec<Vec<Complex64>>>,
+    ) -> (f64, f64) {
         let eta2 = eta * eta;
-        let q: f64 = (0..pred.len())
+        let mut quad = 0.0;
+        let mut ln_det = 0.0;
+        for (((p, h), e2), a2) in pred.iter().zip(&self.h).zip(&self.eps2).zip(&self.abs2) {
+            let d = 2.0 * (e2 + eta2) * a2;
+            quad += (p - h).norm_sqr() / d;
+            ln_det += d.ln();
+        }
+        for gs in &self.gains {
+            let mut w = vec![0.0; gs.n_freq];
+            let mut bk = vec![Complex64::new(0.0, 0.0); gs.n_freq];
+            for (j, &k) in gs.freq_of.iter().enumerate() {
+                let i = gs.start + j;
+                let inv_d = 1.0 / (2.0 * (self.eps2[i] + eta2) * self.abs2[i]);
+                w[k as usize] += self.abs2[i] * inv_d;
+                bk[k as usize] += self.h[i].conj() * (self.h[i] - pred[i]) * inv_d;
+            }
+            let (g, q, ld) = gain_solve(gs, &w, &bk);
+            quad -= q;
+            ln_det += ld;
+            if let Some(out) = gains.as_deref_mut() {
+                out.push(g);
+            }
+        }
+        (quad, ln_det)
+    }
+
+    /// `e^* Sigma^-1 e / N` of a prediction at error floor `eta` (the chi2 per real
+    /// degree of freedom: 1 when the noise model is right), correlated gain errors
+    /// included.
+    pub fn chi2_per_dof_of(&self, pred: &[Complex64], eta: f64) -> f64 {
+        self.quadratic_and_ln_det(pred, eta, None).0 / pred.len().max(1) as f64
+    }
+
+    /// Chi2 per dof of the points `range` (flat layout) of a full prediction, without
+    /// the correlated gain errors (a per-channel diagnostic).
+    pub fn chi2_per_dof_of_range(
+        &self,
+        pred: &[Complex64],
+        eta: f64,
+        range: std::ops::Range<usize>,
+    ) -> f64 {
+        let eta2 = eta * eta;
+        let n = range.len();
+        let q: f64 = range
             .map(|i| (pred[i] - self.h[i]).norm_sqr() / ((self.eps2[i] + eta2) * self.abs2[i]))
             .sum();
-        q / (2.0 * pred.len().max(1) as f64)
+        q / (2.0 * n.max(1) as f64)
     }
 
     /// The `eta` in the prior box that maximises the likelihood of a prediction
     /// (golden-section search on `ln eta`; the profile is unimodal in practice).
     pub fn profile_eta(&self, pred: &[Complex64]) -> f64 {
-        let r2: Vec<f64> = pred
-            .iter()
-            .zip(&self.h)
-            .map(|(p, h)| (p - h).norm_sqr())
-            .collect();
-        let f = |ln_eta: f64| {
-            let eta2 = (2.0 * ln_eta).exp();
-            let mut v = 0.0;
-            for i in 0..r2.len() {
-                let var = (self.eps2[i] + eta2) * self.abs2[i];
-                v += 0.5 * r2[i] / var + var.ln();
-            }
-            -v
-        };
+        let f = |ln_eta: f64| self.ln_likelihood_of(pred, ln_eta.exp());
         let (mut a, mut b) = (ETA_BOUNDS.0.ln(), ETA_BOUNDS.1.ln());
         let g = 0.5 * (5f64.sqrt() - 1.0);
         let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
@@ -349,17 +491,43 @@ impl ModelPosterior {
         (0.5 * (a + b)).exp()
     }
 
-    /// Whitened residuals at `z` with the error floor `eta` (not `z`'s): `2 N` reals,
-    /// `Re` then `Im` of `(H_i - h_i) / sigma_i` per point, so that half their squared
-    /// norm is the likelihood's quadratic term.
+    /// Number of whitened residuals: `2 N` plus 2 per correlated gain coefficient.
+    pub fn n_whitened_residuals(&self) -> usize {
+        2 * self.h.len() + self.n_gain_residuals
+    }
+
+    /// Whitened residuals at `z` with the error floor `eta` (not `z`'s), so that half
+    /// their squared norm is the likelihood's quadratic term `e^* Sigma^-1 e`: per point
+    /// `Re`, `Im` of `(H_i - h_i + v_i g) / sigma_i` with each gain segment's `g` at its
+    /// conditional optimum, then `sqrt(2) g` (variable projection of the latent gains;
+    /// `min_g |D^-1/2 (e - V g)|^2 + |g|^2 = e^* Sigma^-1 e`).
     pub fn whitened_residuals(&self, z: &[f64], eta: f64, out: &mut [f64]) -> Result<()> {
         let pred = self.predict(z)?;
         let eta2 = eta * eta;
+        let mut gains = Vec::with_capacity(self.gains.len());
+        self.quadratic_and_ln_det(&pred, eta, Some(&mut gains));
+        let mut corr = vec![Complex64::new(0.0, 0.0); pred.len()];
+        for (gs, g) in self.gains.iter().zip(&gains) {
+            for (j, &k) in gs.freq_of.iter().enumerate() {
+                let i = gs.start + j;
+                let uk = &gs.u[k as usize * gs.rank..(k as usize + 1) * gs.rank];
+                let ug: Complex64 = uk.iter().zip(g).map(|(a, b)| a * b).sum();
+                corr[i] = self.h[i] * ug;
+            }
+        }
         for (i, p) in pred.iter().enumerate() {
             let sd = ((self.eps2[i] + eta2) * self.abs2[i]).sqrt();
-            let r = (p - self.h[i]) / sd;
+            let r = (p - self.h[i] + corr[i]) / sd;
             out[2 * i] = r.re;
             out[2 * i + 1] = r.im;
+        }
+        let mut j = 2 * pred.len();
+        for g in &gains {
+            for v in g {
+                out[j] = std::f64::consts::SQRT_2 * v.re;
+                out[j + 1] = std::f64::consts::SQRT_2 * v.im;
+                j += 2;
+            }
         }
         Ok(())
     }

@@ -3,11 +3,14 @@
 //! simulator's [`BaseFlexibility`]: displacement channels stay relative to the ground,
 //! base motion included; in hammer tests the ground is fixed and the base moves).
 //!
-//! Priors (uniform in the logarithm), scaled by the nominal model: `m_b` in
-//! 0.02-2 x the frame's total mass; `k_b` in 0.5-1000 x the nominal story-1 stiffness
-//! (the nominal model is the limit `k_b -> inf`); the base's own damping ratio
-//! `zeta_b = c_b / (2 sqrt(k_b m_b))` in 1e-3..1. Reported: `m_b` (kg), `k_b` (N/m),
-//! `c_b` (N s/m).
+//! Parameters: `m_b`, the base's own natural frequency `f_b = sqrt(k_b / m_b) / (2 pi)`
+//! (the base on its spring with the frame removed) and damping ratio
+//! `zeta_b = c_b / (2 sqrt(k_b m_b))`, so that `k_b = m_b (2 pi f_b)^2` and
+//! `c_b = 2 zeta_b sqrt(k_b m_b)`. The nominal model is the limit `f_b -> inf` at any
+//! mass (a stiffness bound alone would not do: a heavy base on a stiff spring still
+//! resonates in band). Priors (log-uniform), scaled by the nominal model: `m_b`
+//! 0.02..2 x the frame's total mass; `f_b` 0.3 x the lowest .. 100 x the highest nominal
+//! natural frequency; `zeta_b` 1e-3..1.
 
 use crate::discrepancy::data::DiagnosisData;
 use crate::discrepancy::hypothesis::{EffectParam, Hypothesis};
@@ -19,8 +22,10 @@ use crate::simulate::{BaseFlexibility, LinearSystem, SystemEffect};
 pub struct BaseFlexibilityHypothesis;
 
 impl BaseFlexibilityHypothesis {
-    fn effect(effect: &[f64]) -> BaseFlexibility {
-        let (m, k, zeta) = (effect[0].exp(), effect[1].exp(), effect[2].exp());
+    /// The simulator's effect of physical values `[m_b kg, f_b Hz, zeta_b]`.
+    pub fn effect(effect: &[f64]) -> BaseFlexibility {
+        let (m, f, zeta) = (effect[0], effect[1], effect[2]);
+        let k = m * (2.0 * std::f64::consts::PI * f).powi(2);
         BaseFlexibility {
             mass_kg: m,
             stiffness_n_per_m: k,
@@ -49,33 +54,21 @@ impl Hypothesis for BaseFlexibilityHypothesis {
             )));
         }
         let total: f64 = data.nominal.floor_mass_kg.iter().sum();
-        let k1 = data.nominal.story_stiffness_n_per_m[0];
-        let mut zeta = EffectParam::log_uniform("base_damping", "N s/m", 1e-3, 1.0, None);
-        zeta.coordinate_name = "ln_base_damping_ratio".into();
+        let fr = &data.nominal_freq_hz;
         Ok(vec![
             EffectParam::log_uniform("base_mass", "kg", 0.02 * total, 2.0 * total, None),
             EffectParam::log_uniform(
-                "base_stiffness",
-                "N/m",
-                0.5 * k1,
-                1000.0 * k1,
+                "base_frequency",
+                "Hz",
+                0.3 * fr[0],
+                100.0 * fr[fr.len() - 1],
                 Some(f64::INFINITY),
             ),
-            zeta,
+            EffectParam::log_uniform("base_damping_ratio", "1", 1e-3, 1.0, None),
         ])
     }
 
-    fn physical(&self, _data: &DiagnosisData, _loc: &Location, effect: &[f64]) -> Result<Vec<f64>> {
-        let b = Self::effect(effect);
-        Ok(vec![b.mass_kg, b.stiffness_n_per_m, b.damping_n_s_per_m])
-    }
-
     fn modify_system(&self, _loc: &Location, effect: &[f64], sys: &mut LinearSystem) -> Result<()> {
-        BaseFlexibility {
-            mass_kg: effect[0],
-            stiffness_n_per_m: effect[1],
-            damping_n_s_per_m: effect[2],
-        }
-        .apply(sys)
+        Self::effect(effect).apply(sys)
     }
 }

@@ -10,7 +10,7 @@ mod stiffness_nonlinearity;
 pub use base_flexibility::BaseFlexibilityHypothesis;
 pub use nonproportional_damping::NonproportionalDamping;
 pub use secondary_oscillator::SecondaryOscillator;
-pub use sensor_dynamics::SensorDynamics;
+pub use sensor_dynamics::{low_pass, SensorDynamics};
 pub use sensor_timing::SensorTiming;
 pub use stiffness_nonlinearity::StiffnessNonlinearityHypothesis;
 

@@ -2,9 +2,10 @@
 //! `w^2 / (s^2 + 2 zeta w s + w^2)` (an accelerometer's mounted resonance or its signal
 //! conditioning) on some channels; exact under the exponential window.
 //!
-//! Priors (log-uniform), scaled by the nominal model: natural frequency 1.5 .. 100 x the
-//! highest nominal natural frequency (a sensor resonance inside the structure's band
-//! would not be a sensor; the nominal model is the limit `w -> inf`); damping ratio
+//! Priors (log-uniform), scaled by the nominal model: natural frequency 1.5 .. 1000 x
+//! the highest nominal natural frequency (a sensor resonance inside the structure's band
+//! would not be a sensor; at the upper end the phase lag at the analysed frequencies is
+//! below 1 degree, the nominal model being the limit `w -> inf`); damping ratio
 //! 0.05..2. Locations: every response quantity, and every channel on its own.
 
 use crate::discrepancy::data::DiagnosisData;
@@ -47,7 +48,7 @@ impl Hypothesis for SensorDynamics {
                 "sensor_frequency",
                 "Hz",
                 1.5 * f_max,
-                100.0 * f_max,
+                1000.0 * f_max,
                 Some(f64::INFINITY),
             ),
             EffectParam::log_uniform("sensor_damping_ratio", "1", 0.05, 2.0, None),

@@ -1,0 +1,657 @@
+//! Oracle tests of the forward model and its hypotheses on synthetic data layouts.
+
+use super::data::{nominal_frequencies, ChannelData, DataOptions, DiagnosisData, SegmentData};
+use super::forward::{frame_system, solve_in_place, BaseParams, ExtendedModel};
+use super::hypotheses::{all_hypotheses, hypothesis_by_name};
+use super::hypothesis::Hypothesis;
+use super::location::Location;
+use super::posterior::ModelPosterior;
+use crate::frf::{Excitation, FrfKind, FrfPair};
+use crate::io::{Channel, NominalModel, Quantity};
+use crate::signal::{windowed_modal_frf, InputKind};
+use crate::simulate::{
+    BaseFlexibility, DampingSpec, Dashpot, LinearSystem, LowPass, Oscillator, StructureSpec,
+    SystemEffect,
+};
+use nalgebra::{DMatrix, DVector};
+use num_complex::Complex64;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::sync::Arc;
+
+const MASS: [f64; 4] = [5.1, 4.9, 4.95, 5.05];
+const STIFF: [f64; 4] = [1090.0, 1258.0, 1378.0, 2666.0];
+const XI: [f64; 4] = [0.017, 0.0115, 0.006, 0.004];
+
+fn chan(name: &str, quantity: Quantity, floor: usize) -> Channel {
+    Channel {
+        name: name.into(),
+        quantity,
+        floor,
+        unit: quantity.unit().into(),
+    }
+}
+
+/// A segment with acc1..4 and disp1..4 at `freq_hz`, measured values all 1 (unused).
+fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> SegmentData {
+    let input_channel = match &input {
+        InputKind::Force { floor, channel } => chan(channel, Quantity::Force, *floor),
+        InputKind::Ground { channel } => chan(channel, Quantity::GroundAcceleration, 0),
+    };
+    let mut channels = Vec::new();
+    for (q, prefix, kind) in [
+        (Quantity::Acceleration, "acc", FrfKind::Accelerance),
+        (Quantity::Displacement, "disp", FrfKind::Receptance),
+    ] {
+        for f in 1..=4 {
+            let n = freq_hz.len();
+            channels.push(ChannelData {
+                channel: chan(&format!("{prefix}{f}"), q, f),
+                kind,
+                freq_index: (0..n).collect(),
+                band: vec![None; n],
+                h: vec![Complex64::new(1.0, 0.5); n],
+                rel_err: vec![0.01; n],
+            });
+        }
+    }
+    SegmentData {
+        name: name.into(),
+        test: name.into(),
+        impact: None,
+        peak_force_n: None,
+        input,
+        input_channel,
+        exp_window_tau_s: tau,
+        freq_hz: freq_hz.to_vec(),
+        bands: Vec::new(),
+        channels,
+        story_drift_ms_m2: vec![Some(1e-6), Some(2e-6), Some(0.5e-6), Some(3e-6)],
+        input_gain: None,
+    }
+}
+
+fn synthetic() -> Arc<DiagnosisData> {
+    let nominal = NominalModel {
+        structure: "shear_frame".into(),
+        floor_mass_kg: vec![4.64; 4],
+        story_stiffness_n_per_m: vec![1019.0, 1217.0, 1420.0, 2473.0],
+    };
+    let freq: Vec<f64> = (1..=60).map(|i| 0.3 * i as f64).collect();
+    let force = |f: usize| InputKind::Force {
+        floor: f,
+        channel: "force".into(),
+    };
+    let mut segments = vec![
+        segment("h1", force(1), Some(19.4), &freq),
+        segment("h3", force(3), Some(19.4), &freq),
+        segment("h2-raw", force(2), None, &freq),
+        segment(
+            "shake",
+            InputKind::Ground {
+                channel: "ground_acc".into(),
+            },
+            None,
+            &freq,
+        ),
+    ];
+    // A second impact of test h3, with a larger drift: shares h3's grid.
+    let mut strong = segment("h3b", force(3), Some(19.4), &freq);
+    strong.story_drift_ms_m2 = vec![Some(4e-6), Some(8e-6), Some(2e-6), Some(9e-6)];
+    segments.push(strong);
+    Arc::new(DiagnosisData {
+        title: "synthetic".into(),
+        nominal_freq_hz: nominal_frequencies(&nominal).unwrap(),
+        nominal,
+        segments,
+        options: DataOptions::default(),
+    })
+}
+
+fn base() -> BaseParams {
+    BaseParams {
+        stiffness_n_per_m: STIFF.to_vec(),
+        mass_kg: MASS.to_vec(),
+        xi: XI.to_vec(),
+    }
+}
+
+/// The simulator's system for the same frame, with `effects` applied.
+fn simulator_system(effects: &[&dyn SystemEffect]) -> LinearSystem {
+    let mut s = LinearSystem::from_spec(
+        &StructureSpec::ShearFrame {
+            floor_mass_kg: MASS.to_vec(),
+            story_stiffness_n_per_m: STIFF.to_vec(),
+        },
+        &DampingSpec::Modal { xi: XI.to_vec() },
+    )
+    .unwrap();
+    for e in effects {
+        e.apply(&mut s).unwrap();
+    }
+    s
+}
+
+/// Independent oracle: `D(s)^-1` by nalgebra's general inverse; the ratio a channel of
+/// `seg` measures (floor `floor`, `power` of s) at Laplace variable `s`.
+fn oracle(
+    sys: &LinearSystem,
+    seg: &SegmentData,
+    floor: usize,
+    power: i32,
+    s: Complex64,
+) -> Complex64 {
+    let n = sys.n_dof();
+    let d = DMatrix::from_fn(n, n, |i, j| {
+        sys.stiffness_n_per_m[(i, j)]
+            + s * sys.damping_n_s_per_m[(i, j)]
+            + s * s * sys.mass_kg[(i, j)]
+    });
+    let inv = d.try_inverse().unwrap();
+    let r = sys.floor_dof[floor - 1];
+    match &seg.input {
+        InputKind::Force { floor: e, .. } => inv[(r, sys.floor_dof[e - 1])] * s.powi(power),
+        InputKind::Ground { .. } => {
+            let rhs: DVector<Complex64> =
+                (&sys.mass_kg * &sys.ground_influence).map(|v| Complex64::new(-v, 0.0));
+            let x = (&inv * rhs)[r];
+            let h = x * s.powi(power);
+            if power == 2 {
+                h + 1.0
+            } else {
+                h
+            }
+        }
+    }
+}
+
+/// Largest error of `pred` against `f(segment, channel, point)`, relative to each
+/// channel's largest magnitude.
+fn max_rel_err(
+    model: &ExtendedModel,
+    pred: &[Complex64],
+    f: impl Fn(&SegmentData, &ChannelData, Complex64) -> Complex64,
+) -> f64 {
+    let data = model.data();
+    let mut worst: f64 = 0.0;
+    for (seg, ranges) in data.segments.iter().zip(model.layout()) {
+        let s_all = seg.laplace();
+        for (ch, r) in seg.channels.iter().zip(ranges) {
+            let expect: Vec<Complex64> = ch
+                .freq_index
+                .iter()
+                .map(|&k| f(seg, ch, s_all[k]))
+                .collect();
+            let scale = expect.iter().map(|v| v.norm()).fold(0.0, f64::max);
+            for (p, e) in pred[r.clone()].iter().zip(&expect) {
+                worst = worst.max((p - e).norm() / scale);
+            }
+        }
+    }
+    worst
+}
+
+fn power(kind: FrfKind) -> i32 {
+    kind.power()
+}
+
+#[test]
+fn small_solver_matches_the_general_inverse() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    for n in [1usize, 3, 6] {
+        let a: Vec<Complex64> = (0..n * n)
+            .map(|_| Complex64::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5))
+            .collect();
+        let b: Vec<Complex64> = (0..2 * n)
+            .map(|_| Complex64::new(rng.random::<f64>(), rng.random::<f64>()))
+            .collect();
+        let am = DMatrix::from_row_slice(n, n, &a);
+        let bm = DMatrix::from_row_slice(n, 2, &b);
+        let x = am.try_inverse().unwrap() * bm;
+        let (mut a2, mut b2) = (a.clone(), b.clone());
+        solve_in_place(n, &mut a2, &mut b2, 2).unwrap();
+        for i in 0..n {
+            for j in 0..2 {
+                assert!(
+                    (b2[i * 2 + j] - x[(i, j)]).norm()
+                        < 1e-12 * x.iter().map(|v| v.norm()).fold(1.0, f64::max)
+                );
+            }
+        }
+    }
+    let mut zero = vec![Complex64::new(0.0, 0.0); 4];
+    let mut b = vec![Complex64::new(1.0, 0.0); 2];
+    assert!(solve_in_place(2, &mut zero, &mut b, 1).is_err());
+}
+
+#[test]
+fn nominal_model_matches_the_windowed_modal_sum_and_the_direct_solve() {
+    let data = synthetic();
+    let model = ExtendedModel::new(data.clone(), None).unwrap();
+    // Hammer segments share factorisations: 3 distinct grids (tau = 19.4 s, hammer
+    // without window and shake table share s = j omega) -> 2 x 60 slots.
+    assert_eq!(model.n_factorisations(), 120);
+    let b = base();
+    let pred = model.predict(&b, &[]).unwrap();
+    let sys = frame_system(&b).unwrap();
+    let modes = sys.modes().unwrap();
+    let modal_c: Vec<f64> = XI
+        .iter()
+        .zip(&modes.omega_rad_s)
+        .map(|(x, w)| 2.0 * x * w)
+        .collect();
+    // Modal sum at omega - j/tau (signal::windows); absolute accelerance = relative + 1.
+    let err = max_rel_err(&model, &pred, |seg, ch, s| {
+        let excitation = match seg.input {
+            InputKind::Force { floor, .. } => Excitation::Dof(floor - 1),
+            InputKind::Ground { .. } => Excitation::Ground,
+        };
+        let pair = FrfPair {
+            response: ch.channel.floor - 1,
+            excitation,
+            kind: ch.kind,
+        };
+        let tau = seg.exp_window_tau_s.unwrap_or(f64::INFINITY);
+        let h = windowed_modal_frf(&modes, &modal_c, &pair, s.im, tau);
+        if excitation == Excitation::Ground && ch.kind == FrfKind::Accelerance {
+            h + 1.0
+        } else {
+            h
+        }
+    });
+    assert!(err < 1e-9, "modal sum: {err:e}");
+    // Unwindowed segments against frf::direct (Eqs. 1 and 14).
+    let err = max_rel_err(&model, &pred, |seg, ch, s| {
+        if seg.exp_window_tau_s.is_some() {
+            return oracle(&sys, seg, ch.channel.floor, power(ch.kind), s);
+        }
+        let w = s.im;
+        let f = ch.channel.floor - 1;
+        let x = match seg.input {
+            InputKind::Force { floor, .. } => crate::frf::direct::receptance_matrix(
+                &sys.mass_kg,
+                &sys.stiffness_n_per_m,
+                &sys.damping_n_s_per_m,
+                w,
+            )
+            .unwrap()[(f, floor - 1)],
+            InputKind::Ground { .. } => crate::frf::direct::ground_receptance(
+                &sys.mass_kg,
+                &sys.stiffness_n_per_m,
+                &sys.damping_n_s_per_m,
+                &sys.ground_influence,
+                w,
+            )
+            .unwrap()[f],
+        };
+        let h = x * ch.kind.factor(w);
+        if seg.is_ground() && ch.kind == FrfKind::Accelerance {
+            h + 1.0
+        } else {
+            h
+        }
+    });
+    assert!(err < 1e-9, "direct: {err:e}");
+    // The frame is the simulator's modal-damped frame.
+    let sim = simulator_system(&[]);
+    assert!((&sim.damping_n_s_per_m - &sys.damping_n_s_per_m).amax() < 1e-9);
+    assert!((&sim.stiffness_n_per_m - &sys.stiffness_n_per_m).amax() < 1e-9);
+}
+
+/// Prediction of `hypothesis` at `loc` with physical `effect` against the simulator's
+/// system with `sim_effect` applied, solved independently at every `s`.
+fn check_structural(name: &str, loc: Location, effect: &[f64], sim_effect: &dyn SystemEffect) {
+    let data = synthetic();
+    let h: Arc<dyn Hypothesis> = Arc::from(hypothesis_by_name(name).unwrap());
+    let model = ExtendedModel::new(data.clone(), Some((h, loc))).unwrap();
+    let pred = model.predict(&base(), effect).unwrap();
+    let sys = simulator_system(&[sim_effect]);
+    let err = max_rel_err(&model, &pred, |seg, ch, s| {
+        oracle(&sys, seg, ch.channel.floor, power(ch.kind), s)
+    });
+    assert!(err < 1e-9, "{name}: {err:e}");
+    // ... and it differs from the nominal model.
+    let nominal = ExtendedModel::new(data, None)
+        .unwrap()
+        .predict(&base(), &[])
+        .unwrap();
+    let diff = pred
+        .iter()
+        .zip(&nominal)
+        .map(|(a, b)| (a - b).norm() / b.norm())
+        .fold(0.0, f64::max);
+    assert!(diff > 1e-3, "{name} has no effect: {diff}");
+}
+
+#[test]
+fn structural_hypotheses_match_the_simulators_systems() {
+    // m_b 5 kg, k_b 8900 N/m, c_b 10 N s/m as (m_b, f_b, zeta_b).
+    let f_b = (8900.0f64 / 5.0).sqrt() / (2.0 * std::f64::consts::PI);
+    let zeta_b = 10.0 / (2.0 * (8900.0f64 * 5.0).sqrt());
+    check_structural(
+        "base_flexibility",
+        Location::Whole,
+        &[5.0, f_b, zeta_b],
+        &BaseFlexibility {
+            mass_kg: 5.0,
+            stiffness_n_per_m: 8900.0,
+            damping_n_s_per_m: 10.0,
+        },
+    );
+    check_structural(
+        "nonproportional_damping",
+        Location::Story(3),
+        &[4.0],
+        &Dashpot::story(3, 4.0),
+    );
+    let (m, f, z) = (0.4, 3.5, 0.02);
+    let k = m * (2.0 * std::f64::consts::PI * f).powi(2);
+    check_structural(
+        "secondary_oscillator",
+        Location::Floor(2),
+        &[m, f, z],
+        &Oscillator {
+            floor: 2,
+            mass_kg: m,
+            stiffness_n_per_m: k,
+            damping_ratio: z,
+        },
+    );
+}
+
+#[test]
+fn stiffness_nonlinearity_is_the_equivalent_linear_spring_per_segment() {
+    let data = synthetic();
+    let h: Arc<dyn Hypothesis> = Arc::from(hypothesis_by_name("stiffness_nonlinearity").unwrap());
+    let story = 2;
+    let k3 = 2.5e8;
+    let model = ExtendedModel::new(data.clone(), Some((h, Location::Story(story)))).unwrap();
+    let pred = model.predict(&base(), &[k3]).unwrap();
+    // Oracle: the simulator's frame (damping from the linear frame's modes) with the
+    // story spring raised by (3/2) k3 m_eff of each segment.
+    let err = max_rel_err(&model, &pred, |seg, ch, s| {
+        let dk = 1.5 * k3 * seg.story_drift_ms_m2[story - 1].unwrap();
+        let mut sys = simulator_system(&[]);
+        let kk = &mut sys.stiffness_n_per_m;
+        kk[(story - 1, story - 1)] += dk;
+        kk[(story - 2, story - 2)] += dk;
+        kk[(story - 1, story - 2)] -= dk;
+        kk[(story - 2, story - 1)] -= dk;
+        oracle(&sys, seg, ch.channel.floor, power(ch.kind), s)
+    });
+    assert!(err < 1e-9, "{err:e}");
+    // Segments differ: no shared factorisations.
+    assert_eq!(model.n_factorisations(), 5 * 60);
+}
+
+#[test]
+fn sensor_hypotheses_are_their_analytic_factors() {
+    let data = synthetic();
+    let nominal = ExtendedModel::new(data.clone(), None).unwrap();
+    let p0 = nominal.predict(&base(), &[]).unwrap();
+    let lp = LowPass {
+        channels: vec![],
+        quantity: Some(Quantity::Acceleration),
+        tests: None,
+        natural_frequency_hz: 40.0,
+        damping_ratio: 0.6,
+    };
+    let cases: Vec<(&str, Location, Vec<f64>)> = vec![
+        (
+            "sensor_timing",
+            Location::Channels(vec!["force".into()]),
+            vec![0.01],
+        ),
+        (
+            "sensor_timing",
+            Location::Quantity(Quantity::Displacement),
+            vec![0.02],
+        ),
+        (
+            "sensor_timing",
+            Location::Channels(vec!["acc2".into(), "acc4".into()]),
+            vec![-0.006],
+        ),
+        (
+            "sensor_dynamics",
+            Location::Quantity(Quantity::Acceleration),
+            vec![40.0, 0.6],
+        ),
+        (
+            "sensor_dynamics",
+            Location::Channels(vec!["ground_acc".into()]),
+            vec![30.0, 0.7],
+        ),
+    ];
+    for (name, loc, effect) in cases {
+        let h: Arc<dyn Hypothesis> = Arc::from(hypothesis_by_name(name).unwrap());
+        let model = ExtendedModel::new(data.clone(), Some((h, loc.clone()))).unwrap();
+        let pred = model.predict(&base(), &effect).unwrap();
+        let factor = |c: &Channel, s: Complex64| -> Complex64 {
+            if !loc.covers_channel(&c.name, c.quantity) {
+                return Complex64::new(1.0, 0.0);
+            }
+            if name == "sensor_timing" {
+                // y(t - T): Laplace factor e^{-sT}.
+                (-s * effect[0]).exp()
+            } else {
+                let w = 2.0 * std::f64::consts::PI * effect[0];
+                w * w / (s * s + 2.0 * effect[1] * w * s + w * w)
+            }
+        };
+        let mut worst: f64 = 0.0;
+        for (seg, ranges) in data.segments.iter().zip(model.layout()) {
+            let s_all = seg.laplace();
+            for (ch, r) in seg.channels.iter().zip(ranges) {
+                for ((p, q), &k) in pred[r.clone()]
+                    .iter()
+                    .zip(&p0[r.clone()])
+                    .zip(&ch.freq_index)
+                {
+                    let s = s_all[k];
+                    let expect = q * factor(&ch.channel, s) / factor(&seg.input_channel, s);
+                    worst = worst.max((p - expect).norm() / expect.norm());
+                }
+            }
+        }
+        assert!(worst < 1e-12, "{name} at {loc}: {worst:e}");
+    }
+    // The low-pass formula is the simulator's (unwindowed).
+    for f in [0.5, 5.0, 40.0, 100.0] {
+        let s = Complex64::new(0.0, 2.0 * std::f64::consts::PI * f);
+        let ours = super::hypotheses::low_pass(40.0, 0.6, s);
+        assert!((ours - lp.response(f)).norm() < 1e-14);
+    }
+}
+
+#[test]
+fn every_hypothesis_has_locations_priors_and_nests_the_nominal_model() {
+    let data = synthetic();
+    let n_channels = data.channels().len();
+    assert_eq!(n_channels, 10); // force, ground_acc, acc1..4, disp1..4
+    let expect_locations = [1, 4, 4, 4, 2 + n_channels, 2 + n_channels];
+    for (h, n_loc) in all_hypotheses().into_iter().zip(expect_locations) {
+        let locs = h.locations(&data);
+        assert_eq!(locs.len(), n_loc, "{}", h.name());
+        let h: Arc<dyn Hypothesis> = Arc::from(h);
+        for loc in locs {
+            let params = h.parameters(&data, &loc).unwrap();
+            assert!(!params.is_empty());
+            for p in &params {
+                assert!(p.lower < p.upper, "{} {}", h.name(), p.name);
+                // Physical <-> coordinate round trip.
+                let z = 0.3 * p.lower + 0.7 * p.upper;
+                assert!((p.coordinate_of(p.physical(z)) - z).abs() < 1e-12);
+            }
+            let post = ModelPosterior::new(data.clone(), Some((h.clone(), loc.clone()))).unwrap();
+            assert_eq!(post.dim(), 13 + params.len());
+            // The end of the box nearest to no effect is close to the nominal model.
+            let mut rng = ChaCha8Rng::seed_from_u64(3);
+            let mut z = post.sample_prior(&mut rng).unwrap();
+            assert!(post.ln_prior(&z).is_finite());
+            for (i, p) in params.iter().enumerate() {
+                let j = 13 + i;
+                z[j] = match p.no_effect {
+                    Some(v)
+                        if v == 0.0
+                            && matches!(
+                                p.coordinate,
+                                super::hypothesis::Coordinate::Linear { .. }
+                            ) =>
+                    {
+                        0.0
+                    }
+                    Some(0.0) => p.lower,
+                    Some(_) => p.upper,
+                    None if p.name.ends_with("damping_ratio")
+                        || p.name == "oscillator_frequency" =>
+                    {
+                        p.upper
+                    }
+                    None => z[j],
+                };
+            }
+            let b = post.base_params(&z);
+            let near = post
+                .model()
+                .predict(&b, &post.effect_physical(&z).unwrap())
+                .unwrap();
+            let nom = ExtendedModel::new(data.clone(), None)
+                .unwrap()
+                .predict(&b, &[])
+                .unwrap();
+            // Largest change relative to each channel's largest magnitude.
+            let model = post.model();
+            let rel = model
+                .layout()
+                .iter()
+                .flatten()
+                .map(|r| {
+                    let scale = nom[r.clone()].iter().map(|c| c.norm()).fold(0.0, f64::max);
+                    near[r.clone()]
+                        .iter()
+                        .zip(&nom[r.clone()])
+                        .map(|(a, c)| (a - c).norm() / scale)
+                        .fold(0.0, f64::max)
+                })
+                .fold(0.0, f64::max);
+            assert!(rel < 0.1, "{} at {loc}: {rel}", h.name());
+        }
+        assert!(h.parameters(&data, &Location::Floor(99)).is_err());
+    }
+}
+
+#[test]
+fn posterior_prior_is_normalised_and_likelihood_is_the_gaussian() {
+    // Data = the model at `base()` times (1 + 3 % complex noise).
+    let clean = synthetic();
+    let truth = ExtendedModel::new(clean.clone(), None)
+        .unwrap()
+        .predict(&base(), &[])
+        .unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let mut data = (*clean).clone();
+    let mut it = truth.iter();
+    for seg in &mut data.segments {
+        for ch in &mut seg.channels {
+            for h in &mut ch.h {
+                let t = it.next().unwrap();
+                let e = Complex64::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5);
+                *h = t * (1.0 + 0.06 * e);
+            }
+        }
+    }
+    let post = ModelPosterior::new(Arc::new(data), None).unwrap();
+    let (lo, hi) = post.bounds();
+    let vol: f64 = lo.iter().zip(hi).map(|(l, u)| u - l).product();
+    let z = post.sample_prior(&mut rng).unwrap();
+    assert!((post.ln_prior(&z) + vol.ln()).abs() < 1e-12);
+    let mut out = z.clone();
+    out[0] = hi[0] + 1e-9;
+    assert_eq!(post.ln_prior(&out), f64::NEG_INFINITY);
+    // ln L by hand.
+    let pred = post.predict(&z).unwrap();
+    let eta = z[post.eta_index()].exp();
+    let mut ll = 0.0;
+    for (p, h) in pred.iter().zip(post.measured()) {
+        let var = (0.01f64.powi(2) + eta * eta) * h.norm_sqr();
+        ll += -(p - h).norm_sqr() / (2.0 * var) - (2.0 * std::f64::consts::PI * var).ln();
+    }
+    let got = post.ln_likelihood(&z).unwrap();
+    assert!((got - ll).abs() < 1e-9 * ll.abs(), "{got} {ll}");
+    // At the truth: the profiled eta maximises the likelihood, and with it the chi2
+    // per dof is near 1 (uniform noise of half-width 0.03 per component: std
+    // 0.03 / sqrt(3) = 1.73 %, so eta^2 + 0.01^2 ~ 0.0173^2, eta ~ 1.4 %).
+    let z_true = post.z_of(&base(), 0.01, &[]);
+    let pred = post.predict(&z_true).unwrap();
+    let best = post.profile_eta(&pred);
+    let at = |e: f64| post.ln_likelihood_of(&pred, e);
+    assert!(at(best) >= at(best * 1.01) && at(best) >= at(best / 1.01));
+    assert!((best - 0.0141).abs() < 0.001, "{best}");
+    let chi2 = post.chi2_per_dof_of(&pred, best);
+    assert!((chi2 - 1.0).abs() < 0.05, "{chi2}");
+}
+
+#[test]
+fn correlated_gain_likelihood_is_the_dense_gaussian() {
+    // One hammer segment on 6 frequencies with a random rank-2 gain basis: ln L and the
+    // whitened residuals against the dense complex covariance D + V V^*.
+    let mut data = (*synthetic()).clone();
+    let freq: Vec<f64> = (1..=6).map(|i| 0.7 * i as f64).collect();
+    let mut seg = segment(
+        "h1",
+        InputKind::Force {
+            floor: 2,
+            channel: "force".into(),
+        },
+        Some(19.4),
+        &freq,
+    );
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let mut c = || Complex64::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5);
+    let rank = 2;
+    let u: Vec<Complex64> = (0..6 * rank).map(|_| c() * 0.05).collect();
+    seg.input_gain = Some(super::data::InputGainBasis { rank, u: u.clone() });
+    for ch in &mut seg.channels {
+        for (h, e) in ch.h.iter_mut().zip(ch.rel_err.iter_mut()) {
+            *h = c() * 0.01;
+            *e = 0.02 + 0.1 * c().re.abs();
+        }
+    }
+    data.segments = vec![seg.clone()];
+    let post = ModelPosterior::new(Arc::new(data), None).unwrap();
+    let z = post.z_of(&base(), 0.01, &[]);
+    let pred = post.predict(&z).unwrap();
+    let n = pred.len();
+    let h = post.measured().to_vec();
+    let eta2 = 1e-4;
+    let mut sigma = DMatrix::<Complex64>::zeros(n, n);
+    let mut v = DMatrix::<Complex64>::zeros(n, rank);
+    let mut i = 0;
+    for ch in &seg.channels {
+        for (p, &k) in ch.freq_index.iter().enumerate() {
+            let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * ch.h[p].norm_sqr();
+            sigma[(i, i)] = Complex64::new(d, 0.0);
+            for m in 0..rank {
+                v[(i, m)] = ch.h[p] * u[k * rank + m];
+            }
+            i += 1;
+        }
+    }
+    let sigma = sigma + &v * v.adjoint();
+    let e = DVector::from_iterator(n, h.iter().zip(&pred).map(|(a, b)| a - b));
+    let chol = sigma.clone().cholesky().unwrap();
+    let quad = (e.adjoint() * chol.solve(&e))[(0, 0)].re;
+    let ln_det: f64 = chol.l().diagonal().iter().map(|d| 2.0 * d.re.ln()).sum();
+    let expect = -quad - ln_det - n as f64 * std::f64::consts::PI.ln();
+    let got = post.ln_likelihood_of(&pred, 0.01);
+    assert!(
+        (got - expect).abs() < 1e-9 * expect.abs(),
+        "{got} vs {expect}"
+    );
+    let mut r = vec![0.0; post.n_whitened_residuals()];
+    post.whitened_residuals(&z, 0.01, &mut r).unwrap();
+    let half: f64 = 0.5 * r.iter().map(|x| x * x).sum::<f64>();
+    assert!((half - quad).abs() < 1e-9 * quad, "{half} vs {quad}");
+    assert!((post.chi2_per_dof_of(&pred, 0.01) - quad / n as f64).abs() < 1e-9 * quad);
+}
