@@ -6,27 +6,36 @@ mod amplitude;
 pub mod benchmark;
 pub mod data;
 pub mod diagnose;
+pub mod evidence;
 pub mod figures;
-pub mod heldout;
 pub mod fit;
 pub mod forward;
+pub mod heldout;
 pub mod hypotheses;
 pub mod hypothesis;
 mod input_noise;
+pub mod laplace;
 pub mod location;
 pub mod output;
 pub mod posterior;
 pub mod report;
 pub mod search;
+mod tempering;
 #[cfg(test)]
 mod tests;
 pub mod verdict;
 
 pub use data::{ChannelData, DataOptions, DiagnosisData, SegmentData};
+pub use evidence::{
+    stepping_stone, Evidence, EvidenceOptions, EvidenceProgress, PosteriorDraws, Stage,
+    TemperedTarget,
+};
 pub use fit::{effect_starts, fit_map, frame_starts, nominal_start, MapFit, MapOptions};
 pub use forward::{frame_system, BaseParams, ExtendedModel};
 pub use hypotheses::{all_hypotheses, hypothesis_by_name};
 pub use hypothesis::{Coordinate, EffectParam, Hypothesis};
+pub use laplace::{laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION};
 pub use location::Location;
 pub use posterior::{ModelPosterior, PhysicalValue};
+pub use tempering::TemperingRun;
 pub use verdict::{decide, Candidate, Decision, DiagnosisRecord, EffectSummary, FitQuality};

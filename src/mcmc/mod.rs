@@ -63,7 +63,10 @@ pub use convergence::{
 };
 pub use density::{DensityFn, LogDensity};
 pub use draws::{Draws, ParamSummary};
+/// Used by `discrepancy::evidence` to run tempered ensembles with the same step.
+pub(crate) use ensemble::Ensemble;
 pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};
+pub(crate) use rng::{key_from_seed, walker_rng};
 pub use sampler::{
     Ball, Burn, CheckpointConfig, Progress, ProgressFn, RunSummary, Sampler, SamplerConfig, Start,
     StopReason, TauCheck, MIN_DRAWS_PER_WALKER, MIN_ENSEMBLES,
