@@ -68,11 +68,7 @@ fn stage_message(stage: &DiagnoseStage<'_>) -> String {
 }
 
 fn open_campaign(spec: &str) -> anyhow::Result<Campaign> {
-    let path = if spec == "bundled:four-story" {
-        frfbayes::io::bundled_four_story()?
-    } else {
-        PathBuf::from(spec)
-    };
+    let path = frfbayes::experiment::driver::resolve_data(spec)?;
     let c = read_campaign(&path)?;
     for w in &c.warnings {
         eprintln!("warning: {w}");

@@ -115,6 +115,8 @@ pub struct Diagnosis {
     pub fit_before: FitQuality,
     pub fit_after: FitQuality,
     pub elapsed_s: f64,
+    /// Wall time of each stage, s.
+    pub timings: Vec<(String, f64)>,
 }
 
 /// Mean FDAC (magnitudes) over every segment and channel, and chi2 per real datum with
@@ -260,10 +262,18 @@ pub fn diagnose(
     progress(DiagnoseStage::Data);
     let data = Arc::new(DiagnosisData::from_campaign(campaign, &opts.data)?);
 
+    let mut timings: Vec<(String, f64)> = Vec::new();
+    let mut lap_t = Instant::now();
+    let mut mark = |what: &str, timings: &mut Vec<(String, f64)>| {
+        timings.push((what.to_string(), lap_t.elapsed().as_secs_f64()));
+        lap_t = Instant::now();
+    };
+    mark("data", &mut timings);
     progress(DiagnoseStage::NominalFit);
     let post0 = ModelPosterior::new(data.clone(), None)?;
     let starts = frame_starts(&post0, opts.n_frame_starts, 0.3, opts.seed)?;
     let map0 = fit_map(&post0, &starts, &opts.map)?;
+    mark("nominal MAP", &mut timings);
     let nominal = complete(
         "nominal",
         Location::Whole,
@@ -273,6 +283,7 @@ pub fn diagnose(
         0,
         progress,
     )?;
+    mark("nominal evidence", &mut timings);
 
     let hypotheses: Vec<Arc<dyn Hypothesis>> = all_hypotheses()
         .into_iter()
@@ -293,6 +304,7 @@ pub fn diagnose(
             })
         };
         searches.push((h.clone(), search(&data, h, &map0.z, &sopts, &mut cb)?));
+        mark(&format!("search {}", h.name()), &mut timings);
     }
 
     let mut laplace_z = vec![(
@@ -306,6 +318,7 @@ pub fn diagnose(
         });
         laplace_z.push((h.name().to_string(), v));
     }
+    mark("Laplace", &mut timings);
 
     // Evidence for the hypotheses that fit best (by maximum log-likelihood at their best
     // location); a hypothesis that does not beat the nominal fit's likelihood at all
@@ -338,6 +351,7 @@ pub fn diagnose(
             k as u64 + 1,
             progress,
         )?);
+        mark(&format!("evidence {}", h.name()), &mut timings);
     }
     finalists.sort_by(|a, b| {
         b.ln_z()
@@ -374,6 +388,7 @@ pub fn diagnose(
                 &opts.map,
                 &mut cb,
             )?);
+            mark(&format!("held-out {name}"), &mut timings);
         }
     }
 
@@ -412,5 +427,21 @@ pub fn diagnose(
         fit_before,
         fit_after,
         elapsed_s: t0.elapsed().as_secs_f64(),
+        timings,
     })
+}
+
+impl super::evidence::TemperedTarget for ModelPosterior {
+    fn dim(&self) -> usize {
+        ModelPosterior::dim(self)
+    }
+    fn ln_prior(&self, z: &[f64]) -> f64 {
+        ModelPosterior::ln_prior(self, z)
+    }
+    fn ln_likelihood(&self, z: &[f64]) -> Result<f64> {
+        ModelPosterior::ln_likelihood(self, z)
+    }
+    fn sample_prior(&self, rng: &mut rand_chacha::ChaCha8Rng) -> Result<Vec<f64>> {
+        ModelPosterior::sample_prior(self, rng)
+    }
 }

@@ -44,7 +44,35 @@ fn subset(data: &DiagnosisData, keep: impl Fn(usize) -> bool) -> DiagnosisData {
     d
 }
 
+/// A posterior of `data` under `hypothesis`, or of the nominal model when the
+/// hypothesis cannot act on this data (e.g. its channels are not in these segments); the
+/// second value says which (`true`: the hypothesis).
+fn posterior_or_nominal(
+    data: DiagnosisData,
+    hypothesis: Option<(Arc<dyn Hypothesis>, Location)>,
+) -> Result<(ModelPosterior, bool)> {
+    let data = Arc::new(data);
+    if hypothesis.is_some() {
+        if let Ok(p) = ModelPosterior::new(data.clone(), hypothesis) {
+            return Ok((p, true));
+        }
+    }
+    Ok((ModelPosterior::new(data, None)?, false))
+}
+
+/// `z` restricted to the frame (and error floor) when `full` is false.
+fn restrict(z: &[f64], full: bool, post: &ModelPosterior) -> Vec<f64> {
+    if full {
+        z.to_vec()
+    } else {
+        z[..=post.eta_index()].to_vec()
+    }
+}
+
 /// Log density of segment `i` under a fit of all other segments, starting from `z`.
+/// Where the hypothesis cannot act on the rest (its channels are only in segment `i`)
+/// the rest is fitted by the nominal model; where it cannot act on segment `i` that
+/// segment is scored with the frame of the fit.
 fn held_out_density(
     data: &DiagnosisData,
     i: usize,
@@ -52,12 +80,12 @@ fn held_out_density(
     z: &[f64],
     map: &MapOptions,
 ) -> Result<f64> {
-    let rest = Arc::new(subset(data, |j| j != i));
-    let post = ModelPosterior::new(rest, hypothesis.clone())?;
-    let fit = fit_map(&post, &[z.to_vec()], map)?;
-    let one = Arc::new(subset(data, |j| j == i));
-    let post_one = ModelPosterior::new(one, hypothesis)?;
-    post_one.ln_likelihood(&fit.z)
+    let (post, full) = posterior_or_nominal(subset(data, |j| j != i), hypothesis.clone())?;
+    let start = restrict(z, full, &post);
+    let fit = fit_map(&post, &[start], map)?;
+    let hyp = if full { hypothesis } else { None };
+    let (post_one, full_one) = posterior_or_nominal(subset(data, |j| j == i), hyp)?;
+    post_one.ln_likelihood(&restrict(&fit.z, full_one, &post_one))
 }
 
 /// Leave-one-segment-out comparison of `hypothesis` at `location` (full-data MAP

@@ -4,7 +4,7 @@
 
 use super::diagnose::{Diagnosis, ModelResult};
 use super::figures::{channel_misfits, channels_to_show, write_figures};
-use super::report::{explanation, hypothesis_evidence, record};
+use super::report::{explanation, record};
 use super::verdict::decisive_ln_bayes_factor;
 use crate::error::{Error, Result};
 use crate::io::{write_atomic, StagedDir};
@@ -212,6 +212,10 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
         d.data.n_points(),
         d.elapsed_s
     );
+    let _ = writeln!(s, "| stage | wall time, s |\n|---|---|");
+    for (what, t) in &d.timings {
+        let _ = writeln!(s, "| {what} | {t:.1} |");
+    }
     Ok(s)
 }
 
