@@ -1,1 +1,5 @@
 //! (under construction)
+
+pub mod consistency;
+pub mod locate;
+pub mod residual_map;

@@ -1,0 +1,624 @@
+//! The five checks of [`super`]; each appends its results (verdicts are set by the caller
+//! after the Holm adjustment) or a reason why it could not run.
+
+use super::fit::{fit_pole, fit_ratio, PoleData, PoleFit};
+use super::segment::{band_window, SegmentFrf};
+use super::{
+    CheckDetails, CheckKind, CheckResult, Compared, ConsistencyOptions, ModeComparison,
+    NullDistribution, PoleEstimate, Verdict,
+};
+use crate::io::Quantity;
+use crate::signal::InputKind;
+use num_complex::Complex64;
+use std::f64::consts::PI;
+
+/// Relative distance within which a band of one test is the same mode as a reference band.
+const MODE_MATCH_REL: f64 = 0.05;
+
+fn result(
+    kind: CheckKind,
+    what: String,
+    compared: Compared,
+    statistic: f64,
+    dof: usize,
+    summary: String,
+    details: CheckDetails,
+) -> CheckResult {
+    let null = NullDistribution::ChiSquared { dof };
+    CheckResult {
+        kind,
+        name: format!("{} {what}", kind.name()),
+        compared,
+        statistic,
+        null,
+        p_value: null.p_value(statistic),
+        p_adjusted: f64::NAN,
+        verdict: Verdict::Consistent,
+        summary,
+        details,
+    }
+}
+
+/// Bins of all band windows of a segment, ascending, and the bands' edges (Hz).
+fn window_bins(seg: &SegmentFrf, opts: &ConsistencyOptions) -> (Vec<usize>, Vec<(f64, f64)>) {
+    let mut bins = Vec::new();
+    let mut edges = Vec::new();
+    for i in 0..seg.bands.len() {
+        let r = band_window(&seg.freq_hz, &seg.bands, i, opts.window_half_widths);
+        if !r.is_empty() {
+            edges.push((seg.freq_hz[r.start], seg.freq_hz[r.end - 1]));
+            bins.extend(r);
+        }
+    }
+    (bins, edges)
+}
+
+fn ms(x: f64) -> f64 {
+    1e3 * x
+}
+
+fn ratio_summary(f: &super::RatioFit, num: &str, den: &str) -> String {
+    format!(
+        "{num} / {den}: delay {:.2} +- {:.2} ms ({num} lags if positive), phase at 0 Hz {:.1} +- {:.1} deg, \
+         gain at 0 Hz {:+.2} +- {:.2} %, gain change to {:.2} Hz {:+.2} +- {:.2} % ({} points, scale {:.2})",
+        ms(f.delay_s),
+        ms(f.delay_se_s),
+        f.phase0_rad.to_degrees(),
+        f.phase0_se_rad.to_degrees(),
+        100.0 * f.ln_gain0,
+        100.0 * f.ln_gain0_se,
+        f.freq_max_hz,
+        100.0 * f.ln_gain_change,
+        100.0 * f.ln_gain_change_se,
+        f.n_points,
+        f.scale
+    )
+}
+
+/// (a) Accelerance against `(j w)^2` x receptance on the same floor and test. Hammer:
+/// `r = A / ((j w)^2 D)` with `w = omega - j/tau` (exact for windowed estimates). Shake
+/// table: the estimates are relative to the ground, so the absolute ratio is
+/// `r = (A_rel + 1) / ((j omega)^2 D_rel + 1)`; a factor on the accelerometer multiplies
+/// the numerator exactly. `sigma^2 = eps_num^2 + eps_den^2` with each `eps` rescaled to the
+/// value actually divided (`eps |A_rel| / |A_rel + 1|` etc.).
+pub fn acc_vs_disp(
+    segments: &[SegmentFrf],
+    opts: &ConsistencyOptions,
+    out: &mut Vec<CheckResult>,
+    skipped: &mut Vec<String>,
+) {
+    for seg in segments {
+        let (bins, edges) = window_bins(seg, opts);
+        let mut floors: Vec<usize> = seg.channels.iter().map(|c| c.channel.floor).collect();
+        floors.sort_unstable();
+        floors.dedup();
+        for floor in floors {
+            let (Some(a), Some(d)) = (
+                seg.on_floor(Quantity::Acceleration, floor),
+                seg.on_floor(Quantity::Displacement, floor),
+            ) else {
+                continue;
+            };
+            let mut om = Vec::new();
+            let mut r = Vec::new();
+            let mut s = Vec::new();
+            for &k in &bins {
+                let (ea, ed) = (a.rel_std[k], d.rel_std[k]);
+                if !(ea < opts.max_rel_std && ed < opts.max_rel_std) {
+                    continue;
+                }
+                let w = seg.complex_omega(k);
+                let jw2 = -(w * w);
+                let (num, den, sn, sd) = if seg.is_shake_table() {
+                    let one = Complex64::new(1.0, 0.0);
+                    let (n, dd) = (a.h[k] + one, jw2 * d.h[k] + one);
+                    (n, dd, ea * a.h[k].norm() / n.norm(), ed * (jw2 * d.h[k]).norm() / dd.norm())
+                } else {
+                    (a.h[k], jw2 * d.h[k], ea, ed)
+                };
+                let ratio = num / den;
+                let sigma = (sn * sn + sd * sd).sqrt();
+                if ratio.is_finite() && ratio.norm() > 0.0 && sigma > 0.0 && sigma.is_finite() {
+                    om.push(w.re);
+                    r.push(ratio);
+                    s.push(sigma);
+                }
+            }
+            let what = format!("{} floor {floor}", seg.label);
+            match fit_ratio(&om, &r, &s, std::f64::consts::SQRT_2 * opts.estimator_rel_error) {
+                Ok(f) => out.push(result(
+                    CheckKind::AccVsDisp,
+                    what,
+                    Compared {
+                        segments: vec![seg.label.clone()],
+                        channels: vec![a.channel.name.clone(), d.channel.name.clone()],
+                        bands_hz: edges.clone(),
+                    },
+                    f.wald_chi2,
+                    4,
+                    ratio_summary(&f, &a.channel.name, &d.channel.name),
+                    CheckDetails::Ratio(f),
+                )),
+                Err(e) => skipped.push(format!("{} {what}: {e}", CheckKind::AccVsDisp.name())),
+            }
+        }
+    }
+}
+
+/// Pole of band `band` of a segment from all its channels (receptance-like values,
+/// [`SegmentFrf::receptance_like`]), without the exponential window.
+fn segment_pole(seg: &SegmentFrf, band: usize, opts: &ConsistencyOptions) -> crate::Result<PoleFit> {
+    let bins = band_window(&seg.freq_hz, &seg.bands, band, opts.window_half_widths);
+    let mut data = Vec::new();
+    for c in 0..seg.channels.len() {
+        let mut d = PoleData {
+            omega_rad_s: Vec::new(),
+            h: Vec::new(),
+            sigma: Vec::new(),
+        };
+        for k in bins.clone() {
+            let eps = seg.channels[c].rel_std[k];
+            let h = seg.receptance_like(c, k);
+            if eps < opts.max_rel_std && h.is_finite() && h.norm() > 0.0 && eps > 0.0 {
+                d.omega_rad_s.push(2.0 * PI * seg.freq_hz[k]);
+                d.sigma.push(eps * h.norm());
+                d.h.push(h);
+            }
+        }
+        // a channel needs more real data than its 6 linear parameters plus a margin
+        if d.h.len() >= 6 {
+            data.push(d);
+        }
+    }
+    let b = &seg.bands[band];
+    let (w0, xi0) = (2.0 * PI * b.peak_hz, b.damping_ratio().max(1e-3));
+    let mut fit = fit_pole(&data, w0, xi0)?;
+    // The channels' errors are not independent where the input's noise dominates (shake
+    // table near resonance: `H_c (1 - N_in / F_in)` with one `N_in` for all channels), and
+    // the joint fit's standard errors then are too small by up to sqrt(channels). The
+    // joint fit cannot be more precise than its best channel when the errors are shared,
+    // so its standard errors are raised to the smallest single-channel ones.
+    let single: Vec<PoleFit> = data
+        .iter()
+        .filter_map(|d| fit_pole(std::slice::from_ref(d), fit.omega_n_rad_s, fit.xi).ok())
+        .collect();
+    let min_w = single.iter().map(|p| p.omega_n_se_rad_s).fold(f64::INFINITY, f64::min);
+    let min_x = single.iter().map(|p| p.xi_se).fold(f64::INFINITY, f64::min);
+    if min_w.is_finite() && min_x.is_finite() {
+        let (sw, sx) = (fit.omega_n_se_rad_s.max(min_w), fit.xi_se.max(min_x));
+        fit.corr *= fit.omega_n_se_rad_s * fit.xi_se / (sw * sx);
+        fit.omega_n_se_rad_s = sw;
+        fit.xi_se = sx;
+    }
+    Ok(fit
+        .with_smooth_error(opts.estimator_rel_error)
+        .unwindowed(seg.exp_window_tau_s))
+}
+
+fn pole_estimate(label: &str, p: &PoleFit) -> PoleEstimate {
+    PoleEstimate {
+        segment: label.to_string(),
+        freq_hz: p.omega_n_rad_s / (2.0 * PI),
+        freq_se_hz: p.omega_n_se_rad_s / (2.0 * PI),
+        xi: p.xi,
+        xi_se: p.xi_se,
+    }
+}
+
+/// Mahalanobis distance of the difference of two independent poles (frequency and
+/// damping, each with its own 2 x 2 covariance): chi^2 with 2 dof under equality.
+fn pole_distance(a: &PoleFit, b: &PoleFit) -> f64 {
+    let cov = |p: &PoleFit| {
+        nalgebra::Matrix2::new(
+            p.omega_n_se_rad_s.powi(2),
+            p.corr * p.omega_n_se_rad_s * p.xi_se,
+            p.corr * p.omega_n_se_rad_s * p.xi_se,
+            p.xi_se.powi(2),
+        )
+    };
+    let d = nalgebra::Vector2::new(a.omega_n_rad_s - b.omega_n_rad_s, a.xi - b.xi);
+    match (cov(a) + cov(b)).try_inverse() {
+        Some(inv) => (d.transpose() * inv * d)[(0, 0)],
+        None => f64::NAN,
+    }
+}
+
+/// Weighted mean of `ln |H_1 / H_0|` over a band window and all channels, in dB.
+fn band_ratio_db(s0: &SegmentFrf, s1: &SegmentFrf, band: usize, opts: &ConsistencyOptions) -> Option<f64> {
+    let bins = band_window(&s0.freq_hz, &s0.bands, band, opts.window_half_widths);
+    let (mut num, mut den) = (0.0, 0.0);
+    for (c0, c1) in s0.channels.iter().zip(&s1.channels) {
+        for k in bins.clone() {
+            let (e0, e1) = (c0.rel_std[k], c1.rel_std[k]);
+            if e0 < opts.max_rel_std && e1 < opts.max_rel_std {
+                let w = 1.0 / (e0 * e0 + e1 * e1);
+                num += w * (c1.h[k] / c0.h[k]).norm().ln();
+                den += w;
+            }
+        }
+    }
+    (den > 0.0).then(|| 20.0 * num / den / std::f64::consts::LN_10)
+}
+
+/// (b) Weakest against strongest impact of each hammer test: every band's pole (2 dof per
+/// band: frequency and damping) and the mean FRF ratio.
+pub fn impact_level(
+    impacts: &[Vec<SegmentFrf>],
+    opts: &ConsistencyOptions,
+    out: &mut Vec<CheckResult>,
+    skipped: &mut Vec<String>,
+) {
+    for segs in impacts {
+        if segs.len() < 2 {
+            if let Some(s) = segs.first() {
+                skipped.push(format!("impact_level {}: fewer than two impacts", s.test));
+            }
+            continue;
+        }
+        let force = |s: &SegmentFrf| s.peak_force_n.unwrap_or(0.0);
+        let weak = segs.iter().min_by(|a, b| force(a).total_cmp(&force(b))).unwrap_or(&segs[0]);
+        let strong = segs.iter().max_by(|a, b| force(a).total_cmp(&force(b))).unwrap_or(&segs[0]);
+        if force(strong) < 1.5 * force(weak) {
+            skipped.push(format!(
+                "impact_level {}: impacts within a factor 1.5 in force ({:.1} / {:.1} N)",
+                weak.test,
+                force(weak),
+                force(strong)
+            ));
+            continue;
+        }
+        let mut modes = Vec::new();
+        let mut chi2 = 0.0;
+        let mut edges = Vec::new();
+        for band in 0..weak.bands.len() {
+            match (segment_pole(weak, band, opts), segment_pole(strong, band, opts)) {
+                (Ok(pw), Ok(ps)) => {
+                    let c = pole_distance(&ps, &pw);
+                    if !c.is_finite() {
+                        continue;
+                    }
+                    chi2 += c;
+                    let df = ps.omega_n_rad_s - pw.omega_n_rad_s;
+                    let se = (ps.omega_n_se_rad_s.powi(2) + pw.omega_n_se_rad_s.powi(2)).sqrt();
+                    let b = &weak.bands[band];
+                    edges.push((b.lo_hz, b.hi_hz));
+                    modes.push(ModeComparison {
+                        mode: band + 1,
+                        estimates: vec![pole_estimate(&weak.label, &pw), pole_estimate(&strong.label, &ps)],
+                        freq_shift_rel: df / pw.omega_n_rad_s,
+                        freq_shift_z: df / se,
+                        chi2: c,
+                        ratio_db: band_ratio_db(weak, strong, band, opts),
+                    });
+                }
+                (Err(e), _) | (_, Err(e)) => {
+                    skipped.push(format!("impact_level {} band {}: {e}", weak.test, band + 1))
+                }
+            }
+        }
+        if modes.is_empty() {
+            continue;
+        }
+        let summary = format!(
+            "{} ({:.0} N) vs {} ({:.0} N): frequency shift {}",
+            strong.label,
+            force(strong),
+            weak.label,
+            force(weak),
+            modes
+                .iter()
+                .map(|m| format!("mode {} {:+.3} % (z {:+.1})", m.mode, 100.0 * m.freq_shift_rel, m.freq_shift_z))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let dof = 2 * modes.len();
+        out.push(result(
+            CheckKind::ImpactLevel,
+            weak.test.clone(),
+            Compared {
+                segments: vec![weak.label.clone(), strong.label.clone()],
+                channels: weak.channels.iter().map(|c| c.channel.name.clone()).collect(),
+                bands_hz: edges,
+            },
+            chi2,
+            dof,
+            summary,
+            CheckDetails::Modes { modes },
+        ));
+    }
+}
+
+/// Poles of every segment for a common list of modes.
+pub struct TestPoles {
+    /// Peak frequency of each mode, Hz: the bands of the segment with the most bands.
+    pub peaks_hz: Vec<f64>,
+    /// `[segment][mode]`, bands matched to modes by peak frequency.
+    pub poles: Vec<Vec<Option<PoleFit>>>,
+}
+
+impl TestPoles {
+    fn mode_name(&self, mode: usize) -> String {
+        format!("mode {} ({:.2} Hz)", mode + 1, self.peaks_hz[mode])
+    }
+}
+
+/// Fits the poles of every segment ([`TestPoles`]).
+pub fn test_poles(
+    segments: &[SegmentFrf],
+    opts: &ConsistencyOptions,
+    skipped: &mut Vec<String>,
+) -> TestPoles {
+    let Some(reference) = segments.iter().max_by_key(|s| s.bands.len()) else {
+        return TestPoles { peaks_hz: Vec::new(), poles: Vec::new() };
+    };
+    let peaks: Vec<f64> = reference.bands.iter().map(|b| b.peak_hz).collect();
+    use rayon::prelude::*;
+    let fits: Vec<(Vec<Option<PoleFit>>, Vec<String>)> = segments
+        .par_iter()
+        .map(|seg| {
+            let mut row = vec![None; peaks.len()];
+            let mut notes = Vec::new();
+            for (band, b) in seg.bands.iter().enumerate() {
+                let Some((mode, _)) = peaks
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &p)| (i, (b.peak_hz - p).abs() / p))
+                    .filter(|&(_, d)| d < MODE_MATCH_REL)
+                    .min_by(|a, b| a.1.total_cmp(&b.1))
+                else {
+                    continue;
+                };
+                match segment_pole(seg, band, opts) {
+                    Ok(p) => row[mode] = Some(p),
+                    Err(e) => notes.push(format!("pole of {} band {}: {e}", seg.label, band + 1)),
+                }
+            }
+            (row, notes)
+        })
+        .collect();
+    let poles = fits
+        .into_iter()
+        .map(|(row, notes)| {
+            skipped.extend(notes);
+            row
+        })
+        .collect();
+    TestPoles { peaks_hz: peaks, poles }
+}
+
+/// Inverse-variance weighted mean with its standard error, inflated by the Birge ratio of
+/// the spread (`sqrt(max(1, chi^2 / (n - 1)))`); returns (mean, se, chi^2 of the spread).
+fn weighted_mean(values: &[(f64, f64)]) -> (f64, f64, f64) {
+    let w: f64 = values.iter().map(|(_, s)| 1.0 / (s * s)).sum();
+    let mean = values.iter().map(|(v, s)| v / (s * s)).sum::<f64>() / w;
+    let chi2: f64 = values.iter().map(|(v, s)| ((v - mean) / s).powi(2)).sum();
+    let birge = if values.len() > 1 {
+        (chi2 / (values.len() - 1) as f64).max(1.0)
+    } else {
+        1.0
+    };
+    (mean, (birge / w).sqrt(), chi2)
+}
+
+/// (c) Poles from the hammer tests (combined by weighted mean, its standard error inflated
+/// by their own spread) against the shake-table test's, one check per mode (frequency and
+/// damping: 2 dof).
+pub fn hammer_vs_shake(
+    segments: &[SegmentFrf],
+    tp: &TestPoles,
+    out: &mut Vec<CheckResult>,
+    skipped: &mut Vec<String>,
+) {
+    let poles = &tp.poles;
+    let n_modes = tp.peaks_hz.len();
+    let hammer: Vec<usize> = (0..segments.len()).filter(|&i| !segments[i].is_shake_table()).collect();
+    let shake: Vec<usize> = (0..segments.len()).filter(|&i| segments[i].is_shake_table()).collect();
+    if hammer.is_empty() || shake.is_empty() {
+        skipped.push("hammer_vs_shake: needs hammer and shake-table tests".into());
+        return;
+    }
+    for &si in &shake {
+        for mode in 0..n_modes {
+            let Some(ps) = poles[si][mode] else { continue };
+            let hp: Vec<(usize, PoleFit)> = hammer.iter().filter_map(|&h| poles[h][mode].map(|p| (h, p))).collect();
+            if hp.is_empty() {
+                continue;
+            }
+            let (fh, fh_se, _) = weighted_mean(&hp.iter().map(|(_, p)| (p.omega_n_rad_s, p.omega_n_se_rad_s)).collect::<Vec<_>>());
+            let (xh, xh_se, _) = weighted_mean(&hp.iter().map(|(_, p)| (p.xi, p.xi_se)).collect::<Vec<_>>());
+            let zf = (ps.omega_n_rad_s - fh) / (ps.omega_n_se_rad_s.powi(2) + fh_se.powi(2)).sqrt();
+            let zx = (ps.xi - xh) / (ps.xi_se.powi(2) + xh_se.powi(2)).sqrt();
+            let chi2 = zf * zf + zx * zx;
+            let hammer_est = PoleEstimate {
+                segment: "hammer (weighted mean)".into(),
+                freq_hz: fh / (2.0 * PI),
+                freq_se_hz: fh_se / (2.0 * PI),
+                xi: xh,
+                xi_se: xh_se,
+            };
+            let shake_est = pole_estimate(&segments[si].label, &ps);
+            let summary = format!(
+                "{}: shake table {:.4} +- {:.4} Hz, xi {:.3} +- {:.3} %; hammer {:.4} +- {:.4} Hz, xi {:.3} +- {:.3} % (z_f {:+.1}, z_xi {:+.1})",
+                tp.mode_name(mode),
+                shake_est.freq_hz,
+                shake_est.freq_se_hz,
+                100.0 * shake_est.xi,
+                100.0 * shake_est.xi_se,
+                hammer_est.freq_hz,
+                hammer_est.freq_se_hz,
+                100.0 * hammer_est.xi,
+                100.0 * hammer_est.xi_se,
+                zf,
+                zx
+            );
+            let mut segs: Vec<String> = hp.iter().map(|(h, _)| segments[*h].label.clone()).collect();
+            segs.push(segments[si].label.clone());
+            out.push(result(
+                CheckKind::HammerVsShake,
+                tp.mode_name(mode),
+                Compared {
+                    segments: segs,
+                    channels: Vec::new(),
+                    bands_hz: Vec::new(),
+                },
+                chi2,
+                2,
+                summary,
+                CheckDetails::Modes {
+                    modes: vec![ModeComparison {
+                        mode: mode + 1,
+                        freq_shift_rel: (ps.omega_n_rad_s - fh) / fh,
+                        freq_shift_z: zf,
+                        chi2,
+                        ratio_db: None,
+                        estimates: vec![hammer_est, shake_est],
+                    }],
+                },
+            ));
+        }
+    }
+}
+
+/// `H` and `eps` of a channel at `freq_hz`, linearly interpolated between bins.
+fn interp(seg: &SegmentFrf, c: usize, freq_hz: f64) -> Option<(Complex64, f64)> {
+    let f = &seg.freq_hz;
+    let j = f.partition_point(|&v| v <= freq_hz);
+    if j == 0 || j >= f.len() {
+        return None;
+    }
+    let t = (freq_hz - f[j - 1]) / (f[j] - f[j - 1]);
+    let ch = &seg.channels[c];
+    let h = ch.h[j - 1] * (1.0 - t) + ch.h[j] * t;
+    let e = ch.rel_std[j - 1].max(ch.rel_std[j]);
+    Some((h, e))
+}
+
+/// (d) Reciprocity `H_re = H_er` between hammer tests: response at floor r with the force
+/// at floor e against response at e with the force at r, same quantity, on the band
+/// windows of the first test (the second test interpolated to its frequencies when the
+/// grids differ; the two tests' exponential windows differ only through their block
+/// lengths).
+pub fn reciprocity(
+    segments: &[SegmentFrf],
+    opts: &ConsistencyOptions,
+    out: &mut Vec<CheckResult>,
+    skipped: &mut Vec<String>,
+) {
+    let force_floor = |s: &SegmentFrf| match &s.input {
+        InputKind::Force { floor, .. } => Some(*floor),
+        InputKind::Ground { .. } => None,
+    };
+    for (i, se) in segments.iter().enumerate() {
+        let Some(e) = force_floor(se) else { continue };
+        for sr in &segments[i + 1..] {
+            let Some(r) = force_floor(sr) else { continue };
+            if r == e {
+                continue;
+            }
+            for q in [Quantity::Acceleration, Quantity::Displacement] {
+                let ci = se.channels.iter().position(|c| c.channel.quantity == q && c.channel.floor == r);
+                let cj = sr.channels.iter().position(|c| c.channel.quantity == q && c.channel.floor == e);
+                let (Some(ci), Some(cj)) = (ci, cj) else { continue };
+                let (bins, edges) = window_bins(se, opts);
+                let (mut om, mut rr, mut ss) = (Vec::new(), Vec::new(), Vec::new());
+                for k in bins {
+                    let (h1, e1) = (se.channels[ci].h[k], se.channels[ci].rel_std[k]);
+                    let Some((h2, e2)) = interp(sr, cj, se.freq_hz[k]) else { continue };
+                    if e1 < opts.max_rel_std && e2 < opts.max_rel_std && h2.norm() > 0.0 {
+                        om.push(2.0 * PI * se.freq_hz[k]);
+                        rr.push(h1 / h2);
+                        ss.push((e1 * e1 + e2 * e2).sqrt());
+                    }
+                }
+                let (n1, n2) = (&se.channels[ci].channel.name, &sr.channels[cj].channel.name);
+                let what = format!("{} {n1} / {} {n2}", se.label, sr.label);
+                match fit_ratio(&om, &rr, &ss, std::f64::consts::SQRT_2 * opts.estimator_rel_error) {
+                    Ok(f) => out.push(result(
+                        CheckKind::Reciprocity,
+                        what,
+                        Compared {
+                            segments: vec![se.label.clone(), sr.label.clone()],
+                            channels: vec![n1.clone(), n2.clone()],
+                            bands_hz: edges,
+                        },
+                        f.wald_chi2,
+                        4,
+                        ratio_summary(
+                            &f,
+                            &format!("H({r},{e}) [{n1}]"),
+                            &format!("H({e},{r}) [{n2}]"),
+                        ),
+                        CheckDetails::Ratio(f),
+                    )),
+                    Err(err) => skipped.push(format!("reciprocity {what}: {err}")),
+                }
+            }
+        }
+    }
+}
+
+/// (e) Drift of each mode's pole across the hammer tests: spread of frequency and damping
+/// about their weighted means, chi^2 with `2 (T - 1)` dof for `T` tests.
+pub fn drift(
+    segments: &[SegmentFrf],
+    tp: &TestPoles,
+    out: &mut Vec<CheckResult>,
+    skipped: &mut Vec<String>,
+) {
+    let poles = &tp.poles;
+    let n_modes = tp.peaks_hz.len();
+    let hammer: Vec<usize> = (0..segments.len()).filter(|&i| !segments[i].is_shake_table()).collect();
+    if hammer.len() < 2 {
+        skipped.push("drift: needs at least two hammer tests".into());
+        return;
+    }
+    for mode in 0..n_modes {
+        let hp: Vec<(usize, PoleFit)> = hammer.iter().filter_map(|&h| poles[h][mode].map(|p| (h, p))).collect();
+        if hp.len() < 2 {
+            continue;
+        }
+        let (fm, _, cf) = weighted_mean(&hp.iter().map(|(_, p)| (p.omega_n_rad_s, p.omega_n_se_rad_s)).collect::<Vec<_>>());
+        let (_, _, cx) = weighted_mean(&hp.iter().map(|(_, p)| (p.xi, p.xi_se)).collect::<Vec<_>>());
+        let estimates: Vec<PoleEstimate> = hp.iter().map(|(h, p)| pole_estimate(&segments[*h].label, p)).collect();
+        let (imax, dmax) = hp
+            .iter()
+            .enumerate()
+            .map(|(i, (_, p))| (i, (p.omega_n_rad_s - fm) / p.omega_n_se_rad_s))
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+            .unwrap_or((0, 0.0));
+        let summary = format!(
+            "{}: {}; frequency spread chi^2 {:.1}, damping spread chi^2 {:.1} ({} dof each)",
+            tp.mode_name(mode),
+            estimates
+                .iter()
+                .map(|e| format!("{} {:.4} +- {:.4} Hz xi {:.3} %", e.segment, e.freq_hz, e.freq_se_hz, 100.0 * e.xi))
+                .collect::<Vec<_>>()
+                .join("; "),
+            cf,
+            cx,
+            hp.len() - 1
+        );
+        out.push(result(
+            CheckKind::Drift,
+            tp.mode_name(mode),
+            Compared {
+                segments: estimates.iter().map(|e| e.segment.clone()).collect(),
+                channels: Vec::new(),
+                bands_hz: Vec::new(),
+            },
+            cf + cx,
+            2 * (hp.len() - 1),
+            summary,
+            CheckDetails::Modes {
+                modes: vec![ModeComparison {
+                    mode: mode + 1,
+                    freq_shift_rel: (hp[imax].1.omega_n_rad_s - fm) / fm,
+                    freq_shift_z: dmax,
+                    chi2: cf + cx,
+                    ratio_db: None,
+                    estimates,
+                }],
+            },
+        ));
+    }
+}
