@@ -43,10 +43,18 @@ fn excess(c: &CheckResult) -> f64 {
     (c.statistic - dof as f64) / (2.0 * dof as f64).sqrt()
 }
 
-/// Inverse-variance weighted mean and its standard error.
+/// Inverse-variance weighted mean and its standard error, inflated by the Birge ratio
+/// of the values' spread when they scatter more than their errors say.
 fn wmean(v: &[(f64, f64)]) -> (f64, f64) {
     let w: f64 = v.iter().map(|(_, s)| 1.0 / (s * s)).sum();
-    (v.iter().map(|(x, s)| x / (s * s)).sum::<f64>() / w, (1.0 / w).sqrt())
+    let m = v.iter().map(|(x, s)| x / (s * s)).sum::<f64>() / w;
+    let chi2: f64 = v.iter().map(|(x, s)| ((x - m) / s).powi(2)).sum();
+    let birge = if v.len() > 1 {
+        (chi2 / (v.len() - 1) as f64).max(1.0)
+    } else {
+        1.0
+    };
+    (m, (birge / w).sqrt())
 }
 
 fn ratio(c: &CheckResult) -> Option<&RatioFit> {
@@ -59,8 +67,16 @@ fn ratio(c: &CheckResult) -> Option<&RatioFit> {
 /// What a ratio fit says, in words: the dominant feature(s) among delay, constant gain
 /// and gain change with `|z| > 3`.
 fn ratio_words(v: &[&RatioFit], sign: &[f64]) -> String {
-    let d: Vec<(f64, f64)> = v.iter().zip(sign).map(|(f, s)| (s * f.delay_s, f.delay_se_s)).collect();
-    let g: Vec<(f64, f64)> = v.iter().zip(sign).map(|(f, s)| (s * f.ln_gain0, f.ln_gain0_se)).collect();
+    let d: Vec<(f64, f64)> = v
+        .iter()
+        .zip(sign)
+        .map(|(f, s)| (s * f.delay_s, f.delay_se_s))
+        .collect();
+    let g: Vec<(f64, f64)> = v
+        .iter()
+        .zip(sign)
+        .map(|(f, s)| (s * f.ln_gain0, f.ln_gain0_se))
+        .collect();
     let c: Vec<(f64, f64)> = v
         .iter()
         .zip(sign)
@@ -73,18 +89,18 @@ fn ratio_words(v: &[&RatioFit], sign: &[f64]) -> String {
     let mut parts = Vec::new();
     if (dm / ds).abs() > 3.0 {
         parts.push(format!(
-            "{} by {:.1} +- {:.1} ms",
+            "{} by {:.2} +- {:.2} ms",
             if dm > 0.0 { "lags" } else { "leads" },
             1e3 * dm.abs(),
             1e3 * ds
         ));
     }
     if (gm / gs).abs() > 3.0 {
-        parts.push(format!("gain {:+.1} +- {:.1} %", 100.0 * gm, 100.0 * gs));
+        parts.push(format!("gain {:+.2} +- {:.2} %", 100.0 * gm, 100.0 * gs));
     }
     if (cm / cs).abs() > 3.0 {
         parts.push(format!(
-            "gain changing by {:+.1} +- {:.1} % up to {:.1} Hz",
+            "gain changing by {:+.2} +- {:.2} % up to {:.1} Hz",
             100.0 * cm,
             100.0 * cs,
             fmax
@@ -98,17 +114,29 @@ fn ratio_words(v: &[&RatioFit], sign: &[f64]) -> String {
 }
 
 fn floors_text(f: &[usize]) -> String {
-    f.iter().map(usize::to_string).collect::<Vec<_>>().join(", ")
+    f.iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Findings from the inconsistent checks (see the module docs), strongest first.
 pub fn findings(rep: &ConsistencyReport) -> Vec<Finding> {
-    let bad: Vec<&CheckResult> = rep.checks.iter().filter(|c| c.verdict == Verdict::Inconsistent).collect();
+    let bad: Vec<&CheckResult> = rep
+        .checks
+        .iter()
+        .filter(|c| c.verdict == Verdict::Inconsistent)
+        .collect();
     let mut out = Vec::new();
     // (a) accelerometer vs displacement sensor: per floor over tests, then all floors
     let mut by_floor: BTreeMap<usize, Vec<&CheckResult>> = BTreeMap::new();
     for c in bad.iter().filter(|c| c.kind == CheckKind::AccVsDisp) {
-        let floor = c.name.rsplit(' ').next().and_then(|s| s.parse().ok()).unwrap_or(0);
+        let floor = c
+            .name
+            .rsplit(' ')
+            .next()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(0);
         by_floor.entry(floor).or_default().push(c);
     }
     if !by_floor.is_empty() {
@@ -128,7 +156,11 @@ pub fn findings(rep: &ConsistencyReport) -> Vec<Finding> {
         });
     }
     // (d) reciprocity: which channels recur; delay of a channel = sign by its position
-    let recip: Vec<&CheckResult> = bad.iter().filter(|c| c.kind == CheckKind::Reciprocity).copied().collect();
+    let recip: Vec<&CheckResult> = bad
+        .iter()
+        .filter(|c| c.kind == CheckKind::Reciprocity)
+        .copied()
+        .collect();
     let mut by_channel: BTreeMap<String, Vec<(&CheckResult, f64)>> = BTreeMap::new();
     for c in &recip {
         if let [num, den] = c.compared.channels.as_slice() {
@@ -164,9 +196,18 @@ pub fn findings(rep: &ConsistencyReport) -> Vec<Finding> {
         }
     }
     // (b), (c), (e): one finding per check with the largest shifts
-    for c in bad.iter().filter(|c| matches!(c.kind, CheckKind::ImpactLevel | CheckKind::HammerVsShake | CheckKind::Drift)) {
-        let CheckDetails::Modes { modes } = &c.details else { continue };
-        let Some(m) = modes.iter().max_by(|a, b| a.chi2.total_cmp(&b.chi2)) else { continue };
+    for c in bad.iter().filter(|c| {
+        matches!(
+            c.kind,
+            CheckKind::ImpactLevel | CheckKind::HammerVsShake | CheckKind::Drift
+        )
+    }) {
+        let CheckDetails::Modes { modes } = &c.details else {
+            continue;
+        };
+        let Some(m) = modes.iter().max_by(|a, b| a.chi2.total_cmp(&b.chi2)) else {
+            continue;
+        };
         let text = match c.kind {
             CheckKind::ImpactLevel => format!(
                 "amplitude dependence in {}: mode {} moves {:+.2} % (z {:+.0}) from the weak to the strong impact{}",

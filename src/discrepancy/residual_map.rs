@@ -132,7 +132,11 @@ impl ResidualMap {
                     .position(|&(lo, hi)| f >= lo && f <= hi)
                     .unwrap_or(n_col - 1);
                 let scale = m.norm() / s;
-                let zm = if p.norm() > 0.0 { (m.norm() / p.norm()).ln() * scale } else { f64::INFINITY };
+                let zm = if p.norm() > 0.0 {
+                    (m.norm() / p.norm()).ln() * scale
+                } else {
+                    f64::INFINITY
+                };
                 let zp = wrap_pi(m.arg() - p.arg()) * scale;
                 let a = &mut acc[col];
                 a[0] += 1.0;
@@ -160,7 +164,10 @@ impl ResidualMap {
             );
         }
         Ok(ResidualMap {
-            rows: rows.iter().map(|r| (r.segment.clone(), r.channel.clone())).collect(),
+            rows: rows
+                .iter()
+                .map(|r| (r.segment.clone(), r.channel.clone()))
+                .collect(),
             bands_hz: bands_hz.to_vec(),
             cells,
         })
@@ -177,7 +184,10 @@ impl ResidualMap {
 
     /// Row labels `segment / channel`.
     pub fn row_labels(&self) -> Vec<String> {
-        self.rows.iter().map(|(s, c)| format!("{s} / {c}")).collect()
+        self.rows
+            .iter()
+            .map(|(s, c)| format!("{s} / {c}"))
+            .collect()
     }
 
     /// Overall chi^2 per real datum over all cells.
@@ -226,7 +236,10 @@ impl ResidualMap {
                     if c.n_points == 0 {
                         "-".to_string()
                     } else {
-                        format!("{:.1} / {:.1} ({:.1})", c.rms_log_mag, c.rms_phase, c.chi2_per_point)
+                        format!(
+                            "{:.1} / {:.1} ({:.1})",
+                            c.rms_log_mag, c.rms_phase, c.chi2_per_point
+                        )
                     }
                 })
                 .collect();
@@ -259,7 +272,9 @@ impl ResidualMap {
                 let (lo, hi) = self
                     .bands_hz
                     .get(j)
-                    .map_or((String::new(), String::new()), |(a, b)| (a.to_string(), b.to_string()));
+                    .map_or((String::new(), String::new()), |(a, b)| {
+                        (a.to_string(), b.to_string())
+                    });
                 w.write_record([
                     seg.clone(),
                     ch.clone(),
@@ -276,7 +291,9 @@ impl ResidualMap {
                 .map_err(csv_err)?;
             }
         }
-        let bytes = w.into_inner().map_err(|e| Error::Usage(format!("residual map CSV: {e}")))?;
+        let bytes = w
+            .into_inner()
+            .map_err(|e| Error::Usage(format!("residual map CSV: {e}")))?;
         String::from_utf8(bytes).map_err(|e| Error::Usage(format!("residual map CSV: {e}")))
     }
 
@@ -346,7 +363,10 @@ mod tests {
         assert_eq!(map.cells[0][1].chi2_per_point, 0.0);
         assert_eq!(map.column_labels(), vec!["1.00-2.00 Hz", "off-band"]);
         let md = map.to_markdown();
-        assert!(md.contains("| t / acc1 | 0.1 / 0.4 (") && md.contains("off-band"), "{md}");
+        assert!(
+            md.contains("| t / acc1 | 0.1 / 0.4 (") && md.contains("off-band"),
+            "{md}"
+        );
         let csv = map.to_csv().unwrap();
         assert_eq!(csv.lines().count(), 3);
         assert!(map.worst_cells(1)[0].1 == 0);

@@ -112,7 +112,12 @@ pub fn acc_vs_disp(
                 let (num, den, sn, sd) = if seg.is_shake_table() {
                     let one = Complex64::new(1.0, 0.0);
                     let (n, dd) = (a.h[k] + one, jw2 * d.h[k] + one);
-                    (n, dd, ea * a.h[k].norm() / n.norm(), ed * (jw2 * d.h[k]).norm() / dd.norm())
+                    (
+                        n,
+                        dd,
+                        ea * a.h[k].norm() / n.norm(),
+                        ed * (jw2 * d.h[k]).norm() / dd.norm(),
+                    )
                 } else {
                     (a.h[k], jw2 * d.h[k], ea, ed)
                 };
@@ -125,7 +130,12 @@ pub fn acc_vs_disp(
                 }
             }
             let what = format!("{} floor {floor}", seg.label);
-            match fit_ratio(&om, &r, &s, std::f64::consts::SQRT_2 * opts.estimator_rel_error) {
+            match fit_ratio(
+                &om,
+                &r,
+                &s,
+                std::f64::consts::SQRT_2 * opts.estimator_rel_error,
+            ) {
                 Ok(f) => out.push(result(
                     CheckKind::AccVsDisp,
                     what,
@@ -147,7 +157,11 @@ pub fn acc_vs_disp(
 
 /// Pole of band `band` of a segment from all its channels (receptance-like values,
 /// [`SegmentFrf::receptance_like`]), without the exponential window.
-fn segment_pole(seg: &SegmentFrf, band: usize, opts: &ConsistencyOptions) -> crate::Result<PoleFit> {
+fn segment_pole(
+    seg: &SegmentFrf,
+    band: usize,
+    opts: &ConsistencyOptions,
+) -> crate::Result<PoleFit> {
     let bins = band_window(&seg.freq_hz, &seg.bands, band, opts.window_half_widths);
     let mut data = Vec::new();
     for c in 0..seg.channels.len() {
@@ -173,6 +187,14 @@ fn segment_pole(seg: &SegmentFrf, band: usize, opts: &ConsistencyOptions) -> cra
     let b = &seg.bands[band];
     let (w0, xi0) = (2.0 * PI * b.peak_hz, b.damping_ratio().max(1e-3));
     let mut fit = fit_pole(&data, w0, xi0)?;
+    let (f_lo, f_hi) = (seg.freq_hz[bins.start], seg.freq_hz[bins.end - 1]);
+    let f_fit = fit.omega_n_rad_s / (2.0 * PI);
+    if !(f_lo..=f_hi).contains(&f_fit) || fit.xi > 0.3 {
+        return Err(crate::Error::Numerical(format!(
+            "pole fit left the band: {f_fit:.3} Hz, xi {:.3} (window {f_lo:.3}-{f_hi:.3} Hz)",
+            fit.xi
+        )));
+    }
     // The channels' errors are not independent where the input's noise dominates (shake
     // table near resonance: `H_c (1 - N_in / F_in)` with one `N_in` for all channels), and
     // the joint fit's standard errors then are too small by up to sqrt(channels). The
@@ -182,7 +204,10 @@ fn segment_pole(seg: &SegmentFrf, band: usize, opts: &ConsistencyOptions) -> cra
         .iter()
         .filter_map(|d| fit_pole(std::slice::from_ref(d), fit.omega_n_rad_s, fit.xi).ok())
         .collect();
-    let min_w = single.iter().map(|p| p.omega_n_se_rad_s).fold(f64::INFINITY, f64::min);
+    let min_w = single
+        .iter()
+        .map(|p| p.omega_n_se_rad_s)
+        .fold(f64::INFINITY, f64::min);
     let min_x = single.iter().map(|p| p.xi_se).fold(f64::INFINITY, f64::min);
     if min_w.is_finite() && min_x.is_finite() {
         let (sw, sx) = (fit.omega_n_se_rad_s.max(min_w), fit.xi_se.max(min_x));
@@ -224,7 +249,12 @@ fn pole_distance(a: &PoleFit, b: &PoleFit) -> f64 {
 }
 
 /// Weighted mean of `ln |H_1 / H_0|` over a band window and all channels, in dB.
-fn band_ratio_db(s0: &SegmentFrf, s1: &SegmentFrf, band: usize, opts: &ConsistencyOptions) -> Option<f64> {
+fn band_ratio_db(
+    s0: &SegmentFrf,
+    s1: &SegmentFrf,
+    band: usize,
+    opts: &ConsistencyOptions,
+) -> Option<f64> {
     let bins = band_window(&s0.freq_hz, &s0.bands, band, opts.window_half_widths);
     let (mut num, mut den) = (0.0, 0.0);
     for (c0, c1) in s0.channels.iter().zip(&s1.channels) {
@@ -256,8 +286,14 @@ pub fn impact_level(
             continue;
         }
         let force = |s: &SegmentFrf| s.peak_force_n.unwrap_or(0.0);
-        let weak = segs.iter().min_by(|a, b| force(a).total_cmp(&force(b))).unwrap_or(&segs[0]);
-        let strong = segs.iter().max_by(|a, b| force(a).total_cmp(&force(b))).unwrap_or(&segs[0]);
+        let weak = segs
+            .iter()
+            .min_by(|a, b| force(a).total_cmp(&force(b)))
+            .unwrap_or(&segs[0]);
+        let strong = segs
+            .iter()
+            .max_by(|a, b| force(a).total_cmp(&force(b)))
+            .unwrap_or(&segs[0]);
         if force(strong) < 1.5 * force(weak) {
             skipped.push(format!(
                 "impact_level {}: impacts within a factor 1.5 in force ({:.1} / {:.1} N)",
@@ -271,7 +307,10 @@ pub fn impact_level(
         let mut chi2 = 0.0;
         let mut edges = Vec::new();
         for band in 0..weak.bands.len() {
-            match (segment_pole(weak, band, opts), segment_pole(strong, band, opts)) {
+            match (
+                segment_pole(weak, band, opts),
+                segment_pole(strong, band, opts),
+            ) {
                 (Ok(pw), Ok(ps)) => {
                     let c = pole_distance(&ps, &pw);
                     if !c.is_finite() {
@@ -284,7 +323,10 @@ pub fn impact_level(
                     edges.push((b.lo_hz, b.hi_hz));
                     modes.push(ModeComparison {
                         mode: band + 1,
-                        estimates: vec![pole_estimate(&weak.label, &pw), pole_estimate(&strong.label, &ps)],
+                        estimates: vec![
+                            pole_estimate(&weak.label, &pw),
+                            pole_estimate(&strong.label, &ps),
+                        ],
                         freq_shift_rel: df / pw.omega_n_rad_s,
                         freq_shift_z: df / se,
                         chi2: c,
@@ -307,7 +349,12 @@ pub fn impact_level(
             force(weak),
             modes
                 .iter()
-                .map(|m| format!("mode {} {:+.3} % (z {:+.1})", m.mode, 100.0 * m.freq_shift_rel, m.freq_shift_z))
+                .map(|m| format!(
+                    "mode {} {:+.3} % (z {:+.1})",
+                    m.mode,
+                    100.0 * m.freq_shift_rel,
+                    m.freq_shift_z
+                ))
                 .collect::<Vec<_>>()
                 .join(", ")
         );
@@ -317,7 +364,11 @@ pub fn impact_level(
             weak.test.clone(),
             Compared {
                 segments: vec![weak.label.clone(), strong.label.clone()],
-                channels: weak.channels.iter().map(|c| c.channel.name.clone()).collect(),
+                channels: weak
+                    .channels
+                    .iter()
+                    .map(|c| c.channel.name.clone())
+                    .collect(),
                 bands_hz: edges,
             },
             chi2,
@@ -349,7 +400,10 @@ pub fn test_poles(
     skipped: &mut Vec<String>,
 ) -> TestPoles {
     let Some(reference) = segments.iter().max_by_key(|s| s.bands.len()) else {
-        return TestPoles { peaks_hz: Vec::new(), poles: Vec::new() };
+        return TestPoles {
+            peaks_hz: Vec::new(),
+            poles: Vec::new(),
+        };
     };
     let peaks: Vec<f64> = reference.bands.iter().map(|b| b.peak_hz).collect();
     use rayon::prelude::*;
@@ -383,7 +437,10 @@ pub fn test_poles(
             row
         })
         .collect();
-    TestPoles { peaks_hz: peaks, poles }
+    TestPoles {
+        peaks_hz: peaks,
+        poles,
+    }
 }
 
 /// Inverse-variance weighted mean with its standard error, inflated by the Birge ratio of
@@ -411,21 +468,33 @@ pub fn hammer_vs_shake(
 ) {
     let poles = &tp.poles;
     let n_modes = tp.peaks_hz.len();
-    let hammer: Vec<usize> = (0..segments.len()).filter(|&i| !segments[i].is_shake_table()).collect();
-    let shake: Vec<usize> = (0..segments.len()).filter(|&i| segments[i].is_shake_table()).collect();
+    let hammer: Vec<usize> = (0..segments.len())
+        .filter(|&i| !segments[i].is_shake_table())
+        .collect();
+    let shake: Vec<usize> = (0..segments.len())
+        .filter(|&i| segments[i].is_shake_table())
+        .collect();
     if hammer.is_empty() || shake.is_empty() {
         skipped.push("hammer_vs_shake: needs hammer and shake-table tests".into());
         return;
     }
     for &si in &shake {
-        for mode in 0..n_modes {
-            let Some(ps) = poles[si][mode] else { continue };
-            let hp: Vec<(usize, PoleFit)> = hammer.iter().filter_map(|&h| poles[h][mode].map(|p| (h, p))).collect();
+        for (mode, ps) in poles[si].iter().enumerate().take(n_modes) {
+            let Some(ps) = *ps else { continue };
+            let hp: Vec<(usize, PoleFit)> = hammer
+                .iter()
+                .filter_map(|&h| poles[h][mode].map(|p| (h, p)))
+                .collect();
             if hp.is_empty() {
                 continue;
             }
-            let (fh, fh_se, _) = weighted_mean(&hp.iter().map(|(_, p)| (p.omega_n_rad_s, p.omega_n_se_rad_s)).collect::<Vec<_>>());
-            let (xh, xh_se, _) = weighted_mean(&hp.iter().map(|(_, p)| (p.xi, p.xi_se)).collect::<Vec<_>>());
+            let (fh, fh_se, _) = weighted_mean(
+                &hp.iter()
+                    .map(|(_, p)| (p.omega_n_rad_s, p.omega_n_se_rad_s))
+                    .collect::<Vec<_>>(),
+            );
+            let (xh, xh_se, _) =
+                weighted_mean(&hp.iter().map(|(_, p)| (p.xi, p.xi_se)).collect::<Vec<_>>());
             let zf = (ps.omega_n_rad_s - fh) / (ps.omega_n_se_rad_s.powi(2) + fh_se.powi(2)).sqrt();
             let zx = (ps.xi - xh) / (ps.xi_se.powi(2) + xh_se.powi(2)).sqrt();
             let chi2 = zf * zf + zx * zx;
@@ -451,7 +520,8 @@ pub fn hammer_vs_shake(
                 zf,
                 zx
             );
-            let mut segs: Vec<String> = hp.iter().map(|(h, _)| segments[*h].label.clone()).collect();
+            let mut segs: Vec<String> =
+                hp.iter().map(|(h, _)| segments[*h].label.clone()).collect();
             segs.push(segments[si].label.clone());
             out.push(result(
                 CheckKind::HammerVsShake,
@@ -516,14 +586,24 @@ pub fn reciprocity(
                 continue;
             }
             for q in [Quantity::Acceleration, Quantity::Displacement] {
-                let ci = se.channels.iter().position(|c| c.channel.quantity == q && c.channel.floor == r);
-                let cj = sr.channels.iter().position(|c| c.channel.quantity == q && c.channel.floor == e);
-                let (Some(ci), Some(cj)) = (ci, cj) else { continue };
+                let ci = se
+                    .channels
+                    .iter()
+                    .position(|c| c.channel.quantity == q && c.channel.floor == r);
+                let cj = sr
+                    .channels
+                    .iter()
+                    .position(|c| c.channel.quantity == q && c.channel.floor == e);
+                let (Some(ci), Some(cj)) = (ci, cj) else {
+                    continue;
+                };
                 let (bins, edges) = window_bins(se, opts);
                 let (mut om, mut rr, mut ss) = (Vec::new(), Vec::new(), Vec::new());
                 for k in bins {
                     let (h1, e1) = (se.channels[ci].h[k], se.channels[ci].rel_std[k]);
-                    let Some((h2, e2)) = interp(sr, cj, se.freq_hz[k]) else { continue };
+                    let Some((h2, e2)) = interp(sr, cj, se.freq_hz[k]) else {
+                        continue;
+                    };
                     if e1 < opts.max_rel_std && e2 < opts.max_rel_std && h2.norm() > 0.0 {
                         om.push(2.0 * PI * se.freq_hz[k]);
                         rr.push(h1 / h2);
@@ -532,7 +612,12 @@ pub fn reciprocity(
                 }
                 let (n1, n2) = (&se.channels[ci].channel.name, &sr.channels[cj].channel.name);
                 let what = format!("{} {n1} / {} {n2}", se.label, sr.label);
-                match fit_ratio(&om, &rr, &ss, std::f64::consts::SQRT_2 * opts.estimator_rel_error) {
+                match fit_ratio(
+                    &om,
+                    &rr,
+                    &ss,
+                    std::f64::consts::SQRT_2 * opts.estimator_rel_error,
+                ) {
                     Ok(f) => out.push(result(
                         CheckKind::Reciprocity,
                         what,
@@ -559,6 +644,7 @@ pub fn reciprocity(
 
 /// (e) Drift of each mode's pole across the hammer tests: spread of frequency and damping
 /// about their weighted means, chi^2 with `2 (T - 1)` dof for `T` tests.
+#[allow(clippy::needless_range_loop)] // `mode` indexes every segment's row
 pub fn drift(
     segments: &[SegmentFrf],
     tp: &TestPoles,
@@ -567,19 +653,32 @@ pub fn drift(
 ) {
     let poles = &tp.poles;
     let n_modes = tp.peaks_hz.len();
-    let hammer: Vec<usize> = (0..segments.len()).filter(|&i| !segments[i].is_shake_table()).collect();
+    let hammer: Vec<usize> = (0..segments.len())
+        .filter(|&i| !segments[i].is_shake_table())
+        .collect();
     if hammer.len() < 2 {
         skipped.push("drift: needs at least two hammer tests".into());
         return;
     }
     for mode in 0..n_modes {
-        let hp: Vec<(usize, PoleFit)> = hammer.iter().filter_map(|&h| poles[h][mode].map(|p| (h, p))).collect();
+        let hp: Vec<(usize, PoleFit)> = hammer
+            .iter()
+            .filter_map(|&h| poles[h][mode].map(|p| (h, p)))
+            .collect();
         if hp.len() < 2 {
             continue;
         }
-        let (fm, _, cf) = weighted_mean(&hp.iter().map(|(_, p)| (p.omega_n_rad_s, p.omega_n_se_rad_s)).collect::<Vec<_>>());
-        let (_, _, cx) = weighted_mean(&hp.iter().map(|(_, p)| (p.xi, p.xi_se)).collect::<Vec<_>>());
-        let estimates: Vec<PoleEstimate> = hp.iter().map(|(h, p)| pole_estimate(&segments[*h].label, p)).collect();
+        let (fm, _, cf) = weighted_mean(
+            &hp.iter()
+                .map(|(_, p)| (p.omega_n_rad_s, p.omega_n_se_rad_s))
+                .collect::<Vec<_>>(),
+        );
+        let (_, _, cx) =
+            weighted_mean(&hp.iter().map(|(_, p)| (p.xi, p.xi_se)).collect::<Vec<_>>());
+        let estimates: Vec<PoleEstimate> = hp
+            .iter()
+            .map(|(h, p)| pole_estimate(&segments[*h].label, p))
+            .collect();
         let (imax, dmax) = hp
             .iter()
             .enumerate()
@@ -591,7 +690,13 @@ pub fn drift(
             tp.mode_name(mode),
             estimates
                 .iter()
-                .map(|e| format!("{} {:.4} +- {:.4} Hz xi {:.3} %", e.segment, e.freq_hz, e.freq_se_hz, 100.0 * e.xi))
+                .map(|e| format!(
+                    "{} {:.4} +- {:.4} Hz xi {:.3} %",
+                    e.segment,
+                    e.freq_hz,
+                    e.freq_se_hz,
+                    100.0 * e.xi
+                ))
                 .collect::<Vec<_>>()
                 .join("; "),
             cf,

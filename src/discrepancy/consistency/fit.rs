@@ -121,8 +121,10 @@ pub fn fit_ratio(
     let w_max = omega_rad_s.iter().cloned().fold(0.0, f64::max);
     let w_min = omega_rad_s.iter().cloned().fold(f64::INFINITY, f64::min);
     let d2 = smooth_rel_error * smooth_rel_error;
-    let cov_p = &fp.cov * scale + DMatrix::from_diagonal(&DVector::from_vec(vec![d2, d2 / w_max.powi(2)]));
-    let cov_m = &fm.cov * scale + DMatrix::from_diagonal(&DVector::from_vec(vec![d2, d2 / w_max.powi(4)]));
+    let cov_p =
+        &fp.cov * scale + DMatrix::from_diagonal(&DVector::from_vec(vec![d2, d2 / w_max.powi(2)]));
+    let cov_m =
+        &fm.cov * scale + DMatrix::from_diagonal(&DVector::from_vec(vec![d2, d2 / w_max.powi(4)]));
     let wald = |f: &Wls, cov: &DMatrix<f64>| -> Result<f64> {
         let inv = cov
             .clone()
@@ -192,7 +194,6 @@ impl PoleFit {
         }
     }
 
-
     /// The pole without the exponential window (the window adds `1/tau` to the decay
     /// rate; [`crate::signal::unwindowed_pole`]), standard errors propagated to first order
     /// by central differences.
@@ -225,7 +226,11 @@ impl PoleFit {
             omega_n_se_rad_s: sw,
             xi: x0,
             xi_se: sx,
-            corr: if sw > 0.0 && sx > 0.0 { cov[(0, 1)] / (sw * sx) } else { 0.0 },
+            corr: if sw > 0.0 && sx > 0.0 {
+                cov[(0, 1)] / (sw * sx)
+            } else {
+                0.0
+            },
             ..*self
         }
     }
@@ -235,7 +240,12 @@ impl PoleFit {
 /// `g = 1 / (omega_n^2 - omega^2 + 2 j xi omega_n omega)`, `x = omega / omega_ref - 1`;
 /// the complex `A_c, B_c, C_c` are solved by weighted linear least squares (variable
 /// projection: Golub & Pereyra 1973). Real and imaginary parts, each divided by sigma.
-fn projected_residuals(data: &[PoleData], omega_n: f64, xi: f64, omega_ref: f64) -> Option<Vec<f64>> {
+fn projected_residuals(
+    data: &[PoleData],
+    omega_n: f64,
+    xi: f64,
+    omega_ref: f64,
+) -> Option<Vec<f64>> {
     let mut out = Vec::new();
     for ch in data {
         let n = ch.h.len();
@@ -245,7 +255,11 @@ fn projected_residuals(data: &[PoleData], omega_n: f64, xi: f64, omega_ref: f64)
             .zip(&ch.sigma)
             .map(|(&w, &s)| {
                 let g = Complex64::new(omega_n * omega_n - w * w, 2.0 * xi * omega_n * w).inv();
-                [g / s, Complex64::new(1.0 / s, 0.0), Complex64::new((w / omega_ref - 1.0) / s, 0.0)]
+                [
+                    g / s,
+                    Complex64::new(1.0 / s, 0.0),
+                    Complex64::new((w / omega_ref - 1.0) / s, 0.0),
+                ]
             })
             .collect();
         // column scaling for conditioning
@@ -304,7 +318,8 @@ pub fn fit_pole(data: &[PoleData], omega_n0_rad_s: f64, xi0: f64) -> Result<Pole
     let mut c = cost(&r);
     let mut mu = 1e-3;
     for _ in 0..100 {
-        let j = jac(q, &r).ok_or_else(|| Error::Numerical("pole fit: non-finite Jacobian".into()))?;
+        let j =
+            jac(q, &r).ok_or_else(|| Error::Numerical("pole fit: non-finite Jacobian".into()))?;
         let jtj = j.transpose() * &j;
         let g = j.transpose() * DVector::from_column_slice(&r);
         let mut improved = false;
@@ -346,7 +361,10 @@ pub fn fit_pole(data: &[PoleData], omega_n0_rad_s: f64, xi0: f64) -> Result<Pole
     let dof = n_real - n_par;
     let scale = (c / dof as f64).max(1.0);
     let (wn, xi) = (q[0].exp(), q[1].exp());
-    let (sq0, sq1) = ((cov_q[(0, 0)] * scale).sqrt(), (cov_q[(1, 1)] * scale).sqrt());
+    let (sq0, sq1) = (
+        (cov_q[(0, 0)] * scale).sqrt(),
+        (cov_q[(1, 1)] * scale).sqrt(),
+    );
     Ok(PoleFit {
         omega_n_rad_s: wn,
         omega_n_se_rad_s: wn * sq0,
@@ -409,7 +427,11 @@ mod tests {
                             h + Complex64::new(s * nd.sample(&mut rng), s * nd.sample(&mut rng))
                         })
                         .collect();
-                    PoleData { omega_rad_s: om, h, sigma }
+                    PoleData {
+                        omega_rad_s: om,
+                        h,
+                        sigma,
+                    }
                 })
                 .collect();
             let fit = fit_pole(&data, wn * 1.01, 0.02).unwrap();

@@ -125,9 +125,9 @@ pub fn impact_segments(
             test.name
         )));
     }
-    let fi = test.find(Quantity::Force).ok_or_else(|| {
-        Error::Usage(format!("hammer test {} has no force channel", test.name))
-    })?;
+    let fi = test
+        .find(Quantity::Force)
+        .ok_or_else(|| Error::Usage(format!("hammer test {} has no force channel", test.name)))?;
     let resp_idx = test.response_channels();
     let records: Vec<&[f64]> = resp_idx.iter().map(|&i| test.data[i].as_slice()).collect();
     let pad = opts.zero_pad_factor.max(1);
@@ -161,11 +161,23 @@ pub fn impact_segments(
             let h: Vec<Complex64> = y_block
                 .iter()
                 .zip(f_block)
-                .map(|(y, f)| if f.norm_sqr() > 0.0 { y / f } else { Complex64::new(f64::NAN, f64::NAN) })
+                .map(|(y, f)| {
+                    if f.norm_sqr() > 0.0 {
+                        y / f
+                    } else {
+                        Complex64::new(f64::NAN, f64::NAN)
+                    }
+                })
                 .collect();
             let h_finite: Vec<Complex64> = h
                 .iter()
-                .map(|v| if v.is_finite() { *v } else { Complex64::new(0.0, 0.0) })
+                .map(|v| {
+                    if v.is_finite() {
+                        *v
+                    } else {
+                        Complex64::new(0.0, 0.0)
+                    }
+                })
                 .collect();
             let noise = local_rational_noise(
                 std::slice::from_ref(f_block),
@@ -187,7 +199,13 @@ pub fn impact_segments(
                     .iter()
                     .zip(&h)
                     .take(n_keep)
-                    .map(|(&g, v)| if v.is_finite() { bendat_piersol_rel_std(g, 1) } else { f64::INFINITY })
+                    .map(|(&g, v)| {
+                        if v.is_finite() {
+                            bendat_piersol_rel_std(g, 1)
+                        } else {
+                            f64::INFINITY
+                        }
+                    })
                     .collect(),
                 h: h_finite.into_iter().take(n_keep).collect(),
             });
