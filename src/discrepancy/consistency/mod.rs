@@ -49,6 +49,7 @@
 
 mod checks;
 pub mod fit;
+mod poles;
 mod segment;
 
 pub use fit::{fit_pole, fit_ratio, PoleData, PoleFit, RatioFit};
@@ -280,11 +281,11 @@ pub fn check_estimates(
     let mut checks = Vec::new();
     let mut skipped = Vec::new();
     checks::acc_vs_disp(&segments, opts, &mut checks, &mut skipped);
-    checks::impact_level(impacts, opts, &mut checks, &mut skipped);
-    let poles = checks::test_poles(&segments, opts, &mut skipped);
-    checks::hammer_vs_shake(&segments, &poles, &mut checks, &mut skipped);
+    poles::impact_level(impacts, opts, &mut checks, &mut skipped);
+    let poles = poles::test_poles(&segments, opts, &mut skipped);
+    poles::hammer_vs_shake(&segments, &poles, &mut checks, &mut skipped);
     checks::reciprocity(&segments, opts, &mut checks, &mut skipped);
-    checks::drift(&segments, &poles, &mut checks, &mut skipped);
+    poles::drift(&segments, &poles, &mut checks, &mut skipped);
     let adj = holm_adjust(&checks.iter().map(|c| c.p_value).collect::<Vec<_>>());
     for (c, a) in checks.iter_mut().zip(adj) {
         c.p_adjusted = a;
