@@ -11,7 +11,11 @@
 
 use super::data::{DataOptions, DiagnosisData};
 use super::evidence::{stepping_stone, Evidence, EvidenceOptions, EvidenceProgress};
+use super::consistency::{check_campaign, ConsistencyOptions};
 use super::fit::{fit_map, frame_starts, MapFit, MapOptions};
+use super::forward::frame_system;
+use super::locate::LocateReport;
+use super::residual_map::{ResidualMap, ResidualRow};
 use super::heldout::{held_out, HeldOut};
 use super::laplace::laplace;
 use super::hypotheses::all_hypotheses;
@@ -117,6 +121,49 @@ pub struct Diagnosis {
     pub elapsed_s: f64,
     /// Wall time of each stage, s.
     pub timings: Vec<(String, f64)>,
+    /// Consistency checks and findings, with the nominal model's residual map (`Err`:
+    /// why the checks could not run).
+    pub locate: std::result::Result<LocateReport, String>,
+    /// Residual map of the verdict's model (`None` for verdict `none`).
+    pub residual_after: Option<ResidualMap>,
+}
+
+/// Standardised residual map of `post` at `z` (error floor `eta`), with one column per
+/// resonance of the fitted frame (+-10 % of its natural frequency) plus off-band.
+pub fn residual_map(post: &ModelPosterior, z: &[f64], eta: f64) -> Result<ResidualMap> {
+    let pred = post.predict(z)?;
+    let h = post.measured();
+    let data = post.data();
+    let mut rows = Vec::new();
+    for (si, seg) in post.model().layout().iter().enumerate() {
+        let sd = &data.segments[si];
+        for (ci, r) in seg.iter().enumerate() {
+            let ch = &sd.channels[ci];
+            rows.push(ResidualRow {
+                segment: sd.name.clone(),
+                channel: ch.channel.name.clone(),
+                freq_hz: ch.freq_index.iter().map(|&i| sd.freq_hz[i]).collect(),
+                measured: h[r.clone()].to_vec(),
+                predicted: pred[r.clone()].to_vec(),
+                sigma: ch
+                    .rel_err
+                    .iter()
+                    .zip(&h[r.clone()])
+                    .map(|(e, v)| (e * e + eta * eta).sqrt() * v.norm())
+                    .collect(),
+            });
+        }
+    }
+    let modes = frame_system(&post.base_params(z))?.modes()?;
+    let bands: Vec<(f64, f64)> = modes
+        .omega_rad_s
+        .iter()
+        .map(|w| {
+            let f = w / (2.0 * std::f64::consts::PI);
+            (0.9 * f, 1.1 * f)
+        })
+        .collect();
+    ResidualMap::new(&rows, &bands)
 }
 
 /// Mean FDAC (magnitudes) over every segment and channel, and chi2 per real datum with
@@ -409,6 +456,21 @@ pub fn diagnose(
     let eta0 = nominal.map.eta;
     let pred0 = nominal.posterior.predict(&nominal.map.z)?;
     let fit_before = fit_quality(&nominal.posterior, &pred0, eta0);
+    let locate = check_campaign(campaign, &ConsistencyOptions::default())
+        .map_err(|e| e.to_string())
+        .and_then(|c| {
+            let map = residual_map(&nominal.posterior, &nominal.map.z, eta0)
+                .map_err(|e| e.to_string())?;
+            Ok(LocateReport::new(c, Some(map)))
+        });
+    mark("consistency checks", &mut timings);
+    let residual_after = match decision.winner {
+        Some(w) => {
+            let f = &finalists[w];
+            Some(residual_map(&f.posterior, &f.map.z, eta0)?)
+        }
+        None => None,
+    };
     let fit_after = match decision.winner {
         Some(w) => {
             let f = &finalists[w];
@@ -428,6 +490,8 @@ pub fn diagnose(
         fit_after,
         elapsed_s: t0.elapsed().as_secs_f64(),
         timings,
+        locate,
+        residual_after,
     })
 }
 

@@ -4,6 +4,7 @@
 
 mod amplitude;
 pub mod benchmark;
+pub mod consistency;
 pub mod data;
 pub mod diagnose;
 pub mod evidence;
@@ -15,10 +16,12 @@ pub mod hypotheses;
 pub mod hypothesis;
 mod input_noise;
 pub mod laplace;
+pub mod locate;
 pub mod location;
 pub mod output;
 pub mod posterior;
 pub mod report;
+pub mod residual_map;
 pub mod search;
 mod tempering;
 #[cfg(test)]

@@ -185,7 +185,24 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
         }
     }
 
-    let _ = writeln!(s, "## Where the nominal model misfits\n");
+    let _ = writeln!(s, "## Where simulation and recordings differ\n");
+    match &d.locate {
+        Ok(l) => {
+            let _ = writeln!(s, "{}\n", l.to_markdown());
+        }
+        Err(e) => {
+            let _ = writeln!(s, "The consistency checks could not run: {e}\n");
+        }
+    }
+    for (stem, cap) in [
+        ("residual_before", "Residual map, nominal model"),
+        ("residual_after", "Residual map, after the verdict"),
+    ] {
+        if figures.iter().any(|f| f == stem) {
+            let _ = writeln!(s, "![{cap}]({stem}.png)\n");
+        }
+    }
+    let _ = writeln!(s, "## Where the nominal model misfits most\n");
     let winner = d.winner.map(|w| &d.finalists[w]);
     let mis = channel_misfits(d, winner)?;
     let shown = channels_to_show(&mis, winner.is_some(), 10);
@@ -223,7 +240,29 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
 pub fn write_diagnosis(d: &Diagnosis, title: &str, out: &Path) -> Result<PathBuf> {
     let staged = StagedDir::new(out)?;
     let dir = staged.path().to_path_buf();
-    let figures = write_figures(d, &dir)?;
+    let mut figures = write_figures(d, &dir)?;
+    use super::residual_map::MapValue;
+    if let Ok(l) = &d.locate {
+        l.write(&dir)?;
+        if let Some(m) = &l.residual_map {
+            m.heatmap(
+                MapValue::Chi2PerPoint,
+                "Residuals of the nominal model (chi2 per point)",
+                &dir.join("residual_before"),
+            )?;
+            m.write_tables(&dir.join("residual_before"))?;
+            figures.push("residual_before".into());
+        }
+    }
+    if let Some(m) = &d.residual_after {
+        m.heatmap(
+            MapValue::Chi2PerPoint,
+            "Residuals after the verdict (chi2 per point)",
+            &dir.join("residual_after"),
+        )?;
+        m.write_tables(&dir.join("residual_after"))?;
+        figures.push("residual_after".into());
+    }
     let rec = record(d);
     let json = serde_json::to_string_pretty(&rec)
         .map_err(|e| Error::Numerical(format!("diagnosis.json: {e}")))?;
