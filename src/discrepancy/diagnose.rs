@@ -59,7 +59,7 @@ impl Default for DiagnoseOptions {
             map: MapOptions::default(),
             n_frame_starts: 8,
             n_effect_starts: 6,
-            max_evidence_runs: 3,
+            max_evidence_runs: usize::MAX,
             evidence: None,
             only: Vec::new(),
         }
@@ -310,7 +310,7 @@ pub fn diagnose(
     let data = Arc::new(DiagnosisData::from_campaign(campaign, &opts.data)?);
 
     let mut timings: Vec<(String, f64)> = Vec::new();
-    let mut lap_t = Instant::now();
+    let mut lap_t = t0;
     let mut mark = |what: &str, timings: &mut Vec<(String, f64)>| {
         timings.push((what.to_string(), lap_t.elapsed().as_secs_f64()));
         lap_t = Instant::now();
@@ -367,16 +367,10 @@ pub fn diagnose(
     }
     mark("Laplace", &mut timings);
 
-    // Evidence for the hypotheses that fit best (by maximum log-likelihood at their best
-    // location); a hypothesis that does not beat the nominal fit's likelihood at all
-    // cannot be decisive and is not run.
+    // Evidence for every hypothesis (best location each), the best fits first, up to
+    // `max_evidence_runs`.
     let mut order: Vec<usize> = (0..searches.len())
-        .filter(|&i| {
-            searches[i]
-                .1
-                .best()
-                .is_some_and(|b| b.map.ln_likelihood > map0.ln_likelihood)
-        })
+        .filter(|&i| searches[i].1.best().is_some())
         .collect();
     order.sort_by(|&a, &b| {
         let la = searches[a].1.best().map_or(f64::NEG_INFINITY, |f| f.map.ln_likelihood);
