@@ -5,7 +5,8 @@
 //! - `settings.toml`: everything that defines the run (`--resume` reads it back; TOML
 //!   round-trips every float exactly);
 //! - `start.json`: the multistart optimum the walkers started around;
-//! - `checkpoint.mcmc` while running (atomic; removed after a successful run);
+//! - `checkpoint.mcmc` while running (atomic; removed once the run has converged, kept
+//!   otherwise so that `--resume --max-steps <more>` extends it);
 //! - `posterior.json` ([`PosteriorSummary`]), `draws.csv` and `draws.npy` (physical units,
 //!   `(chain, draw, parameter)`, parameter order as in `posterior.json`),
 //!   `ln_posterior.npy` `(chain, draw)`, `log_likelihood.npy` `(chain, draw, point)`;
@@ -82,6 +83,8 @@ pub struct SampleSettings {
     pub n_ensembles: usize,
     pub max_steps: u64,
     pub check_every: u64,
+    /// Store every this many steps (default 5: the autocorrelation times here are ~50
+    /// steps, so tau and the draws lose nothing, and checkpoints are 5 times smaller).
     pub thin_by: u64,
     /// Checkpoint every this many steps.
     pub checkpoint_every: u64,
@@ -118,7 +121,7 @@ impl SampleSettings {
             n_ensembles: 4,
             max_steps: 20_000,
             check_every: 100,
-            thin_by: 1,
+            thin_by: 5,
             checkpoint_every: 500,
             predictive_draws: 200,
             moves: default_moves(),
@@ -278,8 +281,9 @@ pub fn run_sample(
     )
 }
 
-/// Continues the run in `out` from its checkpoint with its stored settings
-/// (`max_steps` may be raised); ends bit-identical to an uninterrupted run.
+/// Continues the run in `out` from its checkpoint with its stored settings; ends
+/// bit-identical to an uninterrupted run. `max_steps` replaces the step cap (and is
+/// written to `settings.toml`), e.g. to extend a run that stopped unconverged.
 pub fn resume_sample(
     out: &Path,
     max_steps: Option<u64>,
@@ -287,17 +291,18 @@ pub fn resume_sample(
     progress: Option<&mut ProgressFn<'_>>,
 ) -> Result<SampleOutcome> {
     let mut settings = SampleSettings::load(&settings_path(out))?;
-    if let Some(m) = max_steps {
-        settings.max_steps = m;
-    }
     let cp = checkpoint_path(out);
     if !cp.exists() {
         return Err(Error::Usage(format!(
-            "{} has no checkpoint to resume (the run finished, or was stopped before its \
+            "{} has no checkpoint to resume (the run converged, or was stopped before its \
              first checkpoint at step {}); start it again without --resume",
             out.display(),
             settings.checkpoint_every
         )));
+    }
+    if let Some(m) = max_steps {
+        settings.max_steps = m;
+        write_atomic(&settings_path(out), settings.to_toml()?.as_bytes())?;
     }
     let mut info = RunInfo::start(
         settings.seed,
@@ -437,6 +442,7 @@ fn finish(
         n_steps: run.steps,
         n_likelihood_evals: run.n_evaluations,
         n_data_points: post.data().len(),
+        n_points_at_sigma_floor: post.data().n_floored,
         wall_s,
         stopped_because: run.stopped_because,
         n_draws_per_walker: draws.n_draws,
@@ -456,8 +462,10 @@ fn finish(
         write_figures(out, prep, sampler, &params, &draws, settings)
     })?;
     info.write(out)?;
+    // A converged run needs its checkpoint no more; an unconverged one keeps it, so that
+    // `--resume --max-steps` can extend it.
     let cp = checkpoint_path(out);
-    if cp.exists() {
+    if summary.converged && cp.exists() {
         std::fs::remove_file(&cp).map_err(|e| Error::io(&cp, e))?;
     }
     Ok(SampleOutcome {
