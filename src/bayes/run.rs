@@ -19,7 +19,9 @@ use super::data::{FrfData, DEFAULT_REL_SIGMA_FLOOR};
 use super::figures::write_figures;
 use super::posterior::{FrfPosterior, PosteriorOptions};
 use super::start::{ball_positions, find_start, StartPoint};
-use super::summary::{output_params, physical_draws, stuck_walkers, summarize, PosteriorSummary};
+use super::summary::{
+    output_params, physical_draws, stuck_walkers, summarize, OutputParam, PosteriorSummary,
+};
 use crate::error::{Error, Result};
 use crate::experiment::config::{EstimateSection, ExperimentConfig};
 use crate::experiment::driver::resolve_data;
@@ -27,7 +29,7 @@ use crate::experiment::runinfo::RunInfo;
 use crate::frf::FrfKind;
 use crate::io::{read_campaign, write_atomic};
 use crate::mcmc::{
-    Burn, CheckpointConfig, LogDensity, MoveSpec, Moves, ProgressFn, RunSummary, Sampler,
+    Burn, CheckpointConfig, Draws, LogDensity, MoveSpec, Moves, ProgressFn, RunSummary, Sampler,
     SamplerConfig, Start, StopReason, WeightedMove,
 };
 use crate::signal::{estimate_campaign, InputKind, TestFrf};
@@ -256,18 +258,16 @@ pub fn run_sample(
     let prep = info.time("estimate_frfs", || prepare(settings))?;
     let post = &prep.posterior;
     stage("finding the maximum-likelihood start");
-    let ms = MultistartOptions {
-        n_starts: settings.n_starts,
-        seed: settings.seed,
-        ..Default::default()
-    };
-    let start = info.time("multistart", || find_start(post, &ms))?;
+    let start = info.time("multistart", || {
+        find_start(post, &multistart_options(settings))
+    })?;
     write_atomic(&out.join("start.json"), &json(&start_record(post, &start))?)?;
-    let config = sampler_config(settings, post.dim(), out)?;
-    let n = config.n_walkers * config.n_ensembles;
-    let positions = ball_positions(post, &start, n, settings.ball_factor, settings.seed)?;
-    let moves = Moves::from_specs(&settings.moves)?;
-    let mut sampler = Sampler::new(post, moves, config, Start::Positions(positions))?;
+    let mut config = sampler_config(settings, post.dim())?;
+    config.checkpoint = Some(CheckpointConfig {
+        path: checkpoint_path(out),
+        every_steps: settings.checkpoint_every,
+    });
+    let mut sampler = new_sampler(post, &start, config, settings)?;
     stage("sampling");
     finish(
         settings,
@@ -335,26 +335,79 @@ fn toml_value(settings: &SampleSettings) -> Result<serde_json::Value> {
     serde_json::to_value(settings).map_err(|e| Error::Numerical(format!("settings: {e}")))
 }
 
-fn sampler_config(settings: &SampleSettings, dim: usize, out: &Path) -> Result<SamplerConfig> {
+fn multistart_options(settings: &SampleSettings) -> MultistartOptions {
+    MultistartOptions {
+        n_starts: settings.n_starts,
+        seed: settings.seed,
+        ..Default::default()
+    }
+}
+
+/// The sampler configuration of `settings` (no checkpoints).
+fn sampler_config(settings: &SampleSettings, dim: usize) -> Result<SamplerConfig> {
     if settings.walkers_per_dim < 2 {
         return Err(Error::Usage(format!(
             "walkers_per_dim must be at least 2, got {}",
             settings.walkers_per_dim
         )));
     }
+    if settings.checkpoint_every == 0 {
+        return Err(Error::Usage("checkpoint_every must be at least 1".into()));
+    }
     let mut c = SamplerConfig::new(settings.walkers_per_dim * dim, settings.seed);
     c.n_ensembles = settings.n_ensembles;
     c.max_steps = settings.max_steps;
     c.check_every = settings.check_every;
     c.thin_by = settings.thin_by;
-    if settings.checkpoint_every == 0 {
-        return Err(Error::Usage("checkpoint_every must be at least 1".into()));
-    }
-    c.checkpoint = Some(CheckpointConfig {
-        path: checkpoint_path(out),
-        every_steps: settings.checkpoint_every,
-    });
     Ok(c)
+}
+
+/// A sampler whose walkers start in the Gauss-Newton ball around `start`.
+fn new_sampler<'d>(
+    post: &'d FrfPosterior,
+    start: &StartPoint,
+    config: SamplerConfig,
+    settings: &SampleSettings,
+) -> Result<Sampler<'d, FrfPosterior>> {
+    let n = config.n_walkers * config.n_ensembles;
+    let positions = ball_positions(post, start, n, settings.ball_factor, settings.seed)?;
+    let moves = Moves::from_specs(&settings.moves)?;
+    Sampler::new(post, moves, config, Start::Positions(positions))
+}
+
+/// A posterior sampled in memory (no files, no checkpoints), as `repro` uses it.
+#[derive(Debug, Clone)]
+pub struct PosteriorSample {
+    pub summary: PosteriorSummary,
+    /// The reported parameters (order of `summary.parameters` and of `physical`).
+    pub params: Vec<OutputParam>,
+    /// Kept draws in sampled coordinates ...
+    pub draws: Draws,
+    /// ... and in physical units (reported parameters).
+    pub physical: Draws,
+    pub start: StartPoint,
+}
+
+/// Samples `post` with the run settings `settings` (the data-related fields, campaign,
+/// estimate, tests, are not used: `post` carries the data): maximum-likelihood start,
+/// Gauss-Newton ball, sampling to the convergence criterion or the step cap, summary.
+pub fn sample_posterior(post: &FrfPosterior, settings: &SampleSettings) -> Result<PosteriorSample> {
+    let start = find_start(post, &multistart_options(settings))?;
+    let config = sampler_config(settings, post.dim())?;
+    let mut sampler = new_sampler(post, &start, config, settings)?;
+    let t0 = Instant::now();
+    let run = sample_to_criterion(post, &mut sampler, None)?;
+    let wall_s = t0.elapsed().as_secs_f64();
+    let (summary, draws) = summarize_run(post, &sampler, &run, wall_s, settings)?;
+    let params = output_params(post);
+    let physical = physical_draws(post, &params, &draws);
+    Ok(PosteriorSample {
+        summary,
+        params,
+        draws,
+        physical,
+        start,
+    })
 }
 
 #[derive(Serialize)]
@@ -414,14 +467,52 @@ fn finish(
     let wall_s = t0.elapsed().as_secs_f64();
     info.timings_s.push(("sampling".into(), wall_s));
     stage("writing outputs");
-    let mut draws = sampler.draws(Burn::Auto).or_else(|_| {
+    let (summary, mut draws) = summarize_run(post, sampler, &run, wall_s, settings)?;
+    info.time("pointwise_log_likelihood", || draws.compute_pointwise(post))?;
+    let params = output_params(post);
+    let phys = physical_draws(post, &params, &draws);
+    let names: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
+    info.time("write_draws", || -> Result<()> {
+        write_atomic(&out.join("posterior.json"), &json(&summary)?)?;
+        phys.write_csv(&out.join("draws.csv"), &names)?;
+        phys.write_npy(&out.join("draws.npy"))?;
+        phys.write_ln_density_npy(&out.join("ln_posterior.npy"))?;
+        phys.write_pointwise_npy(&out.join("log_likelihood.npy"))
+    })?;
+    info.time("figures", || {
+        write_figures(out, prep, sampler, &params, &draws, settings)
+    })?;
+    info.write(out)?;
+    // A converged run needs its checkpoint no more; an unconverged one keeps it, so that
+    // `--resume --max-steps` can extend it.
+    let cp = checkpoint_path(out);
+    if summary.converged && cp.exists() {
+        std::fs::remove_file(&cp).map_err(|e| Error::io(&cp, e))?;
+    }
+    Ok(SampleOutcome {
+        out: out.to_path_buf(),
+        summary,
+        start,
+        info,
+    })
+}
+
+/// The kept draws (automatic burn-in, or the second half when tau is not yet reliable)
+/// and their [`PosteriorSummary`].
+fn summarize_run(
+    post: &FrfPosterior,
+    sampler: &Sampler<'_, FrfPosterior>,
+    run: &RunSummary,
+    wall_s: f64,
+    settings: &SampleSettings,
+) -> Result<(PosteriorSummary, Draws)> {
+    let draws = sampler.draws(Burn::Auto).or_else(|_| {
         let s = sampler.step_count();
         sampler.draws(Burn::Steps {
             discard: s / 2,
             thin: 1,
         })
     })?;
-    info.time("pointwise_log_likelihood", || draws.compute_pointwise(post))?;
     let params = output_params(post);
     let tau = sampler
         .tau_estimates()
@@ -449,29 +540,5 @@ fn finish(
         discarded_steps: draws.discarded_steps,
         thin_steps: draws.thin_steps,
     };
-    let phys = physical_draws(post, &params, &draws);
-    let names: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
-    info.time("write_draws", || -> Result<()> {
-        write_atomic(&out.join("posterior.json"), &json(&summary)?)?;
-        phys.write_csv(&out.join("draws.csv"), &names)?;
-        phys.write_npy(&out.join("draws.npy"))?;
-        phys.write_ln_density_npy(&out.join("ln_posterior.npy"))?;
-        phys.write_pointwise_npy(&out.join("log_likelihood.npy"))
-    })?;
-    info.time("figures", || {
-        write_figures(out, prep, sampler, &params, &draws, settings)
-    })?;
-    info.write(out)?;
-    // A converged run needs its checkpoint no more; an unconverged one keeps it, so that
-    // `--resume --max-steps` can extend it.
-    let cp = checkpoint_path(out);
-    if summary.converged && cp.exists() {
-        std::fs::remove_file(&cp).map_err(|e| Error::io(&cp, e))?;
-    }
-    Ok(SampleOutcome {
-        out: out.to_path_buf(),
-        summary,
-        start,
-        info,
-    })
+    Ok((summary, draws))
 }

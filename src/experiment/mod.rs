@@ -12,4 +12,6 @@ pub mod driver;
 pub mod figures;
 pub mod identifiability;
 pub mod identifiability_report;
+pub mod posterior;
+pub mod posterior_report;
 pub mod report;
