@@ -170,27 +170,41 @@ pub fn write_posterior_figures(posts: &[VariantPosterior], dir: &Path) -> Result
             &dir.join(format!("posterior_correlation_{}", file_key(&p.name))),
         )?;
     }
-    // The ridge: k_r / mean(k_r) against m_r / mean(m_r), per story, for the Caughey
-    // receptance variants of both tables.
+    // The ridge: k_r / mean(k_r) against m_r / mean(m_r) for the Caughey receptance
+    // variants, ground excitation per story, then hammer (all stories in one series,
+    // drawn last so the tight cloud stays visible).
     let mut series = Vec::new();
-    for p in posts.iter().filter(|p| DETAILED.contains(&p.name.as_str())) {
+    for name in ["table2 caughey_receptance", "table1 caughey_receptance"] {
+        let Some(p) = posts.iter().find(|p| p.name == name) else {
+            continue;
+        };
+        let mut hammer = Series {
+            label: format!("{name} (hammer), stories 1-4"),
+            mark: Mark::Points,
+            ..Default::default()
+        };
         for r in 1..=4 {
-            let (Some(m), Some(k)) = (p.named(&format!("m{r}")), p.named(&format!("k{r}"))) else {
+            let (Some(m), Some(k)) = (p.named(&format!("m{r}")), p.named(&format!("k{r}")))
+            else {
                 continue;
             };
             let (mm, mk) = (mean_cv(&m).mean, mean_cv(&k).mean);
-            series.push(Series {
-                label: format!("{}, story {r}", p.name),
-                x: stride(&m, MAX_RIDGE_POINTS)
-                    .iter()
-                    .map(|v| v / mm)
-                    .collect(),
-                y: stride(&k, MAX_RIDGE_POINTS)
-                    .iter()
-                    .map(|v| v / mk)
-                    .collect(),
-                mark: Mark::Points,
-            });
+            let x: Vec<f64> = stride(&m, MAX_RIDGE_POINTS).iter().map(|v| v / mm).collect();
+            let y: Vec<f64> = stride(&k, MAX_RIDGE_POINTS).iter().map(|v| v / mk).collect();
+            if p.name.starts_with("table1") {
+                hammer.x.extend(x);
+                hammer.y.extend(y);
+            } else {
+                series.push(Series {
+                    label: format!("{name} (shake table), story {r}"),
+                    x,
+                    y,
+                    mark: Mark::Points,
+                });
+            }
+        }
+        if !hammer.x.is_empty() {
+            series.push(hammer);
         }
     }
     if !series.is_empty() {
