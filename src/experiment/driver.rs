@@ -202,7 +202,7 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         use super::posterior_report as pr;
         if !posteriors.is_empty() {
             pr::write_posterior_json(&posteriors, &dir)?;
-            pr::write_posterior_figures(&posteriors, &dir)?;
+            super::posterior_figures::write_posterior_figures(&posteriors, &dir)?;
         }
         let md = pr::posterior_markdown(&posteriors);
         super::identifiability_report::write_identifiability(&runs, &frfs, &dir, &md)?;

@@ -13,5 +13,6 @@ pub mod figures;
 pub mod identifiability;
 pub mod identifiability_report;
 pub mod posterior;
+pub mod posterior_figures;
 pub mod posterior_report;
 pub mod report;

@@ -1,23 +1,13 @@
-//! The posterior part of `identifiability.md` ([`super::posterior`]), its figures and
-//! `posterior.json`. Every number is computed from the draws; the prose states what the
+//! The posterior part of `identifiability.md` ([`super::posterior`]) and
+//! `posterior.json` (figures: [`super::posterior_figures`]). Every number is computed from the draws; the prose states what the
 //! numbers show and picks its wording from them.
 
 use super::posterior::{correlation, mean_cv, VariantPosterior};
 use crate::error::{Error, Result};
 use crate::frf::FrfKind;
 use crate::io::write_atomic;
-use crate::plot::{
-    self, BarChartSpec, BarGroup, CornerParam, CornerSpec, HeatmapSpec, LineChartSpec, Mark, Scale,
-    Series,
-};
 use std::fmt::Write;
 use std::path::Path;
-
-/// Most draws in a corner plot and per series of the ridge plot.
-const MAX_PLOT_DRAWS: usize = 20_000;
-const MAX_RIDGE_POINTS: usize = 1500;
-/// Variants with a corner plot and a correlation heatmap.
-const DETAILED: [&str; 2] = ["table1 caughey_receptance", "table2 caughey_receptance"];
 
 fn is_mk(name: &str) -> bool {
     name.starts_with('m') || name.starts_with('k')
@@ -25,15 +15,6 @@ fn is_mk(name: &str) -> bool {
 
 fn is_damping(name: &str) -> bool {
     name.starts_with("xi") || name == "a0" || name == "a1"
-}
-
-fn file_key(name: &str) -> String {
-    name.replace(' ', "_")
-}
-
-fn stride(v: &[f64], max: usize) -> Vec<f64> {
-    let s = v.len().div_ceil(max).max(1);
-    v.iter().step_by(s).copied().collect()
 }
 
 /// `lo`-`hi` with three significant digits.
@@ -75,152 +56,6 @@ pub fn write_posterior_json(posts: &[VariantPosterior], dir: &Path) -> Result<()
     let bytes = serde_json::to_vec_pretty(&serde_json::json!({ "variants": v }))
         .map_err(|e| Error::Numerical(format!("JSON: {e}")))?;
     write_atomic(&dir.join("posterior.json"), &bytes)
-}
-
-/// CV bar charts, corner plots, correlation heatmaps and the k/m ridge.
-pub fn write_posterior_figures(posts: &[VariantPosterior], dir: &Path) -> Result<()> {
-    for table in ["table1", "table2"] {
-        let sel: Vec<&VariantPosterior> =
-            posts.iter().filter(|p| p.name.starts_with(table)).collect();
-        if sel.is_empty() {
-            continue;
-        }
-        let mut categories: Vec<String> = Vec::new();
-        for p in &sel {
-            for q in &p.sample.params {
-                if !categories.contains(&q.name) {
-                    categories.push(q.name.clone());
-                }
-            }
-        }
-        let groups = sel
-            .iter()
-            .map(|p| BarGroup {
-                label: p.name.trim_start_matches(table).trim().to_string(),
-                values: categories
-                    .iter()
-                    .map(|c| {
-                        p.index(c)
-                            .map(|j| 100.0 * p.sample.summary.parameters[j].cv)
-                            .unwrap_or(f64::NAN)
-                    })
-                    .collect(),
-            })
-            .collect();
-        plot::bar_chart(
-            &BarChartSpec {
-                title: format!("{table}: posterior coefficient of variation of every parameter"),
-                x_label: "parameter".into(),
-                y_label: "CV (%)".into(),
-                categories,
-                groups,
-                y_scale: Scale::Log,
-                show_values: false,
-                size_px: Some((1300, 650)),
-            },
-            &dir.join(format!("posterior_cv_{table}")),
-        )?;
-    }
-    for p in posts.iter().filter(|p| DETAILED.contains(&p.name.as_str())) {
-        let params = &p.sample.params;
-        let columns: Vec<Vec<f64>> = (0..params.len()).map(|j| p.column(j)).collect();
-        plot::corner(
-            &CornerSpec {
-                title: format!("{}: posterior", p.name),
-                params: params
-                    .iter()
-                    .zip(&columns)
-                    .map(|(q, c)| CornerParam {
-                        name: q.name.clone(),
-                        unit: if q.unit == "1" {
-                            String::new()
-                        } else {
-                            q.unit.clone()
-                        },
-                        values: stride(c, MAX_PLOT_DRAWS),
-                        reference: None,
-                    })
-                    .collect(),
-                ..Default::default()
-            },
-            &dir.join(format!("posterior_corner_{}", file_key(&p.name))),
-        )?;
-        let n = params.len();
-        let values = (0..n)
-            .map(|i| {
-                (0..n)
-                    .map(|j| correlation(&columns[i], &columns[j]))
-                    .collect()
-            })
-            .collect();
-        let labels: Vec<String> = params.iter().map(|q| q.name.clone()).collect();
-        plot::heatmap(
-            &HeatmapSpec {
-                title: format!("{}: posterior correlation of the parameters", p.name),
-                x_label: String::new(),
-                y_label: String::new(),
-                row_labels: labels.clone(),
-                col_labels: labels,
-                values,
-                colour_label: "correlation".into(),
-                limit: Some(1.0),
-                show_values: true,
-                size_px: Some((1000, 900)),
-            },
-            &dir.join(format!("posterior_correlation_{}", file_key(&p.name))),
-        )?;
-    }
-    // The ridge: k_r / mean(k_r) against m_r / mean(m_r) for the Caughey receptance
-    // variants, ground excitation per story, then hammer (all stories in one series,
-    // drawn last so the tight cloud stays visible).
-    let mut series = Vec::new();
-    for name in ["table2 caughey_receptance", "table1 caughey_receptance"] {
-        let Some(p) = posts.iter().find(|p| p.name == name) else {
-            continue;
-        };
-        let mut hammer = Series {
-            label: format!("{name} (hammer), stories 1-4"),
-            mark: Mark::Points,
-            ..Default::default()
-        };
-        for r in 1..=4 {
-            let (Some(m), Some(k)) = (p.named(&format!("m{r}")), p.named(&format!("k{r}")))
-            else {
-                continue;
-            };
-            let (mm, mk) = (mean_cv(&m).mean, mean_cv(&k).mean);
-            let x: Vec<f64> = stride(&m, MAX_RIDGE_POINTS).iter().map(|v| v / mm).collect();
-            let y: Vec<f64> = stride(&k, MAX_RIDGE_POINTS).iter().map(|v| v / mk).collect();
-            if p.name.starts_with("table1") {
-                hammer.x.extend(x);
-                hammer.y.extend(y);
-            } else {
-                series.push(Series {
-                    label: format!("{name} (shake table), story {r}"),
-                    x,
-                    y,
-                    mark: Mark::Points,
-                });
-            }
-        }
-        if !hammer.x.is_empty() {
-            series.push(hammer);
-        }
-    }
-    if !series.is_empty() {
-        plot::line_chart(
-            &LineChartSpec {
-                title: "Posterior draws of story stiffness against floor mass (each over its posterior mean): the k/m ridge of ground excitation".into(),
-                x_label: "m_r / mean(m_r)".into(),
-                y_label: "k_r / mean(k_r)".into(),
-                series,
-                size_px: Some((1100, 900)),
-                ..Default::default()
-            },
-            &dir.join("posterior_ridge_km"),
-        )?;
-    }
-    Ok(())
 }
 
 /// The `## Posterior` sections of `identifiability.md`.
@@ -275,12 +110,17 @@ fn in_short(md: &mut String, posts: &[VariantPosterior], d: &Differences) {
                 .collect::<Vec<_>>()
         })
         .collect();
+    let xi: Vec<f64> = caughey
+        .iter()
+        .flat_map(|p| p.modal.iter().map(|m| m.xi.mean))
+        .collect();
     let _ = writeln!(
         md,
-        "### In short\n\n- With Caughey damping, the damping ratios' posterior CVs are {} times those of the natural frequencies (median {:.0}); xi x CV(xi)/CV(f) is {}, of order one as Au's law says: damping is worse determined than frequency by a factor of order 1/xi, here 1/0.002 to 1/0.017.",
+        "### In short\n\n- With Caughey damping, the damping ratios' posterior CVs are {} times those of the natural frequencies (median {:.0}); xi x CV(xi)/CV(f) is {}, of order one as Au's law says: damping is worse determined than frequency by a factor of order 1/xi (xi here {}).",
         range(&ratios),
         median(ratios.clone()),
-        range(&au)
+        range(&au),
+        range(&xi)
     );
     if !corr_km.is_empty() {
         let _ = writeln!(
@@ -406,13 +246,13 @@ fn cv_table(md: &mut String, posts: &[VariantPosterior]) {
         let f: Vec<f64> = p.modal.iter().map(|m| 100.0 * m.freq_hz.cv).collect();
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {:.1} | {:.0} |",
+            "| {} | {} | {} | {} | {} | {} |",
             p.name,
             range(&mk),
             range(&d),
             range(&f),
-            median(d.clone()) / median(mk),
-            median(d) / median(f)
+            sig(median(d.clone()) / median(mk)),
+            sig(median(d) / median(f))
         );
     }
     md.push('\n');
