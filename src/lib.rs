@@ -37,6 +37,7 @@ pub mod mcmc;
 pub mod modal;
 pub mod model;
 pub mod plot;
+pub mod real;
 pub mod signal;
 pub mod simulate;
 pub mod update;

@@ -26,6 +26,8 @@ enum Command {
     Repro(cli::repro::ReproArgs),
     /// Run an experiment file (experiments/<name>.toml).
     Run(cli::repro::RunArgs),
+    /// Studies on real measurements (../shared/data/real): four-story-modal, wheel-frf, tower-hmd.
+    Real(cli::real::Args),
     /// Sample the posterior of masses, stiffnesses and damping given a campaign's FRFs.
     Sample(cli::sample::Args),
     /// Simulate a campaign with known truth from a model file.
@@ -41,6 +43,7 @@ fn main() -> std::process::ExitCode {
         Command::Multistart(a) => cli::multistart::run(a),
         Command::Repro(a) => cli::repro::repro(a),
         Command::Run(a) => cli::repro::run(a),
+        Command::Real(a) => cli::real::run_cmd(a),
         Command::Sample(a) => cli::sample::run(a),
         Command::Simulate(a) => cli::simulate::run(a),
     };

@@ -5,6 +5,7 @@ pub mod check;
 pub mod frf;
 pub mod modes;
 pub mod multistart;
+pub mod real;
 pub mod repro;
 pub mod sample;
 pub mod simulate;

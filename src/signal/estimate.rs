@@ -1,10 +1,14 @@
 //! FRF estimates of whole tests and campaigns, and their hand-over to model updating.
 
 use super::bands::{select_bands, Band, BandOptions};
+use super::correlation::{NoiseWindow, WindowDof};
 use super::hammer::{hammer_spectra, HammerOptions, Impact};
-use super::noise::{bendat_piersol_rel_std, local_rational_noise, CoherenceMethod};
+use super::noise::{
+    add_smooth_input_noise, bendat_piersol_rel_std, local_rational_noise, CoherenceMethod,
+};
 use super::spectra::{bin_freq_hz, CrossSpectra};
 use super::sweep::full_record_spectra;
+use super::windows::exponential_window;
 use crate::error::{Error, Result};
 use crate::frf::{Excitation, FrfBlock, FrfKind, FrfPair};
 use crate::io::{Campaign, Channel, Quantity, Test, TestKind};
@@ -105,11 +109,13 @@ pub struct TestFrf {
     pub input: InputKind,
     /// Responses in channel order.
     pub responses: Vec<ResponseFrf>,
-    /// Number of blocks averaged in H1 (impacts; 1 for a full-record estimate): the `n` of
-    /// the Bendat & Piersol random error.
+    /// Number of blocks averaged in H1 (1 for a whole-record estimate, hammer or shake
+    /// table; the impacts with [`super::HammerEstimator::ImpactBlocks`]): the `n` of the
+    /// Bendat & Piersol random error.
     pub n_averages: usize,
-    /// Complex degrees of freedom behind each coherence value (local rational model:
-    /// `n_averages (2m + 1) - 4`; ordinary coherence: `n_averages`).
+    /// Effective complex degrees of freedom behind each coherence value (local models:
+    /// `n_averages (2m + 1) - 3` for independent bins, fewer for the correlated bins of an
+    /// exponential window, see [`super::correlation`]; ordinary coherence: `n_averages`).
     pub coherence_dof: usize,
     /// Exponential window time constant, s, if one was applied: the estimate is then
     /// `H(omega - j / tau)` (see [`super::windows`]).
@@ -176,6 +182,8 @@ struct Blocks {
     input: InputKind,
     /// Input spectra per block.
     f_blocks: Vec<Vec<Complex64>>,
+    /// Per block, input noise power per bin that the local model cannot see.
+    input_noise: Vec<f64>,
     /// Per response, spectra per block.
     y_blocks: Vec<Vec<Vec<Complex64>>>,
     tau: Option<f64>,
@@ -196,8 +204,8 @@ fn kind_of(quantity: Quantity) -> Option<FrfKind> {
     }
 }
 
-/// Estimates the FRFs of one test: hammer tests by impact blocks
-/// ([`super::hammer`]), shake-table tests by the full-record transform
+/// Estimates the FRFs of one test: hammer tests by the whole-record transient or impact
+/// blocks ([`super::hammer`]), shake-table tests by the full-record transform
 /// ([`super::sweep`]) with accelerations made relative to the ground. `n_peaks` for band
 /// selection falls back to the highest floor among the response channels.
 pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
@@ -220,6 +228,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
     let Blocks {
         input,
         f_blocks,
+        input_noise,
         y_blocks,
         tau,
         block_len,
@@ -239,10 +248,11 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             Blocks {
                 input,
                 f_blocks: s.force,
+                input_noise: s.force_noise_power,
                 y_blocks: s.responses,
                 tau: s.tau_s,
-                block_len: s.blocks.len,
-                impacts: s.blocks.impacts,
+                block_len: s.len,
+                impacts: s.impacts,
             }
         }
         TestKind::ShakeTable => {
@@ -274,6 +284,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             Blocks {
                 input,
                 f_blocks: vec![s.input],
+                input_noise: vec![0.0],
                 y_blocks: y,
                 tau: None,
                 block_len: test.n_samples(),
@@ -289,11 +300,26 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
     };
     freq_hz.truncate(n_keep);
     let n_blocks = f_blocks.len();
-    let coherence_dof = match opts.coherence {
-        CoherenceMethod::Ordinary => n_blocks,
+    // local models: bins spaced so that the noise of neighbours is at most 50 % correlated
+    // (exponential window, zero padding), the rest normalised exactly ([`super::correlation`])
+    let local = match opts.coherence {
+        CoherenceMethod::Ordinary => None,
         CoherenceMethod::LocalRational { half_width_bins } => {
-            (n_blocks * (2 * half_width_bins + 1)).saturating_sub(4)
+            let expw = tau.map(|t| exponential_window(block_len, 1.0 / fs, t));
+            let window = NoiseWindow::new(expw.as_deref(), block_len, n_fft)
+                .map_err(|e| Error::invalid(&path, e.to_string()))?;
+            let step = window.decorrelating_step();
+            let corr = window.window_correlation(half_width_bins, step);
+            let dof = WindowDof::new(Some(&corr), half_width_bins, n_blocks)
+                .map_err(|e| Error::invalid(&path, e.to_string()))?;
+            // bins the windows of the kept bins reach
+            let n_local = (n_keep + 2 * half_width_bins * step).min(n_fft / 2 + 1);
+            Some((half_width_bins, step, corr, dof, n_local))
         }
+    };
+    let coherence_dof = match &local {
+        None => n_blocks,
+        Some((_, _, _, dof, _)) => dof.effective.round().max(1.0) as usize,
     };
     use rayon::prelude::*;
     let responses = resp_idx
@@ -306,11 +332,23 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             })?;
             let spectra = CrossSpectra::from_blocks(&f_blocks, yb)?;
             let h1 = spectra.h1();
-            let mut coherence = match opts.coherence {
-                CoherenceMethod::Ordinary => spectra.ordinary_coherence(),
-                CoherenceMethod::LocalRational { half_width_bins } => {
-                    let mut c =
-                        local_rational_noise(&f_blocks, yb, &h1, half_width_bins, pad)?.coherence;
+            let mut coherence = match &local {
+                None => spectra.ordinary_coherence(),
+                Some((half_width, step, corr, _, n_local)) => {
+                    let cut = |b: &[Vec<Complex64>]| -> Vec<Vec<Complex64>> {
+                        b.iter().map(|v| v[..*n_local].to_vec()).collect()
+                    };
+                    let fb = cut(&f_blocks);
+                    let mut noise = local_rational_noise(
+                        &fb,
+                        &cut(yb),
+                        &h1[..*n_local],
+                        *half_width,
+                        *step,
+                        Some(corr),
+                    )?;
+                    add_smooth_input_noise(&mut noise, &h1, &fb, &input_noise)?;
+                    let mut c = noise.coherence;
                     for (v, null) in c.iter_mut().zip(spectra.null_input()) {
                         if null {
                             *v = 0.0;

@@ -11,12 +11,17 @@
 //!
 //! | test | input | responses | estimator |
 //! |---|---|---|---|
-//! | hammer | force (force window + exponential window) | absolute acceleration -> accelerance, displacement -> receptance | one block per impact, H1/H2 averaged over impacts ([`hammer`]) |
+//! | hammer | force (force window + exponential window) | absolute acceleration -> accelerance, displacement -> receptance | one exponentially windowed transform from the first impact to the end of the record, tail cut by the record end estimated and put back ([`hammer`], [`tail`]); or one block per impact |
 //! | shake table | ground acceleration | acceleration minus ground acceleration -> relative accelerance, relative displacement -> receptance (Eq. 14) | full-record H1 ([`sweep`]) |
 //!
-//! Coherence: ordinary block coherence is meaningless with 1-2 blocks, so by default it
-//! comes from local polynomial / rational models of the FRF over neighbouring bins
-//! ([`noise`]); with `n_averages` it gives the Bendat & Piersol error of `|H1|`.
+//! Coherence: ordinary block coherence is meaningless with 1-2 blocks (1 by construction
+//! for the single whole-record transform), so by default it comes from local polynomial /
+//! rational models of the FRF over neighbouring bins ([`noise`]): their residual is the
+//! noise power per bin (bins spaced and normalised for the exponential window's
+//! correlation, [`correlation`]), plus the force noise inside the force windows, which is
+//! smooth in frequency and so invisible to a local model but known from the force
+//! channel's quiet samples. With `n_averages` (1 for a whole record) it gives the Bendat &
+//! Piersol error of `|H1|`.
 //! Conventions of the transforms: [`spectra`].
 //!
 //! ## Handing over to model updating
@@ -30,8 +35,8 @@
 //!
 //! ## Defaults (`EstimateOptions::default()`)
 //! Impact threshold 10 x MAD noise, impacts >= 1 s apart and >= 10 % of the largest, 0.1 s
-//! pre-trigger, force window pulse +- 30 ms flat + 20 ms taper, exponential window to 5 % at
-//! the block end; local models over 9 bins; no zero padding (bins stay independent for the
+//! pre-trigger, force window pulse +- 30 ms flat + 20 ms taper, whole-record hammer
+//! transform with tail correction, exponential window to 5 % at the record end; local models over 9 bins; no zero padding (bins stay independent for the
 //! coherence); bands: as many peaks as the model has modes, half-power band x 1, searched
 //! where the input is within 40 dB of its maximum and the mean coherence is at least 0.5,
 //! peaks at least 3 dB prominent with coherence at least 0.9. On the shared campaign this
@@ -39,18 +44,20 @@
 //! 5.723 Hz in the shake-table test.
 
 pub mod bands;
+pub mod correlation;
 mod estimate;
 pub mod hammer;
 pub mod noise;
 pub mod spectra;
 pub mod sweep;
+pub mod tail;
 pub mod windows;
 
 pub use bands::{Band, BandOptions};
 pub use estimate::{
     estimate_campaign, estimate_test, EstimateOptions, InputKind, ResponseFrf, TestFrf,
 };
-pub use hammer::HammerOptions;
+pub use hammer::{HammerEstimator, HammerOptions};
 pub use noise::{bendat_piersol_rel_std, CoherenceMethod};
 pub use windows::{
     correct_exp_window_damping, exp_window_modal_parameters, unwindowed_pole, windowed_modal_frf,

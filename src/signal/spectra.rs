@@ -81,6 +81,32 @@ impl Fft {
             .map_err(|e| Error::Numerical(format!("FFT failed: {e}")))?;
         Ok(out)
     }
+
+    /// Inverse of [`Self::forward`] without window or padding: the `n_fft` real samples
+    /// `x_n = (1/N) sum_k X_k exp(2 pi j k n / N)` of the half spectrum `spectrum`
+    /// (`n_fft/2 + 1` bins; the imaginary parts of bin 0 and, for even `n_fft`, of the
+    /// Nyquist bin are ignored, as for any real signal).
+    pub fn inverse(&mut self, spectrum: &[Complex64], n_fft: usize) -> Result<Vec<f64>> {
+        if n_fft == 0 || spectrum.len() != n_fft / 2 + 1 {
+            return Err(Error::Usage(format!(
+                "inverse FFT of {n_fft} points needs {} bins, got {}",
+                n_fft / 2 + 1,
+                spectrum.len()
+            )));
+        }
+        let plan = self.planner.plan_fft_inverse(n_fft);
+        let mut input = spectrum.to_vec();
+        input[0].im = 0.0;
+        if n_fft.is_multiple_of(2) {
+            input[n_fft / 2].im = 0.0;
+        }
+        let mut out = plan.make_output_vec();
+        plan.process(&mut input, &mut out)
+            .map_err(|e| Error::Numerical(format!("inverse FFT failed: {e}")))?;
+        let scale = 1.0 / n_fft as f64;
+        out.iter_mut().for_each(|v| *v *= scale);
+        Ok(out)
+    }
 }
 
 /// Frequencies of the bins of an `n_fft`-point transform at `sample_rate_hz`.
@@ -217,6 +243,16 @@ mod tests {
             assert!((s - g).norm() < 1e-12, "bin {k}");
         }
         assert!(Fft::new().forward(&x, None, 16).is_err());
+        for n in [64, 63] {
+            let back = Fft::new()
+                .inverse(&Fft::new().forward(&x, None, n).unwrap(), n)
+                .unwrap();
+            for (i, b) in back.iter().enumerate() {
+                let v = if i < x.len() { x[i] } else { 0.0 };
+                assert!((b - v).abs() < 1e-12, "{n} {i}");
+            }
+        }
+        assert!(Fft::new().inverse(&got, 60).is_err());
         assert!(Fft::new().forward(&x, Some(&w[..5]), 64).is_err());
     }
 

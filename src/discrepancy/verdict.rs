@@ -1,0 +1,237 @@
+//! The decision: which missing physics, if any, the data support, and the record
+//! `diagnosis.json` that states it.
+//!
+//! Rule (fixed in advance, from the statistics alone; no threshold is fitted to our own
+//! benchmark):
+//! 1. a hypothesis is *decisive* when its log evidence exceeds the nominal model's by at
+//!    least `ln 150` (Kass & Raftery 1995: a Bayes factor above 150 is "very strong"
+//!    evidence), counting two standard errors of the difference against it;
+//! 2. it must be *physically plausible*: the 95 % interval of every effect parameter lies
+//!    inside its prior range without piling up at a bound, and excludes the no-effect
+//!    value (checked by the hypothesis, reported in [`Candidate::plausible`]);
+//! 3. it must *predict held-out data better* than the nominal model (log predictive
+//!    density of data left out of the fit, two standard errors);
+//! 4. among the hypotheses that pass, the one with the largest log evidence wins.
+//!
+//! Otherwise the verdict is `none`.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// A Bayes factor of 150 (Kass & Raftery's "very strong") in log units.
+pub fn decisive_ln_bayes_factor() -> f64 {
+    150f64.ln()
+}
+
+/// Summary of one effect parameter's posterior, as in `diagnosis.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EffectSummary {
+    pub mean: f64,
+    #[serde(rename = "q2.5")]
+    pub q2_5: f64,
+    #[serde(rename = "q97.5")]
+    pub q97_5: f64,
+    pub unit: String,
+}
+
+/// Goodness of fit of one model to all the data.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct FitQuality {
+    /// Mean FDAC over every segment and channel (magnitudes; 1 = identical shapes).
+    pub fdac_mean: f64,
+    /// Sum of squared standardised residuals per real datum (real and imaginary parts
+    /// count separately), with the estimates' own noise (Bendat-Piersol and the nominal
+    /// model's error floor): about 1 when model and data agree within noise.
+    pub chi2_per_point: f64,
+}
+
+/// One row of the hypothesis ranking.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct HypothesisEvidence {
+    pub name: String,
+    pub log_evidence: f64,
+    /// `log_evidence` minus the nominal model's.
+    pub delta_log_evidence: f64,
+}
+
+/// `diagnosis.json`, exactly the schema of issue 5.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DiagnosisRecord {
+    /// A hypothesis name or `"none"`.
+    pub verdict: String,
+    /// `{}`, `{"story": s}`, `{"floor": f}`, `{"channels": [...]}` or `{"quantity": q}`.
+    pub location: serde_json::Value,
+    pub effect_parameters: BTreeMap<String, EffectSummary>,
+    pub fit_before: FitQuality,
+    pub fit_after: FitQuality,
+    pub hypotheses: Vec<HypothesisEvidence>,
+    pub explanation: String,
+}
+
+/// What the decision needs to know about one fitted hypothesis (at its best location).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Candidate {
+    pub name: String,
+    pub log_evidence: f64,
+    /// Standard error of `log_evidence` (0 for an approximation without one).
+    pub log_evidence_se: f64,
+    /// Every effect parameter's 95 % interval is inside its prior and excludes no effect.
+    pub plausible: bool,
+    /// Why not plausible (empty when plausible).
+    pub implausible_because: String,
+    /// Held-out log predictive density minus the nominal model's, and its standard error.
+    pub heldout_gain: f64,
+    pub heldout_gain_se: f64,
+}
+
+/// Outcome of [`decide`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Decision {
+    /// Index into the candidates of the winner, if any.
+    pub winner: Option<usize>,
+    /// For every candidate, why it was or was not named.
+    pub reasons: Vec<String>,
+}
+
+/// Applies the rule of this module's documentation. `nominal_se` is the standard error
+/// of the nominal model's log evidence.
+pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidate]) -> Decision {
+    let threshold = decisive_ln_bayes_factor();
+    let mut winner: Option<usize> = None;
+    let mut reasons = Vec::with_capacity(candidates.len());
+    for (i, c) in candidates.iter().enumerate() {
+        let delta = c.log_evidence - nominal_log_evidence;
+        let se = (c.log_evidence_se.powi(2) + nominal_se.powi(2)).sqrt();
+        let reason = if !delta.is_finite() {
+            "its evidence could not be computed".to_string()
+        } else if delta - 2.0 * se < threshold {
+            format!(
+                "not decisive: delta ln Z = {delta:.1} +- {se:.1} (needs >= {threshold:.1} after two standard errors)"
+            )
+        } else if !c.plausible {
+            format!("decisive (delta ln Z = {delta:.1}) but implausible: {}", c.implausible_because)
+        } else if c.heldout_gain - 2.0 * c.heldout_gain_se <= 0.0 {
+            format!(
+                "decisive (delta ln Z = {delta:.1}) but does not predict held-out data better (gain {:.1} +- {:.1})",
+                c.heldout_gain, c.heldout_gain_se
+            )
+        } else {
+            if winner.is_none_or(|w| c.log_evidence > candidates[w].log_evidence) {
+                winner = Some(i);
+            }
+            format!(
+                "decisive (delta ln Z = {delta:.1} +- {se:.1}), plausible, held-out gain {:.1} +- {:.1}",
+                c.heldout_gain, c.heldout_gain_se
+            )
+        };
+        reasons.push(reason);
+    }
+    Decision { winner, reasons }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cand(name: &str, ln_z: f64) -> Candidate {
+        Candidate {
+            name: name.into(),
+            log_evidence: ln_z,
+            log_evidence_se: 0.5,
+            plausible: true,
+            implausible_because: String::new(),
+            heldout_gain: 10.0,
+            heldout_gain_se: 1.0,
+        }
+    }
+
+    #[test]
+    fn the_largest_decisive_plausible_candidate_wins() {
+        let c = vec![cand("a", 3.0), cand("b", 30.0), cand("c", 20.0)];
+        let d = decide(0.0, 0.5, &c);
+        assert_eq!(d.winner, Some(1));
+        assert!(d.reasons[0].starts_with("not decisive"), "{}", d.reasons[0]);
+    }
+
+    #[test]
+    fn borderline_evidence_needs_two_standard_errors() {
+        // delta = 6 > ln 150 = 5.01, but 6 - 2 sqrt(0.5^2 + 0.5^2) = 4.59 < 5.01.
+        let d = decide(0.0, 0.5, &[cand("a", 6.0)]);
+        assert_eq!(d.winner, None);
+        let d = decide(0.0, 0.5, &[cand("a", 6.5)]);
+        assert_eq!(d.winner, Some(0));
+    }
+
+    #[test]
+    fn implausible_or_not_predictive_candidates_are_not_named() {
+        let mut a = cand("a", 100.0);
+        a.plausible = false;
+        a.implausible_because = "k_b at its upper bound".into();
+        let mut b = cand("b", 90.0);
+        b.heldout_gain = 1.0;
+        b.heldout_gain_se = 1.0;
+        let d = decide(0.0, 0.5, &[a.clone(), b.clone()]);
+        assert_eq!(d.winner, None);
+        assert!(d.reasons[0].contains("implausible"));
+        assert!(d.reasons[1].contains("held-out"));
+        let d = decide(0.0, 0.5, &[a, b, cand("c", 20.0)]);
+        assert_eq!(d.winner, Some(2));
+    }
+
+    #[test]
+    fn record_has_exactly_the_issue_schema() {
+        let mut effect = BTreeMap::new();
+        effect.insert(
+            "time_offset".to_string(),
+            EffectSummary {
+                mean: 0.018,
+                q2_5: 0.017,
+                q97_5: 0.019,
+                unit: "s".into(),
+            },
+        );
+        let r = DiagnosisRecord {
+            verdict: "sensor_timing".into(),
+            location: serde_json::json!({"quantity": "acceleration"}),
+            effect_parameters: effect,
+            fit_before: FitQuality {
+                fdac_mean: 0.9,
+                chi2_per_point: 10.0,
+            },
+            fit_after: FitQuality {
+                fdac_mean: 0.99,
+                chi2_per_point: 1.1,
+            },
+            hypotheses: vec![HypothesisEvidence {
+                name: "sensor_timing".into(),
+                log_evidence: -10.0,
+                delta_log_evidence: 50.0,
+            }],
+            explanation: "x".into(),
+        };
+        let v = serde_json::to_value(&r).unwrap();
+        let keys: Vec<&str> = v.as_object().unwrap().keys().map(|k| k.as_str()).collect();
+        let mut expected = vec![
+            "verdict",
+            "location",
+            "effect_parameters",
+            "fit_before",
+            "fit_after",
+            "hypotheses",
+            "explanation",
+        ];
+        expected.sort();
+        let mut keys_sorted = keys.clone();
+        keys_sorted.sort();
+        assert_eq!(keys_sorted, expected);
+        let e = &v["effect_parameters"]["time_offset"];
+        for k in ["mean", "q2.5", "q97.5", "unit"] {
+            assert!(e.get(k).is_some(), "missing {k}");
+        }
+        assert!(v["fit_before"].get("fdac_mean").is_some());
+        assert!(v["fit_after"].get("chi2_per_point").is_some());
+        assert!(v["hypotheses"][0].get("delta_log_evidence").is_some());
+        let back: DiagnosisRecord = serde_json::from_value(v).unwrap();
+        assert_eq!(back, r);
+    }
+}

@@ -1,0 +1,176 @@
+//! Real measurements (issue 6): validation on data that no one in this project made.
+//!
+//! The data live in `../shared/data/real/<dataset>` (provenance, variables and units in
+//! each folder's README); they are read in place and never copied into the repository.
+//!
+//! - [`mat`]: MATLAB v5 reader (through the `matfile` crate) with errors naming the file
+//!   and variable.
+//! - [`posterior`]: sampling to R-hat/ESS targets and the `posterior.json` schema.
+//! - [`four_story`], [`four_story_run`], [`four_story_report`], [`four_story_figures`]:
+//!   identified modes of the four-story frame against a shear-frame modal likelihood
+//!   (`four-story-modal`).
+//! - [`wheel`], [`wheel_run`], [`wheel_scatter`], [`wheel_report`]: Bayesian modal
+//!   parameters from the measured accelerance of a wheel, damping against frequency
+//!   uncertainty (`wheel-frf`).
+//! - [`tower`], [`tower_model`], [`tower_run`], [`tower_residuals`], [`tower_report`]:
+//!   FRFs from a building's mass-damper force, a 5-story shear model with uncertain
+//!   channel gains, and where its fit fails, per mode and per floor
+//!   ([`tower_residuals::shear_model_residuals`]) (`tower-hmd`).
+//!
+//! Each study writes `report.md`, `posterior.json`, `run.json` and figures (PNG + SVG)
+//! into its output folder.
+
+pub mod four_story;
+pub mod four_story_figures;
+pub mod four_story_report;
+pub mod four_story_run;
+pub mod mat;
+pub mod posterior;
+pub mod report;
+pub mod tower;
+pub mod tower_model;
+pub mod tower_report;
+pub mod tower_residuals;
+pub mod tower_run;
+pub mod wheel;
+pub mod wheel_report;
+pub mod wheel_run;
+pub mod wheel_scatter;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::error::{Error, Result};
+use crate::experiment::runinfo::RunInfo;
+use crate::io::StagedDir;
+use posterior::Sampling;
+
+/// The datasets with a study.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Dataset {
+    FourStoryModal,
+    WheelFrf,
+    TowerHmd,
+}
+
+impl Dataset {
+    /// Folder name under `data/real` and `results/real`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Dataset::FourStoryModal => "four-story-modal",
+            Dataset::WheelFrf => "wheel-frf",
+            Dataset::TowerHmd => "tower-hmd",
+        }
+    }
+}
+
+/// The shared folder: `shared` when given, else `$FRFBAYES_SHARED_DIR` when set, else
+/// `../shared` beside the current directory.
+pub fn shared_dir(shared: Option<&Path>) -> PathBuf {
+    shared.map(Path::to_path_buf).unwrap_or_else(|| {
+        std::env::var_os("FRFBAYES_SHARED_DIR")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from("../shared"))
+    })
+}
+
+/// `<shared>/data/real/<dataset>`.
+pub fn data_dir(shared: &Path, dataset: Dataset) -> PathBuf {
+    shared.join("data/real").join(dataset.name())
+}
+
+/// Runs the study of `dataset` on the data in `data_dir` and writes `report.md`,
+/// `posterior.json`, `run.json` and the figures into `out_dir`, atomically: the folder
+/// is built aside ([`StagedDir`]) and replaces `out_dir` only when complete. `sampling`
+/// sees every sampler step. Returns the wall-clock seconds of each stage.
+pub fn run(
+    dataset: Dataset,
+    data_dir: &Path,
+    out_dir: &Path,
+    seed: u64,
+    sampling: &mut Sampling<'_>,
+) -> Result<Vec<(String, f64)>> {
+    if !data_dir.is_dir() {
+        return Err(Error::Usage(format!(
+            "data folder {} not found: pass --shared <DIR> with <DIR>/data/real/{} (or set \
+             FRFBAYES_SHARED_DIR)",
+            data_dir.display(),
+            dataset.name()
+        )));
+    }
+    let config = serde_json::json!({ "dataset": dataset.name(), "seed": seed });
+    let mut info = RunInfo::start(seed, config, data_dir.display().to_string());
+    let staged = StagedDir::new(out_dir)?;
+    let out = staged.path().to_path_buf();
+    let t0 = Instant::now();
+    match dataset {
+        Dataset::FourStoryModal => {
+            let study = info.time("sample three variants and check", || {
+                four_story_run::run(data_dir, seed, sampling)
+            })?;
+            let mut timings = info.timings_s.clone();
+            timings.push(("total before writing".into(), t0.elapsed().as_secs_f64()));
+            info.time("write report and figures", || {
+                four_story_report::write(&study, &out, &timings)
+            })?;
+        }
+        Dataset::WheelFrf => {
+            let data = info.time("read data", || wheel::load(data_dir))?;
+            let bands = info.time("fit and sample bands", || {
+                wheel_run::run(&data, seed, sampling)
+            })?;
+            let scatter = info.time("channel-by-channel fits", || {
+                bands
+                    .iter()
+                    .map(wheel_run::channel_scatter)
+                    .collect::<Result<Vec<_>>>()
+            })?;
+            let study = wheel_report::WheelStudy {
+                scatter: scatter.into_iter().flatten().collect(),
+                bands,
+                wall_s: t0.elapsed().as_secs_f64(),
+            };
+            let timings = info.timings_s.clone();
+            info.time("write report and figures", || {
+                wheel_report::write(&study, &data, &out, &timings)
+            })?;
+        }
+        Dataset::TowerHmd => {
+            let study = info.time("estimate FRFs, fit and sample", || {
+                tower_run::run(data_dir, seed, sampling)
+            })?;
+            let timings = info.timings_s.clone();
+            info.time("write report and figures", || {
+                tower_report::write(&study, &out, &timings)
+            })?;
+        }
+    }
+    info.write(&out)?;
+    staged.commit()?;
+    Ok(info.timings_s)
+}
+
+/// For tests: `<shared>/data/real/<dataset>` when present (`$FRFBAYES_SHARED_DIR` or
+/// `../shared` beside the repository), else `None` after printing why.
+#[cfg(test)]
+pub(crate) fn shared_dataset(dataset: Dataset) -> Option<PathBuf> {
+    let mut roots = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")];
+    if let Some(d) = std::env::var_os("FRFBAYES_SHARED_DIR") {
+        roots.push(PathBuf::from(d));
+    }
+    let found = roots
+        .into_iter()
+        .map(|r| r.join("data/real").join(dataset.name()))
+        .find(|p| p.is_dir());
+    if found.is_none() {
+        println!(
+            "skipped: data/real/{} not found (no ../shared beside the repository and no \
+             FRFBAYES_SHARED_DIR)",
+            dataset.name()
+        );
+    }
+    found
+}
+
+#[cfg(test)]
+mod smoke_tests;
