@@ -159,7 +159,7 @@ fn converge(damping: DampingModel, frf: FrfKind, tests: TestSelection) {
         "{damping:?} {frf:?} {tests:?}: {} points ({} at the sigma floor), {} steps, {:.0} evaluations/s, sampling {:.1} s \
          (run {:.1} s), max R-hat {:.4}, min bulk ESS {:.0} ({:.0}/s), stuck walkers {}",
         s.n_data_points,
-        s.n_points_at_sigma_floor,
+        s.n_points_at_sigma_floor.unwrap_or(0),
         s.n_steps,
         s.n_likelihood_evals as f64 / s.wall_s,
         s.wall_s,

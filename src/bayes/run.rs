@@ -533,7 +533,7 @@ fn summarize_run(
         n_steps: run.steps,
         n_likelihood_evals: run.n_evaluations,
         n_data_points: post.data().len(),
-        n_points_at_sigma_floor: post.data().n_floored,
+        n_points_at_sigma_floor: Some(post.data().n_floored),
         wall_s,
         stopped_because: run.stopped_because,
         n_draws_per_walker: draws.n_draws,
