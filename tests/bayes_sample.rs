@@ -10,8 +10,21 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+/// A private copy of the binary, so that nothing replaces it while the test runs.
+fn binary() -> &'static Path {
+    static COPY: std::sync::OnceLock<(tempfile::TempDir, std::path::PathBuf)> =
+        std::sync::OnceLock::new();
+    let (_, path) = COPY.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("frfbayes");
+        std::fs::copy(env!("CARGO_BIN_EXE_frfbayes"), &path).unwrap();
+        (dir, path)
+    });
+    path
+}
+
 fn sample(args: &[&str]) -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_frfbayes"));
+    let mut c = Command::new(binary());
     c.arg("sample")
         .args(args)
         .stdout(Stdio::null())
@@ -49,10 +62,12 @@ fn killed_run_resumes_bit_identical() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert!(
-        !a.join("checkpoint.mcmc").exists(),
-        "a finished run removes its checkpoint"
-    );
+    let converged = |d: &Path| {
+        let v: serde_json::Value = serde_json::from_slice(&read(d, "posterior.json")).unwrap();
+        v["converged"].as_bool().unwrap()
+    };
+    // A converged run removes its checkpoint, an unconverged one keeps it for extension.
+    assert_eq!(a.join("checkpoint.mcmc").exists(), !converged(&a));
 
     // Kill the second run (SIGKILL) as soon as its first checkpoint (step 100 of 1500)
     // is on disk.
@@ -65,7 +80,11 @@ fn killed_run_resumes_bit_identical() {
             break;
         }
         if let Some(status) = child.try_wait().unwrap() {
-            panic!("the run ended ({status}) before it could be killed");
+            let mut err = String::new();
+            if let Some(mut e) = child.stderr.take() {
+                std::io::Read::read_to_string(&mut e, &mut err).unwrap();
+            }
+            panic!("the run ended ({status}) before it could be killed: {err}");
         }
         assert!(
             t0.elapsed() < Duration::from_secs(300),
@@ -115,9 +134,18 @@ fn killed_run_resumes_bit_identical() {
     };
     assert_eq!(summary(&a), summary(&b));
 
-    // Nothing left to resume.
     let out = sample(&["--resume"]).arg("--out").arg(&b).output().unwrap();
-    assert!(String::from_utf8_lossy(&out.stderr).contains("no checkpoint"));
+    if converged(&b) {
+        assert!(String::from_utf8_lossy(&out.stderr).contains("no checkpoint"));
+    } else {
+        // At its step cap: resuming changes nothing.
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(read(&a, "draws.npy") == read(&b, "draws.npy"));
+    }
 }
 
 fn converge(damping: DampingModel, frf: FrfKind, tests: TestSelection) {
@@ -128,9 +156,10 @@ fn converge(damping: DampingModel, frf: FrfKind, tests: TestSelection) {
     let o = run_sample(&settings, tmp.path(), &|_| {}, None).unwrap();
     let s = &o.summary;
     println!(
-        "{damping:?} {frf:?} {tests:?}: {} points, {} steps, {:.0} evaluations/s, sampling {:.1} s \
+        "{damping:?} {frf:?} {tests:?}: {} points ({} at the sigma floor), {} steps, {:.0} evaluations/s, sampling {:.1} s \
          (run {:.1} s), max R-hat {:.4}, min bulk ESS {:.0} ({:.0}/s), stuck walkers {}",
         s.n_data_points,
+        s.n_points_at_sigma_floor.unwrap_or(0),
         s.n_steps,
         s.n_likelihood_evals as f64 / s.wall_s,
         s.wall_s,

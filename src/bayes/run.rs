@@ -5,7 +5,8 @@
 //! - `settings.toml`: everything that defines the run (`--resume` reads it back; TOML
 //!   round-trips every float exactly);
 //! - `start.json`: the multistart optimum the walkers started around;
-//! - `checkpoint.mcmc` while running (atomic; removed after a successful run);
+//! - `checkpoint.mcmc` while running (atomic; removed once the run has converged, kept
+//!   otherwise so that `--resume --max-steps <more>` extends it);
 //! - `posterior.json` ([`PosteriorSummary`]), `draws.csv` and `draws.npy` (physical units,
 //!   `(chain, draw, parameter)`, parameter order as in `posterior.json`),
 //!   `ln_posterior.npy` `(chain, draw)`, `log_likelihood.npy` `(chain, draw, point)`;
@@ -18,7 +19,9 @@ use super::data::{FrfData, DEFAULT_REL_SIGMA_FLOOR};
 use super::figures::write_figures;
 use super::posterior::{FrfPosterior, PosteriorOptions};
 use super::start::{ball_positions, find_start, StartPoint};
-use super::summary::{output_params, physical_draws, stuck_walkers, summarize, PosteriorSummary};
+use super::summary::{
+    output_params, physical_draws, stuck_walkers, summarize, OutputParam, PosteriorSummary,
+};
 use crate::error::{Error, Result};
 use crate::experiment::config::{EstimateSection, ExperimentConfig};
 use crate::experiment::driver::resolve_data;
@@ -26,7 +29,7 @@ use crate::experiment::runinfo::RunInfo;
 use crate::frf::FrfKind;
 use crate::io::{read_campaign, write_atomic};
 use crate::mcmc::{
-    Burn, CheckpointConfig, LogDensity, MoveSpec, Moves, ProgressFn, RunSummary, Sampler,
+    Burn, CheckpointConfig, Draws, LogDensity, MoveSpec, Moves, ProgressFn, RunSummary, Sampler,
     SamplerConfig, Start, StopReason, WeightedMove,
 };
 use crate::signal::{estimate_campaign, InputKind, TestFrf};
@@ -82,6 +85,8 @@ pub struct SampleSettings {
     pub n_ensembles: usize,
     pub max_steps: u64,
     pub check_every: u64,
+    /// Store every this many steps (default 5: the autocorrelation times here are ~50
+    /// steps, so tau and the draws lose nothing, and checkpoints are 5 times smaller).
     pub thin_by: u64,
     /// Checkpoint every this many steps.
     pub checkpoint_every: u64,
@@ -118,7 +123,7 @@ impl SampleSettings {
             n_ensembles: 4,
             max_steps: 20_000,
             check_every: 100,
-            thin_by: 1,
+            thin_by: 5,
             checkpoint_every: 500,
             predictive_draws: 200,
             moves: default_moves(),
@@ -253,18 +258,16 @@ pub fn run_sample(
     let prep = info.time("estimate_frfs", || prepare(settings))?;
     let post = &prep.posterior;
     stage("finding the maximum-likelihood start");
-    let ms = MultistartOptions {
-        n_starts: settings.n_starts,
-        seed: settings.seed,
-        ..Default::default()
-    };
-    let start = info.time("multistart", || find_start(post, &ms))?;
+    let start = info.time("multistart", || {
+        find_start(post, &multistart_options(settings))
+    })?;
     write_atomic(&out.join("start.json"), &json(&start_record(post, &start))?)?;
-    let config = sampler_config(settings, post.dim(), out)?;
-    let n = config.n_walkers * config.n_ensembles;
-    let positions = ball_positions(post, &start, n, settings.ball_factor, settings.seed)?;
-    let moves = Moves::from_specs(&settings.moves)?;
-    let mut sampler = Sampler::new(post, moves, config, Start::Positions(positions))?;
+    let mut config = sampler_config(settings, post.dim())?;
+    config.checkpoint = Some(CheckpointConfig {
+        path: checkpoint_path(out),
+        every_steps: settings.checkpoint_every,
+    });
+    let mut sampler = new_sampler(post, &start, config, settings)?;
     stage("sampling");
     finish(
         settings,
@@ -278,8 +281,9 @@ pub fn run_sample(
     )
 }
 
-/// Continues the run in `out` from its checkpoint with its stored settings
-/// (`max_steps` may be raised); ends bit-identical to an uninterrupted run.
+/// Continues the run in `out` from its checkpoint with its stored settings; ends
+/// bit-identical to an uninterrupted run. `max_steps` replaces the step cap (and is
+/// written to `settings.toml`), e.g. to extend a run that stopped unconverged.
 pub fn resume_sample(
     out: &Path,
     max_steps: Option<u64>,
@@ -287,17 +291,18 @@ pub fn resume_sample(
     progress: Option<&mut ProgressFn<'_>>,
 ) -> Result<SampleOutcome> {
     let mut settings = SampleSettings::load(&settings_path(out))?;
-    if let Some(m) = max_steps {
-        settings.max_steps = m;
-    }
     let cp = checkpoint_path(out);
     if !cp.exists() {
         return Err(Error::Usage(format!(
-            "{} has no checkpoint to resume (the run finished, or was stopped before its \
+            "{} has no checkpoint to resume (the run converged, or was stopped before its \
              first checkpoint at step {}); start it again without --resume",
             out.display(),
             settings.checkpoint_every
         )));
+    }
+    if let Some(m) = max_steps {
+        settings.max_steps = m;
+        write_atomic(&settings_path(out), settings.to_toml()?.as_bytes())?;
     }
     let mut info = RunInfo::start(
         settings.seed,
@@ -330,26 +335,79 @@ fn toml_value(settings: &SampleSettings) -> Result<serde_json::Value> {
     serde_json::to_value(settings).map_err(|e| Error::Numerical(format!("settings: {e}")))
 }
 
-fn sampler_config(settings: &SampleSettings, dim: usize, out: &Path) -> Result<SamplerConfig> {
+fn multistart_options(settings: &SampleSettings) -> MultistartOptions {
+    MultistartOptions {
+        n_starts: settings.n_starts,
+        seed: settings.seed,
+        ..Default::default()
+    }
+}
+
+/// The sampler configuration of `settings` (no checkpoints).
+fn sampler_config(settings: &SampleSettings, dim: usize) -> Result<SamplerConfig> {
     if settings.walkers_per_dim < 2 {
         return Err(Error::Usage(format!(
             "walkers_per_dim must be at least 2, got {}",
             settings.walkers_per_dim
         )));
     }
+    if settings.checkpoint_every == 0 {
+        return Err(Error::Usage("checkpoint_every must be at least 1".into()));
+    }
     let mut c = SamplerConfig::new(settings.walkers_per_dim * dim, settings.seed);
     c.n_ensembles = settings.n_ensembles;
     c.max_steps = settings.max_steps;
     c.check_every = settings.check_every;
     c.thin_by = settings.thin_by;
-    if settings.checkpoint_every == 0 {
-        return Err(Error::Usage("checkpoint_every must be at least 1".into()));
-    }
-    c.checkpoint = Some(CheckpointConfig {
-        path: checkpoint_path(out),
-        every_steps: settings.checkpoint_every,
-    });
     Ok(c)
+}
+
+/// A sampler whose walkers start in the Gauss-Newton ball around `start`.
+fn new_sampler<'d>(
+    post: &'d FrfPosterior,
+    start: &StartPoint,
+    config: SamplerConfig,
+    settings: &SampleSettings,
+) -> Result<Sampler<'d, FrfPosterior>> {
+    let n = config.n_walkers * config.n_ensembles;
+    let positions = ball_positions(post, start, n, settings.ball_factor, settings.seed)?;
+    let moves = Moves::from_specs(&settings.moves)?;
+    Sampler::new(post, moves, config, Start::Positions(positions))
+}
+
+/// A posterior sampled in memory (no files, no checkpoints), as `repro` uses it.
+#[derive(Debug, Clone)]
+pub struct PosteriorSample {
+    pub summary: PosteriorSummary,
+    /// The reported parameters (order of `summary.parameters` and of `physical`).
+    pub params: Vec<OutputParam>,
+    /// Kept draws in sampled coordinates ...
+    pub draws: Draws,
+    /// ... and in physical units (reported parameters).
+    pub physical: Draws,
+    pub start: StartPoint,
+}
+
+/// Samples `post` with the run settings `settings` (the data-related fields, campaign,
+/// estimate, tests, are not used: `post` carries the data): maximum-likelihood start,
+/// Gauss-Newton ball, sampling to the convergence criterion or the step cap, summary.
+pub fn sample_posterior(post: &FrfPosterior, settings: &SampleSettings) -> Result<PosteriorSample> {
+    let start = find_start(post, &multistart_options(settings))?;
+    let config = sampler_config(settings, post.dim())?;
+    let mut sampler = new_sampler(post, &start, config, settings)?;
+    let t0 = Instant::now();
+    let run = sample_to_criterion(post, &mut sampler, None)?;
+    let wall_s = t0.elapsed().as_secs_f64();
+    let (summary, draws) = summarize_run(post, &sampler, &run, wall_s, settings)?;
+    let params = output_params(post);
+    let physical = physical_draws(post, &params, &draws);
+    Ok(PosteriorSample {
+        summary,
+        params,
+        draws,
+        physical,
+        start,
+    })
 }
 
 #[derive(Serialize)]
@@ -409,14 +467,52 @@ fn finish(
     let wall_s = t0.elapsed().as_secs_f64();
     info.timings_s.push(("sampling".into(), wall_s));
     stage("writing outputs");
-    let mut draws = sampler.draws(Burn::Auto).or_else(|_| {
+    let (summary, mut draws) = summarize_run(post, sampler, &run, wall_s, settings)?;
+    info.time("pointwise_log_likelihood", || draws.compute_pointwise(post))?;
+    let params = output_params(post);
+    let phys = physical_draws(post, &params, &draws);
+    let names: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
+    info.time("write_draws", || -> Result<()> {
+        write_atomic(&out.join("posterior.json"), &json(&summary)?)?;
+        phys.write_csv(&out.join("draws.csv"), &names)?;
+        phys.write_npy(&out.join("draws.npy"))?;
+        phys.write_ln_density_npy(&out.join("ln_posterior.npy"))?;
+        phys.write_pointwise_npy(&out.join("log_likelihood.npy"))
+    })?;
+    info.time("figures", || {
+        write_figures(out, prep, sampler, &params, &draws, settings)
+    })?;
+    info.write(out)?;
+    // A converged run needs its checkpoint no more; an unconverged one keeps it, so that
+    // `--resume --max-steps` can extend it.
+    let cp = checkpoint_path(out);
+    if summary.converged && cp.exists() {
+        std::fs::remove_file(&cp).map_err(|e| Error::io(&cp, e))?;
+    }
+    Ok(SampleOutcome {
+        out: out.to_path_buf(),
+        summary,
+        start,
+        info,
+    })
+}
+
+/// The kept draws (automatic burn-in, or the second half when tau is not yet reliable)
+/// and their [`PosteriorSummary`].
+fn summarize_run(
+    post: &FrfPosterior,
+    sampler: &Sampler<'_, FrfPosterior>,
+    run: &RunSummary,
+    wall_s: f64,
+    settings: &SampleSettings,
+) -> Result<(PosteriorSummary, Draws)> {
+    let draws = sampler.draws(Burn::Auto).or_else(|_| {
         let s = sampler.step_count();
         sampler.draws(Burn::Steps {
             discard: s / 2,
             thin: 1,
         })
     })?;
-    info.time("pointwise_log_likelihood", || draws.compute_pointwise(post))?;
     let params = output_params(post);
     let tau = sampler
         .tau_estimates()
@@ -437,33 +533,12 @@ fn finish(
         n_steps: run.steps,
         n_likelihood_evals: run.n_evaluations,
         n_data_points: post.data().len(),
+        n_points_at_sigma_floor: Some(post.data().n_floored),
         wall_s,
         stopped_because: run.stopped_because,
         n_draws_per_walker: draws.n_draws,
         discarded_steps: draws.discarded_steps,
         thin_steps: draws.thin_steps,
     };
-    let phys = physical_draws(post, &params, &draws);
-    let names: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
-    info.time("write_draws", || -> Result<()> {
-        write_atomic(&out.join("posterior.json"), &json(&summary)?)?;
-        phys.write_csv(&out.join("draws.csv"), &names)?;
-        phys.write_npy(&out.join("draws.npy"))?;
-        phys.write_ln_density_npy(&out.join("ln_posterior.npy"))?;
-        phys.write_pointwise_npy(&out.join("log_likelihood.npy"))
-    })?;
-    info.time("figures", || {
-        write_figures(out, prep, sampler, &params, &draws, settings)
-    })?;
-    info.write(out)?;
-    let cp = checkpoint_path(out);
-    if cp.exists() {
-        std::fs::remove_file(&cp).map_err(|e| Error::io(&cp, e))?;
-    }
-    Ok(SampleOutcome {
-        out: out.to_path_buf(),
-        summary,
-        start,
-        info,
-    })
+    Ok((summary, draws))
 }

@@ -216,6 +216,10 @@ pub struct PosteriorSummary {
     /// Log-density evaluations of the sampler (initial ones included).
     pub n_likelihood_evals: u64,
     pub n_data_points: usize,
+    /// Points whose Bendat & Piersol relative error was raised to the floor (`None`
+    /// for posteriors without such a floor).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub n_points_at_sigma_floor: Option<usize>,
     /// Sampling wall time, s (this process; a resumed run counts from its resumption).
     pub wall_s: f64,
     pub stopped_because: StopReason,

@@ -274,9 +274,9 @@ fn print(outcome: &SampleOutcome) {
         );
     } else {
         println!(
-            "NOT converged by R-hat < 1.01 and bulk ESS > 400 (max R-hat {:.4}, min ESS {:.0}); \
-             run again with a larger --max-steps",
-            s.rhat_max, s.ess_bulk_min
+            "NOT converged (R-hat < 1.01, bulk ESS > 400, no stuck walkers: max R-hat {:.4}, \
+             min ESS {:.0}, {} stuck); extend it with --resume --max-steps <more>",
+            s.rhat_max, s.ess_bulk_min, s.n_stuck_walkers
         );
     }
 }

@@ -51,6 +51,9 @@ pub struct ExperimentConfig {
     pub update: UpdateSection,
     #[serde(default, rename = "figure")]
     pub figures: Vec<FigureSpec>,
+    /// Posterior sampling of the variants (`[bayes]`); absent: none.
+    #[serde(default)]
+    pub bayes: Option<BayesSection>,
 }
 
 fn default_data() -> String {
@@ -131,6 +134,25 @@ impl Default for UpdateSection {
     }
 }
 
+/// Posterior sampling of the updating variants ([`crate::bayes`]), reported in
+/// `identifiability.md`. Every field overrides the default of
+/// [`SampleSettings::new`](crate::bayes::run::SampleSettings::new); FRF estimation and
+/// bounds are the experiment's own.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BayesSection {
+    /// Variants to sample, as `table1 caughey_receptance`; empty: every variant.
+    pub variants: Vec<String>,
+    pub walkers_per_dim: Option<usize>,
+    pub n_ensembles: Option<usize>,
+    pub max_steps: Option<u64>,
+    pub thin_by: Option<u64>,
+    /// Multistart local solves for the start point.
+    pub n_starts: Option<usize>,
+    pub residual: Option<ResidualForm>,
+    pub rel_sigma_floor: Option<f64>,
+}
+
 /// One comparison figure (initial / experimental / updated, receptance and accelerance).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -164,6 +186,18 @@ impl ExperimentConfig {
         }
         if self.estimate.band_factor.is_nan() || self.estimate.band_factor <= 0.0 {
             return Err("estimate.band_factor must be positive".into());
+        }
+        if let Some(b) = &self.bayes {
+            let known: Vec<String> = super::pipeline::Variant::all()
+                .iter()
+                .map(|v| format!("{} {}", v.table.key(), v.column()))
+                .collect();
+            if let Some(v) = b.variants.iter().find(|v| !known.contains(v)) {
+                return Err(format!(
+                    "bayes.variants: unknown variant {v:?} (have: {})",
+                    known.join(", ")
+                ));
+            }
         }
         for f in &self.figures {
             if f.table != "table1" && f.table != "table2" {

@@ -138,6 +138,12 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         "update_all_variants".into(),
         t_update.elapsed().as_secs_f64(),
     ));
+    let posteriors = match &cfg.bayes {
+        Some(b) => info.time("sample_posteriors", || {
+            super::posterior::sample_variants(cfg, b, &model, &frfs, progress)
+        })?,
+        None => Vec::new(),
+    };
 
     let staged = StagedDir::new(&cfg.out)?;
     let dir = staged.path().to_path_buf();
@@ -192,8 +198,15 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
             r.variant.column()
         )))?;
     }
-    info.time("identifiability", || {
-        super::identifiability_report::write_identifiability(&runs, &frfs, &dir)
+    info.time("identifiability", || -> Result<()> {
+        use super::posterior_report as pr;
+        if !posteriors.is_empty() {
+            pr::write_posterior_json(&posteriors, &dir)?;
+            super::posterior_figures::write_posterior_figures(&posteriors, &dir)?;
+        }
+        let md = pr::posterior_markdown(&posteriors);
+        super::identifiability_report::write_identifiability(&runs, &frfs, &dir, &md)?;
+        Ok(())
     })?;
     info.write(&dir)?;
     let out = staged.commit()?;

@@ -124,11 +124,13 @@ fn figures(analyses: &[FisherAnalysis], dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Writes `identifiability.md` and its figures into `dir`; returns the analyses.
+/// Writes `identifiability.md` and its figures into `dir`, with `posterior_md` (the
+/// posterior sections, may be empty) at the end; returns the analyses.
 pub fn write_identifiability(
     runs: &[VariantRun],
     frfs: &[TestFrf],
     dir: &Path,
+    posterior_md: &str,
 ) -> Result<Vec<FisherAnalysis>> {
     let analyses: Vec<FisherAnalysis> = runs
         .iter()
@@ -387,6 +389,7 @@ pub fn write_identifiability(
         md,
         "\nLargest |z|: {zmax_mk:.1} for mass and stiffness, {zmax_xi:.1} for damping. Where |z| is large the variants disagree by more than their statistical uncertainty allows, so the difference is systematic (model form, sensors, estimator), not noise. Damping is the least precise parameter (its CV is tens to hundreds of times that of the natural frequencies, as Au's law predicts) and the most exposed to such systematic effects, because all of its information sits in a few points at each peak, where sensor dynamics, windowing and frequency resolution act. On these data the window-corrected damping of the hammer and shake-table fits agrees, while receptance and accelerance fits of the same hammer tests disagree on mass and stiffness far beyond their uncertainty: the accelerometer and displacement channels do not describe the same linear structure (see the missing-physics work)."
     );
+    md += posterior_md;
     write_atomic(&dir.join("identifiability.md"), md.as_bytes())?;
     Ok(analyses)
 }

@@ -12,4 +12,7 @@ pub mod driver;
 pub mod figures;
 pub mod identifiability;
 pub mod identifiability_report;
+pub mod posterior;
+pub mod posterior_figures;
+pub mod posterior_report;
 pub mod report;

@@ -90,6 +90,7 @@ pub fn posterior_summary(
         n_steps: runs.iter().map(|r| r.n_steps).max().unwrap_or(0),
         n_likelihood_evals: runs.iter().map(|r| r.n_evaluations).sum(),
         n_data_points,
+        n_points_at_sigma_floor: None,
         wall_s: runs.iter().map(|r| r.wall_s).sum(),
         stopped_because: if runs
             .iter()
