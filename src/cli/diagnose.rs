@@ -76,7 +76,11 @@ fn open_campaign(spec: &str) -> anyhow::Result<Campaign> {
     Ok(c)
 }
 
-fn run_one(campaign: &Campaign, opts: &DiagnoseOptions, out: &Path) -> anyhow::Result<frfbayes::discrepancy::DiagnosisRecord> {
+fn run_one(
+    campaign: &Campaign,
+    opts: &DiagnoseOptions,
+    out: &Path,
+) -> anyhow::Result<frfbayes::discrepancy::DiagnosisRecord> {
     let pb = spinner();
     let mut cb = |s: DiagnoseStage<'_>| pb.set_message(stage_message(&s));
     let d = diagnose(campaign, opts, &mut cb)?;
@@ -140,7 +144,10 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<()> {
             let model = SimModel::from_path(&case.model)?;
             let sim = Simulator::new(model)?;
             let campaign = sim.run(case.seed, &|_| {})?;
-            let tmp = args.work.join("campaigns").join(format!(".tmp-{}", case.id));
+            let tmp = args
+                .work
+                .join("campaigns")
+                .join(format!(".tmp-{}", case.id));
             frfbayes::io::write_campaign(&campaign, &tmp)?;
             std::fs::rename(&tmp, &campaign_dir)?;
         }
@@ -164,7 +171,11 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<()> {
             seed: args.seed,
             ..DiagnoseOptions::default()
         };
-        let record = run_one(&campaign, &opts, &args.work.join("diagnoses").join(&case.id))?;
+        let record = run_one(
+            &campaign,
+            &opts,
+            &args.work.join("diagnoses").join(&case.id),
+        )?;
         outcomes.push(CaseOutcome {
             case,
             record,

@@ -250,8 +250,8 @@ mod tests {
 
     #[test]
     fn the_shipped_case_file_reads() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("experiments/models/discrepancy/cases.toml");
+        let path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/models/discrepancy/cases.toml");
         let (hyps, cases) = read_cases(&path).unwrap();
         assert_eq!(hyps.len(), 6);
         assert!(cases.len() >= 21);
@@ -282,8 +282,16 @@ mod tests {
             &json!({"channels": ["acc1"]}),
             &cq
         ));
-        assert!(locations_match(&json!({"story": 2}), &json!({"story": 2}), &cq));
-        assert!(!locations_match(&json!({"story": 2}), &json!({"floor": 2}), &cq));
+        assert!(locations_match(
+            &json!({"story": 2}),
+            &json!({"story": 2}),
+            &cq
+        ));
+        assert!(!locations_match(
+            &json!({"story": 2}),
+            &json!({"floor": 2}),
+            &cq
+        ));
         assert!(locations_match(&json!({}), &json!({}), &cq));
         assert!(!locations_match(&json!({}), &json!({"channels": []}), &cq));
     }

@@ -9,19 +9,19 @@
 //! 4. **Decision** ([`super::verdict`]): decisive Bayes factor, plausible effect,
 //!    better prediction of held-out segments ([`super::heldout`]).
 
+use super::consistency::{check_campaign, ConsistencyOptions};
 use super::data::{DataOptions, DiagnosisData};
 use super::evidence::{stepping_stone, Evidence, EvidenceOptions, EvidenceProgress};
-use super::consistency::{check_campaign, ConsistencyOptions};
 use super::fit::{fit_map, frame_starts, MapFit, MapOptions};
 use super::forward::frame_system;
-use super::locate::LocateReport;
-use super::residual_map::{ResidualMap, ResidualRow};
 use super::heldout::{held_out, HeldOut};
-use super::laplace::laplace;
 use super::hypotheses::all_hypotheses;
 use super::hypothesis::{Coordinate, Hypothesis};
+use super::laplace::laplace;
+use super::locate::LocateReport;
 use super::location::Location;
 use super::posterior::ModelPosterior;
+use super::residual_map::{ResidualMap, ResidualRow};
 use super::search::{search, HypothesisSearch, SearchOptions};
 use super::verdict::{decide, Candidate, Decision, EffectSummary, FitQuality};
 use crate::error::Result;
@@ -71,9 +71,19 @@ impl Default for DiagnoseOptions {
 pub enum DiagnoseStage<'a> {
     Data,
     NominalFit,
-    Search { hypothesis: &'a str, location: &'a Location },
-    Evidence { model: &'a str, progress: EvidenceProgress },
-    HeldOut { hypothesis: &'a str, done: usize, of: usize },
+    Search {
+        hypothesis: &'a str,
+        location: &'a Location,
+    },
+    Evidence {
+        model: &'a str,
+        progress: EvidenceProgress,
+    },
+    HeldOut {
+        hypothesis: &'a str,
+        done: usize,
+        of: usize,
+    },
 }
 
 /// One model's complete result.
@@ -174,7 +184,10 @@ pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQu
     for seg in post.model().layout() {
         for r in seg {
             let a: Vec<f64> = pred[r.clone()].iter().map(|v| v.norm()).collect();
-            let e: Vec<f64> = post.measured()[r.clone()].iter().map(|v| v.norm()).collect();
+            let e: Vec<f64> = post.measured()[r.clone()]
+                .iter()
+                .map(|v| v.norm())
+                .collect();
             sum += fdac(&a, &e);
             n += 1;
         }
@@ -193,7 +206,7 @@ pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQu
 fn effect_summaries(
     post: &ModelPosterior,
     draws: &[Vec<f64>],
-) -> Result<(Vec<(String, EffectSummary)>, bool, String)> {
+) -> Result<EffectVerdict> {
     let ie = post.eta_index();
     let (lo, hi) = post.bounds();
     let mut out = Vec::new();
@@ -245,6 +258,9 @@ fn effect_summaries(
     }
     Ok((out, reasons.is_empty(), reasons.join("; ")))
 }
+
+/// Effect summaries, plausible or not, and why not.
+type EffectVerdict = (Vec<(String, EffectSummary)>, bool, String);
 
 fn evidence_options(opts: &DiagnoseOptions, dim: usize, model_index: u64) -> EvidenceOptions {
     let mut e = opts
@@ -361,7 +377,9 @@ pub fn diagnose(
     for (h, s) in &searches {
         let v = s.best().and_then(|b| {
             let post = ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())));
-            post.ok().and_then(|p| laplace(&p, &b.map.z).ok()).map(|l| l.ln_z)
+            post.ok()
+                .and_then(|p| laplace(&p, &b.map.z).ok())
+                .map(|l| l.ln_z)
         });
         laplace_z.push((h.name().to_string(), v));
     }
@@ -373,8 +391,14 @@ pub fn diagnose(
         .filter(|&i| searches[i].1.best().is_some())
         .collect();
     order.sort_by(|&a, &b| {
-        let la = searches[a].1.best().map_or(f64::NEG_INFINITY, |f| f.map.ln_likelihood);
-        let lb = searches[b].1.best().map_or(f64::NEG_INFINITY, |f| f.map.ln_likelihood);
+        let la = searches[a]
+            .1
+            .best()
+            .map_or(f64::NEG_INFINITY, |f| f.map.ln_likelihood);
+        let lb = searches[b]
+            .1
+            .best()
+            .map_or(f64::NEG_INFINITY, |f| f.map.ln_likelihood);
         lb.total_cmp(&la)
     });
     order.truncate(opts.max_evidence_runs);

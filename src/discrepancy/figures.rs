@@ -24,7 +24,10 @@ pub struct ChannelMisfit {
 }
 
 /// Per channel chi2 of the nominal model and of `extended` (or the nominal again).
-pub fn channel_misfits(d: &Diagnosis, extended: Option<&ModelResult>) -> Result<Vec<ChannelMisfit>> {
+pub fn channel_misfits(
+    d: &Diagnosis,
+    extended: Option<&ModelResult>,
+) -> Result<Vec<ChannelMisfit>> {
     let nom = &d.nominal;
     let eta = nom.map.eta;
     let p0 = nom.posterior.predict(&nom.map.z)?;
@@ -61,7 +64,11 @@ pub fn channel_misfits(d: &Diagnosis, extended: Option<&ModelResult>) -> Result<
 }
 
 /// The channels to show: largest improvement under the verdict, or largest nominal misfit.
-pub fn channels_to_show(misfits: &[ChannelMisfit], has_winner: bool, n: usize) -> Vec<ChannelMisfit> {
+pub fn channels_to_show(
+    misfits: &[ChannelMisfit],
+    has_winner: bool,
+    n: usize,
+) -> Vec<ChannelMisfit> {
     let mut m = misfits.to_vec();
     if has_winner {
         m.sort_by(|a, b| {

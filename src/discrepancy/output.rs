@@ -38,11 +38,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
     let rec = record(d);
     let mut s = String::new();
     let _ = writeln!(s, "# Diagnosis: {title}\n");
-    let _ = writeln!(
-        s,
-        "**Verdict: `{}`** at `{}`.\n",
-        rec.verdict, rec.location
-    );
+    let _ = writeln!(s, "**Verdict: `{}`** at `{}`.\n", rec.verdict, rec.location);
     let _ = writeln!(s, "{}\n", explanation(d));
     let _ = writeln!(s, "## Fit\n");
     let _ = writeln!(s, "| | mean FDAC | chi2 per point |");
@@ -127,7 +123,13 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
             .tried
             .iter()
             .take(6)
-            .map(|t| format!("{} ({:.1})", t.location, t.map.ln_likelihood - d.nominal.map.ln_likelihood))
+            .map(|t| {
+                format!(
+                    "{} ({:.1})",
+                    t.location,
+                    t.map.ln_likelihood - d.nominal.map.ln_likelihood
+                )
+            })
             .collect();
         let _ = writeln!(
             s,
@@ -206,7 +208,10 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
     let winner = d.winner.map(|w| &d.finalists[w]);
     let mis = channel_misfits(d, winner)?;
     let shown = channels_to_show(&mis, winner.is_some(), 10);
-    let _ = writeln!(s, "| segment / channel | chi2 per point, nominal | after verdict |");
+    let _ = writeln!(
+        s,
+        "| segment / channel | chi2 per point, nominal | after verdict |"
+    );
     let _ = writeln!(s, "|---|---|---|");
     for m in &shown {
         let _ = writeln!(

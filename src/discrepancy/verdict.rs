@@ -109,7 +109,10 @@ pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidat
                 "not decisive: delta ln Z = {delta:.1} +- {se:.1} (needs >= {threshold:.1} after two standard errors)"
             )
         } else if !c.plausible {
-            format!("decisive (delta ln Z = {delta:.1}) but implausible: {}", c.implausible_because)
+            format!(
+                "decisive (delta ln Z = {delta:.1}) but implausible: {}",
+                c.implausible_because
+            )
         } else if c.heldout_gain - 2.0 * c.heldout_gain_se <= 0.0 {
             format!(
                 "decisive (delta ln Z = {delta:.1}) but does not predict held-out data better (gain {:.1} +- {:.1})",

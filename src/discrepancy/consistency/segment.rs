@@ -135,14 +135,8 @@ pub fn impact_segments(
     // compared with each other.
     let mut hammer = opts.hammer;
     hammer.estimator = crate::signal::HammerEstimator::ImpactBlocks;
-    let spectra = hammer_spectra(
-        &test.data[fi],
-        &records,
-        test.sample_rate_hz,
-        &hammer,
-        pad,
-    )
-    .map_err(|e| Error::Usage(format!("test {}: {e}", test.name)))?;
+    let spectra = hammer_spectra(&test.data[fi], &records, test.sample_rate_hz, &hammer, pad)
+        .map_err(|e| Error::Usage(format!("test {}: {e}", test.name)))?;
     let n_keep = est.freq_hz.len();
     let freq_hz: Vec<f64> = bin_freq_hz(spectra.n_fft, test.sample_rate_hz)
         .into_iter()
@@ -153,12 +147,7 @@ pub fn impact_segments(
         CoherenceMethod::Ordinary => 4,
     };
     let mut segments = Vec::with_capacity(spectra.force.len());
-    for (b, (f_block, impact)) in spectra
-        .force
-        .iter()
-        .zip(&spectra.impacts)
-        .enumerate()
-    {
+    for (b, (f_block, impact)) in spectra.force.iter().zip(&spectra.impacts).enumerate() {
         let mut channels = Vec::with_capacity(resp_idx.len());
         for (r, &ci) in resp_idx.iter().enumerate() {
             let y_block = &spectra.responses[r][b];
