@@ -200,9 +200,9 @@ pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQu
 
 /// Summaries of the effect parameters from posterior draws `draws` (rows of `z`), and
 /// whether the effect is plausible: the 95 % interval of every size parameter (one with
-/// a no-effect value) excludes that value and keeps 1 % of its box away from the box's
-/// ends (a posterior piled at the end of the physically plausible range is not an
-/// identified effect).
+/// a no-effect value) excludes that value and stays clear of the box's ends by more than
+/// its own width (a posterior piled at the end of the physically plausible range is not
+/// an identified effect).
 fn effect_summaries(
     post: &ModelPosterior,
     draws: &[Vec<f64>],
@@ -228,7 +228,10 @@ fn effect_summaries(
             q97_5: quantile(&phys, 0.975),
             unit: p.unit.to_string(),
         };
-        let margin = 0.01 * (hi[i] - lo[i]);
+        // The posterior "reaches" a box end when its 95 % interval comes closer to that
+        // end than its own width (or than 0.1 % of the box): its mass runs into the
+        // prior's edge instead of being identified inside it.
+        let margin = (z_hi - z_lo).max(1e-3 * (hi[i] - lo[i]));
         if let Some(v) = p.no_effect {
             let zv = match p.coordinate {
                 Coordinate::Log if v <= 0.0 => f64::NEG_INFINITY,
