@@ -166,21 +166,38 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<()> {
                 )
             })
             .collect();
-        let t0 = Instant::now();
-        let opts = DiagnoseOptions {
-            seed: args.seed,
-            ..DiagnoseOptions::default()
+        // Resumable: a case already diagnosed in `work` is read back, not run again.
+        let out_dir = args.work.join("diagnoses").join(&case.id);
+        let done = out_dir.join("diagnosis.json");
+        let (record, seconds) = if done.exists() {
+            let text = std::fs::read_to_string(&done)?;
+            let record: frfbayes::discrepancy::DiagnosisRecord = serde_json::from_str(&text)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", done.display()))?;
+            let seconds = std::fs::read_to_string(out_dir.join("seconds.txt"))
+                .ok()
+                .and_then(|t| t.trim().parse().ok())
+                .unwrap_or(f64::NAN);
+            eprintln!("{}: read back from {}", case.id, done.display());
+            (record, seconds)
+        } else {
+            let t0 = Instant::now();
+            let opts = DiagnoseOptions {
+                seed: args.seed,
+                ..DiagnoseOptions::default()
+            };
+            let record = run_one(&campaign, &opts, &out_dir)?;
+            let seconds = t0.elapsed().as_secs_f64();
+            write_atomic(
+                &out_dir.join("seconds.txt"),
+                format!("{seconds:.1}\n").as_bytes(),
+            )?;
+            (record, seconds)
         };
-        let record = run_one(
-            &campaign,
-            &opts,
-            &args.work.join("diagnoses").join(&case.id),
-        )?;
         outcomes.push(CaseOutcome {
             case,
             record,
             channel_quantity,
-            seconds: t0.elapsed().as_secs_f64(),
+            seconds,
         });
     }
     let md = benchmark_markdown(&outcomes, &hypotheses, "Missing-physics benchmark");

@@ -203,10 +203,7 @@ pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQu
 /// a no-effect value) excludes that value and stays clear of the box's ends by more than
 /// its own width (a posterior piled at the end of the physically plausible range is not
 /// an identified effect).
-fn effect_summaries(
-    post: &ModelPosterior,
-    draws: &[Vec<f64>],
-) -> Result<EffectVerdict> {
+fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<EffectVerdict> {
     let ie = post.eta_index();
     let (lo, hi) = post.bounds();
     let mut out = Vec::new();
