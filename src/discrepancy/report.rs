@@ -65,7 +65,7 @@ pub fn explanation(d: &Diagnosis) -> String {
             let se = ev.map_or(0.0, |e| e.ln_z_se);
             let _ = write!(
                 s,
-                "The nominal model leaves out {name} at {loc}: {physics} Adding it raises the log \
+                "The nominal model leaves out {name} at {loc}: {physics}. Adding it raises the log \
                  evidence by {delta:.1} +- {se:.1} (Bayes factor e^{delta:.0}; decisive is above \
                  ln 150 = {thr:.1}) ",
                 name = f.name.replace('_', " "),

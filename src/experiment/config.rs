@@ -72,6 +72,20 @@ pub struct EstimateSection {
     pub band_factor: f64,
     /// Upper frequency of the estimates, Hz.
     pub freq_max_hz: Option<f64>,
+    /// Transducer filters to take out of the estimates (e.g. the low-pass `frfbayes
+    /// diagnose` identified in a campaign's accelerometers); none by default.
+    pub sensor_low_pass: Vec<SensorLowPass>,
+}
+
+/// A second-order low-pass `w^2 / (s^2 + 2 zeta w s + w^2)` in every channel of one
+/// quantity (the `sensor_dynamics` hypothesis of `diagnose`), divided out of the FRF
+/// estimates of those channels.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorLowPass {
+    pub quantity: crate::io::Quantity,
+    pub freq_hz: f64,
+    pub damping_ratio: f64,
 }
 
 impl Default for EstimateSection {
@@ -80,6 +94,7 @@ impl Default for EstimateSection {
             exp_window_tau_s: Some(20.0),
             band_factor: 1.0,
             freq_max_hz: Some(25.0),
+            sensor_low_pass: Vec::new(),
         }
     }
 }

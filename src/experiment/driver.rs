@@ -107,6 +107,40 @@ fn figure_name(table: &str, damping: DampingModel) -> String {
     format!("fig{n}_{what}")
 }
 
+/// Divides the low-pass `filter` out of every estimate of a channel of its quantity, at
+/// `s = j omega + 1/tau` under an exponential window (exact for any LTI sensor). Ground
+/// tests' accelerance is relative: `(H_rel + 1) / G - 1`.
+pub fn remove_sensor_low_pass(
+    frfs: &mut [TestFrf],
+    filter: &super::config::SensorLowPass,
+) -> Result<()> {
+    if !(filter.freq_hz > 0.0 && filter.damping_ratio > 0.0) {
+        return Err(Error::Usage(format!(
+            "sensor_low_pass: freq_hz and damping_ratio must be positive, got {} and {}",
+            filter.freq_hz, filter.damping_ratio
+        )));
+    }
+    for t in frfs.iter_mut() {
+        let sigma = t.exp_window_tau_s.map_or(0.0, |tau| 1.0 / tau);
+        let ground = matches!(t.input, crate::signal::InputKind::Ground { .. });
+        let freq = t.freq_hz.clone();
+        for r in t.responses.iter_mut().filter(|r| r.channel.quantity == filter.quantity) {
+            for (k, f) in freq.iter().enumerate() {
+                let s = num_complex::Complex64::new(sigma, 2.0 * std::f64::consts::PI * f);
+                let g = crate::discrepancy::hypotheses::low_pass(
+                    filter.freq_hz,
+                    filter.damping_ratio,
+                    s,
+                );
+                for h in [&mut r.h1[k], &mut r.h2[k]] {
+                    *h = if ground { (*h + 1.0) / g - 1.0 } else { *h / g };
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Runs the experiment and writes its output folder.
 pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outcome> {
     let config_json = serde_json::to_value(cfg).map_err(|e| Error::Usage(e.to_string()))?;
@@ -116,9 +150,12 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
     let campaign = info.time("read_campaign", || read_campaign(&root))?;
     let model = campaign.nominal.structural_model()?;
     progress("estimating FRFs", 0, 1);
-    let frfs = info.time("estimate_frfs", || {
+    let mut frfs = info.time("estimate_frfs", || {
         estimate_campaign(&campaign, &cfg.estimate.options())
     })?;
+    for filter in &cfg.estimate.sensor_low_pass {
+        remove_sensor_low_pass(&mut frfs, filter)?;
+    }
     let variants: Vec<Variant> = Variant::all()
         .into_iter()
         .filter(|v| frfs.iter().any(|f| v.table.includes(f)))
