@@ -81,13 +81,18 @@ pub struct ConsistencyOptions {
 }
 
 impl Default for ConsistencyOptions {
+    /// The checks' error model (Bendat-Piersol errors over impact blocks, plus
+    /// `estimator_rel_error`) was calibrated on the impact-block estimator, so the checks
+    /// use it whatever the campaign-wide default estimator is.
     fn default() -> Self {
+        let mut estimate = EstimateOptions::default();
+        estimate.hammer.estimator = crate::signal::HammerEstimator::ImpactBlocks;
         ConsistencyOptions {
             level: 0.01,
             window_half_widths: 2.5,
             max_rel_std: 0.3,
             estimator_rel_error: 0.003,
-            estimate: EstimateOptions::default(),
+            estimate,
         }
     }
 }
