@@ -198,6 +198,21 @@ pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQu
     }
 }
 
+/// The effect parameters of every draw (rows of `z`) in physical units, one column per
+/// parameter.
+pub fn effect_columns<'a>(
+    post: &ModelPosterior,
+    draws: impl IntoIterator<Item = &'a [f64]>,
+) -> Result<Vec<Vec<f64>>> {
+    let mut cols = vec![Vec::new(); post.effect_params().len()];
+    for z in draws {
+        for (c, v) in cols.iter_mut().zip(post.effect_physical(z)?) {
+            c.push(v);
+        }
+    }
+    Ok(cols)
+}
+
 /// Summaries of the effect parameters from posterior draws `draws` (rows of `z`), and
 /// whether the effect is plausible: the 95 % interval of every size parameter (one with
 /// a no-effect value) excludes that value and stays clear of the box's ends by more than
@@ -208,15 +223,12 @@ fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<EffectV
     let (lo, hi) = post.bounds();
     let mut out = Vec::new();
     let mut reasons = Vec::new();
-    for (k, p) in post.effect_params().iter().enumerate() {
+    let columns = effect_columns(post, draws.iter().map(Vec::as_slice))?;
+    for ((k, p), mut phys) in post.effect_params().iter().enumerate().zip(columns) {
         let i = ie + 1 + k;
         let mut zs: Vec<f64> = draws.iter().map(|d| d[i]).collect();
         zs.sort_by(f64::total_cmp);
         let (z_lo, z_hi) = (quantile(&zs, 0.025), quantile(&zs, 0.975));
-        let mut phys: Vec<f64> = draws
-            .iter()
-            .map(|d| post.effect_physical(d).map(|v| v[k]))
-            .collect::<Result<_>>()?;
         let mean = phys.iter().sum::<f64>() / phys.len().max(1) as f64;
         phys.sort_by(f64::total_cmp);
         let s = EffectSummary {

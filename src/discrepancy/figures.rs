@@ -1,7 +1,7 @@
 //! Figures of a diagnosis: hypothesis ranking, measured / nominal / extended FRFs at the
 //! channels where the verdict changes the fit most, and the effect's posterior.
 
-use super::diagnose::{Diagnosis, ModelResult};
+use super::diagnose::{effect_columns, Diagnosis, ModelResult};
 use super::report::hypothesis_evidence;
 use crate::error::Result;
 use crate::plot::{
@@ -190,13 +190,9 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> Result<Vec<String>> {
     let shown_model = winner.or(d.finalists.first());
     if let Some(f) = shown_model {
         if let Some(p) = f.evidence.as_ref().and_then(|e| e.posterior.as_ref()) {
-            let draws: Vec<&[f64]> = p.draws.values.chunks_exact(p.draws.dim).collect();
+            let columns = effect_columns(&f.posterior, p.draws.values.chunks_exact(p.draws.dim))?;
             let mut params = Vec::new();
-            for (k, ep) in f.posterior.effect_params().iter().enumerate() {
-                let values = draws
-                    .iter()
-                    .map(|z| f.posterior.effect_physical(z).map(|v| v[k]))
-                    .collect::<Result<Vec<f64>>>()?;
+            for (ep, values) in f.posterior.effect_params().iter().zip(columns) {
                 params.push(CornerParam {
                     name: ep.name.clone(),
                     unit: ep.unit.to_string(),
