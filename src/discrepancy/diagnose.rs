@@ -479,6 +479,8 @@ pub fn diagnose(
             implausible_because: f.implausible_because.clone(),
             heldout_gain: f.held_out.as_ref().map_or(f64::NEG_INFINITY, |h| h.gain),
             heldout_gain_se: f.held_out.as_ref().map_or(0.0, |h| h.gain_se),
+            heldout_p_value: f.held_out.as_ref().map_or(1.0, |h| h.p_value),
+            heldout_n_ranked: f.held_out.as_ref().map_or(0, |h| h.n_ranked),
         })
         .collect();
     let decision = decide(nominal_ln_z, nominal_se, &candidates);

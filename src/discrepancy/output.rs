@@ -168,8 +168,9 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
             let _ = writeln!(
                 s,
                 "Held-out check of {} (leave one segment out; log density of the held-out \
-                 segment, hypothesis minus nominal): total {:.1} +- {:.1} nats.\n",
-                f.name, h.gain, h.gain_se
+                 segment, hypothesis minus nominal): total {:.1} +- {:.1} nats; one-sided \
+                 Wilcoxon signed-rank p = {:.4} over {} segments with a non-zero gain.\n",
+                f.name, h.gain, h.gain_se, h.p_value, h.n_ranked
             );
             let _ = writeln!(s, "| held-out segment | nominal | hypothesis | gain |");
             let _ = writeln!(s, "|---|---|---|---|");

@@ -75,8 +75,16 @@ pub fn explanation(d: &Diagnosis) -> String {
             if let Some(h) = &f.held_out {
                 let _ = write!(
                     s,
-                    "and predicts recordings held out of the fit better by {:.0} +- {:.0} nats. ",
-                    h.gain, h.gain_se
+                    "and predicts recordings held out of the fit better by {:.0} nats in total \
+                     (better in {} of {} held-out segments; signed-rank p = {:.3}). ",
+                    h.gain,
+                    h.hypothesis
+                        .iter()
+                        .zip(&h.nominal)
+                        .filter(|(a, b)| a > b)
+                        .count(),
+                    h.segments.len(),
+                    h.p_value
                 );
             } else {
                 s.push_str(". ");
