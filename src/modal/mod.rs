@@ -3,7 +3,8 @@
 //! modal assurance criterion.
 
 use crate::error::{Error, Result};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DMatrix, DVector, DefaultAllocator, DimDiff, DimSub, OMatrix, OVector, U1};
 
 /// Undamped modes of a model, ascending in frequency, mass-normalised.
 #[derive(Debug, Clone)]
@@ -21,6 +22,12 @@ pub struct Modes {
 impl Modes {
     /// Solves `K phi = omega^2 M phi` and keeps the first `n_modes` modes (all when `None`).
     /// `ground_influence` is the rigid-body vector `iota` of ground motion.
+    ///
+    /// `M = L L^T` (Cholesky), `A = L^-1 K L^-T` is symmetric with eigenpairs
+    /// `(omega^2, v)`, and `phi = L^-T v`. Models of up to six DOFs (the paper's frame has
+    /// four) use nalgebra's stack-allocated matrices, the same algorithm without heap
+    /// allocation in the decomposition (the sampler solves this once per likelihood
+    /// evaluation); larger ones use dynamic matrices.
     pub fn solve(
         k: &DMatrix<f64>,
         m: &DMatrix<f64>,
@@ -29,37 +36,69 @@ impl Modes {
     ) -> Result<Self> {
         let n = k.nrows();
         let n_modes = n_modes.unwrap_or(n).min(n);
-        let chol = m
-            .clone()
-            .cholesky()
-            .ok_or_else(|| Error::Numerical("mass matrix is not positive definite".into()))?;
-        // A = L^-1 K L^-T, symmetric; phi = L^-T v.
-        let l = chol.l();
-        let y = l
-            .solve_lower_triangular(k)
-            .ok_or_else(|| Error::Numerical("singular Cholesky factor".into()))?;
-        let a = l
-            .solve_lower_triangular(&y.transpose())
-            .ok_or_else(|| Error::Numerical("singular Cholesky factor".into()))?;
-        let a = (&a + a.transpose()) * 0.5;
-        let eig = a.symmetric_eigen();
+        macro_rules! fixed {
+            ($n:literal) => {{
+                type Sq = nalgebra::SMatrix<f64, $n, $n>;
+                let (eigenvalues, shapes) = generalised_eigen(
+                    Sq::from_fn(|i, j| k[(i, j)]),
+                    Sq::from_fn(|i, j| m[(i, j)]),
+                )?;
+                Modes::assemble(
+                    eigenvalues.as_slice(),
+                    |i| shapes.column(i).iter().copied().collect(),
+                    m,
+                    ground_influence,
+                    n_modes,
+                )
+            }};
+        }
+        match n {
+            2 => fixed!(2),
+            3 => fixed!(3),
+            4 => fixed!(4),
+            5 => fixed!(5),
+            6 => fixed!(6),
+            _ => {
+                let (eigenvalues, shapes) = generalised_eigen(k.clone(), m.clone())?;
+                Modes::assemble(
+                    eigenvalues.as_slice(),
+                    |i| shapes.column(i).iter().copied().collect(),
+                    m,
+                    ground_influence,
+                    n_modes,
+                )
+            }
+        }
+    }
+
+    /// Orders the eigenpairs ascending, keeps `n_modes`, fixes each shape's sign (largest
+    /// entry positive) and computes the participation factors (Eq. 15).
+    fn assemble(
+        eigenvalues: &[f64],
+        shape: impl Fn(usize) -> Vec<f64>,
+        m: &DMatrix<f64>,
+        ground_influence: &DVector<f64>,
+        n_modes: usize,
+    ) -> Result<Self> {
+        let n = eigenvalues.len();
         let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
-        let lt = l.transpose();
+        order.sort_by(|&i, &j| eigenvalues[i].total_cmp(&eigenvalues[j]));
         let mut phi = DMatrix::zeros(n, n_modes);
         let mut omega_rad_s = Vec::with_capacity(n_modes);
         for (col, &i) in order.iter().take(n_modes).enumerate() {
-            let lam = eig.eigenvalues[i];
+            let lam = eigenvalues[i];
             if !lam.is_finite() {
                 return Err(Error::Numerical("non-finite eigenvalue".into()));
             }
             omega_rad_s.push(lam.max(0.0).sqrt());
-            let v = lt
-                .solve_upper_triangular(&eig.eigenvectors.column(i).into_owned())
-                .ok_or_else(|| Error::Numerical("singular Cholesky factor".into()))?;
-            let imax = v.iamax();
+            let v = shape(i);
+            let imax = (0..n)
+                .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()).then(b.cmp(&a)))
+                .unwrap_or(0);
             let sign = if v[imax] < 0.0 { -1.0 } else { 1.0 };
-            phi.set_column(col, &(v * sign));
+            for (r, x) in v.iter().enumerate() {
+                phi[(r, col)] = x * sign;
+            }
         }
         let m_iota = m * ground_influence;
         let participation = (0..n_modes).map(|i| phi.column(i).dot(&m_iota)).collect();
@@ -82,6 +121,35 @@ impl Modes {
             .map(|w| w / (2.0 * std::f64::consts::PI))
             .collect()
     }
+}
+
+/// Eigenvalues `omega^2` (unordered) and `M`-orthonormal shapes (columns) of
+/// `K phi = omega^2 M phi`, for static or dynamic square matrices.
+fn generalised_eigen<D>(
+    k: OMatrix<f64, D, D>,
+    m: OMatrix<f64, D, D>,
+) -> Result<(OVector<f64, D>, OMatrix<f64, D, D>)>
+where
+    D: DimSub<U1>,
+    DefaultAllocator:
+        Allocator<D, D> + Allocator<D> + Allocator<DimDiff<D, U1>> + Allocator<D, DimDiff<D, U1>>,
+{
+    let singular = || Error::Numerical("singular Cholesky factor".into());
+    let chol = m
+        .cholesky()
+        .ok_or_else(|| Error::Numerical("mass matrix is not positive definite".into()))?;
+    let l = chol.l();
+    let y = l.solve_lower_triangular(&k).ok_or_else(singular)?;
+    let a = l
+        .solve_lower_triangular(&y.transpose())
+        .ok_or_else(singular)?;
+    let a = (&a + a.transpose()) * 0.5;
+    let eig = a.symmetric_eigen();
+    let shapes = l
+        .transpose()
+        .solve_upper_triangular(&eig.eigenvectors)
+        .ok_or_else(singular)?;
+    Ok((eig.eigenvalues, shapes))
 }
 
 /// Modal assurance criterion between two real shapes: `(a.b)^2 / ((a.a)(b.b))`.
@@ -137,5 +205,40 @@ mod tests {
         let trunc = Modes::solve(&k, &m, model.ground_influence(), Some(1)).unwrap();
         assert_eq!(trunc.n_modes(), 1);
         assert_eq!(trunc.phi.ncols(), 1);
+    }
+
+    #[test]
+    fn fixed_size_path_equals_the_dynamic_one() {
+        // Non-diagonal SPD mass and stiffness (B B^T + n I), 2 to 7 DOFs: sizes 2-6 take
+        // the stack-allocated path, 7 the dynamic one; both must agree with the dynamic
+        // decomposition and satisfy the eigen equations.
+        for n in 2..=7 {
+            let spd = |seed: f64| {
+                let b = DMatrix::from_fn(n, n, |i, j| ((i * 7 + j * 3) as f64 + seed).sin());
+                &b * b.transpose() + DMatrix::identity(n, n) * n as f64
+            };
+            let (k, m) = (spd(0.3) * 1000.0, spd(1.7));
+            let iota = DVector::from_element(n, 1.0);
+            let modes = Modes::solve(&k, &m, &iota, None).unwrap();
+            let (values, shapes) = generalised_eigen(k.clone(), m.clone()).unwrap();
+            let dynamic = Modes::assemble(
+                values.as_slice(),
+                |i| shapes.column(i).iter().copied().collect(),
+                &m,
+                &iota,
+                n,
+            )
+            .unwrap();
+            for i in 0..n {
+                let (a, b) = (modes.omega_rad_s[i], dynamic.omega_rad_s[i]);
+                assert!((a - b).abs() <= 1e-12 * b, "n {n} mode {i}: {a} vs {b}");
+                let phi = modes.phi.column(i);
+                let resid = &k * phi - &m * phi * (a * a);
+                assert!(resid.amax() <= 1e-9 * (&k * phi).amax(), "n {n} mode {i}");
+            }
+            assert!((&modes.phi - &dynamic.phi).amax() < 1e-10, "n {n}");
+            let ptmp = modes.phi.transpose() * &m * &modes.phi;
+            assert!((ptmp - DMatrix::identity(n, n)).amax() < 1e-12, "n {n}");
+        }
     }
 }
