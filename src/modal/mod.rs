@@ -123,12 +123,12 @@ impl Modes {
     }
 }
 
+/// Eigenvalues (unordered) and eigenvectors (columns) of a `D x D` problem.
+type EigenPairs<D> = (OVector<f64, D>, OMatrix<f64, D, D>);
+
 /// Eigenvalues `omega^2` (unordered) and `M`-orthonormal shapes (columns) of
 /// `K phi = omega^2 M phi`, for static or dynamic square matrices.
-fn generalised_eigen<D>(
-    k: OMatrix<f64, D, D>,
-    m: OMatrix<f64, D, D>,
-) -> Result<(OVector<f64, D>, OMatrix<f64, D, D>)>
+fn generalised_eigen<D>(k: OMatrix<f64, D, D>, m: OMatrix<f64, D, D>) -> Result<EigenPairs<D>>
 where
     D: DimSub<U1>,
     DefaultAllocator:
