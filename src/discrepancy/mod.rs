@@ -4,6 +4,7 @@
 
 mod amplitude;
 pub mod benchmark;
+mod bins;
 pub mod consistency;
 pub mod data;
 pub mod diagnose;
