@@ -14,8 +14,13 @@
    applied to the model, Bendat & Piersol sigmas times the sampled noise scale, uniform
    prior box), checks it against the Rust values (relative difference below 1e-10),
    and runs ``emcee.EnsembleSampler(vectorize=True)`` from the Rust initial walkers with
-   (a) the Rust default mixture, 0.9 ``DEMove`` + 0.1 ``StretchMove``, and (b) emcee's
-   default ``StretchMove``, each for as many steps as the Rust run took.
+   (a) 0.9 ``DEMove`` + 0.1 ``StretchMove`` and (b) emcee's default ``StretchMove``,
+   each with 4 x dim walkers for as many steps as the Rust run with the same moves took.
+   frfbayes' default (0.5 DE + 0.5 independence proposal fitted to the complementary
+   half-ensemble, 12 x dim walkers) has no emcee counterpart, so the Rust half also runs
+   0.9 DE + 0.1 stretch with 4 x dim walkers: "same moves" compares that run with (a);
+   the default run is compared with (a) and (b) as "better moves" (issue 4's 30x goal
+   counts better moves and parametrisation, not only speed).
 3. ESS: emcee's own ``integrated_time`` (c = 5) on both samplers' chains after the same
    burn-in, ESS = draws / tau, the smallest over parameters (Rust: summed over its
    independent ensembles). Throughput: log-posterior evaluations per second on one core
@@ -245,12 +250,18 @@ def main():
         sys.exit(f"numpy and Rust log posteriors differ: {got} vs {want}")
 
     # Rust: ESS with emcee's estimator, per ensemble, summed.
-    draws = np.load(rust_dir / "rust_draws.npy")  # (chains, draws, dim), ensemble-major
-    w, n_ens = rust["n_walkers"], rust["n_ensembles"]
-    ess_r = sum(min_ess(draws[e * w : (e + 1) * w].transpose(1, 0, 2))[0] for e in range(n_ens))
+    def rust_min_ess(path, w, n_ens):
+        d = np.load(path)  # (chains, draws, dim), ensemble-major
+        ess = sum(min_ess(d[e * w : (e + 1) * w].transpose(1, 0, 2))[0] for e in range(n_ens))
+        return float(np.min(ess)), d
+
+    rust_ess, draws = rust_min_ess(rust_dir / "rust_draws.npy", rust["n_walkers"], rust["n_ensembles"])
+    same = rust["same_moves_run"]
+    same_ess, _ = rust_min_ess(rust_dir / "rust_draws_same_moves.npy", same["n_walkers"], same["n_ensembles"])
     two = next(r for r in rust["runs"] if r["threads"] == 2)
     one = next(r for r in rust["runs"] if r["threads"] == 1)
-    rust_ess = float(np.min(ess_r))
+    # emcee's batch: half of its ensemble (4 x dim walkers, as the same-moves run).
+    w = same["n_walkers"]
 
     # numpy throughput at posterior draws.
     pts = draws.reshape(-1, draws.shape[2])
@@ -261,7 +272,7 @@ def main():
 
     np.random.seed(args.seed)
     p0 = np.array(problem["initial_walkers"])
-    n_steps, discard = two["n_steps"], rust["discarded_steps"]
+    n_steps, discard = same["n_steps"], same["discarded_steps"]
     emcee_runs = {}
     for name, moves in [
         ("de_stretch", [(emcee.moves.DEMove(), 0.9), (emcee.moves.StretchMove(), 0.1)]),
@@ -277,6 +288,7 @@ def main():
     rust_ess_per_s_1 = rust_ess / one["sampling_wall_s"]
     # Per CPU second of the whole 1-thread call (start search included): conservative.
     rust_ess_per_cpu_s = rust_ess / one["call_cpu_s"]
+    same_ess_per_cpu_s = same_ess / same["call_cpu_s"]
     de, st = emcee_runs["de_stretch"], emcee_runs["stretch"]
     per_core = rust["ln_posterior_evals_per_cpu_s"]
     # Both cores: the per-core ratio times the 2-thread parallel efficiency measured by
@@ -292,6 +304,8 @@ def main():
         "rust_ess_per_s_2_threads": rust_ess_per_s_2,
         "rust_ess_per_s_1_thread": rust_ess_per_s_1,
         "rust_ess_per_cpu_s": rust_ess_per_cpu_s,
+        "rust_same_moves_ess_min_emcee_estimator": same_ess,
+        "rust_same_moves_ess_per_cpu_s": same_ess_per_cpu_s,
         "numpy_evals_per_cpu_s_half_ensemble": np_half,
         "numpy_evals_per_cpu_s_batch_1024": np_big,
         "emcee": emcee_runs,
@@ -299,6 +313,10 @@ def main():
             "ln_posterior_per_core_vs_numpy_half_ensemble": per_core / np_half,
             "ln_posterior_per_core_vs_numpy_batch_1024": per_core / np_big,
             "sampler_evals_per_cpu_s_vs_emcee": one["evaluations_per_cpu_s"] / de["evaluations_per_cpu_s"],
+            # Same moves (0.9 DE + 0.1 stretch, 4 x dim walkers) on both sides.
+            "same_moves_ess_per_cpu_s_vs_emcee_de_stretch": same_ess_per_cpu_s / de["ess_per_cpu_s"],
+            "same_moves_two_core_ess_per_s_vs_emcee_de_stretch": eff2 * same_ess_per_cpu_s / de["ess_per_cpu_s"],
+            # frfbayes' default (better moves) against emcee's moves.
             "ess_per_cpu_s_vs_emcee_de_stretch": rust_ess_per_cpu_s / de["ess_per_cpu_s"],
             "ess_per_cpu_s_vs_emcee_stretch": rust_ess_per_cpu_s / st["ess_per_cpu_s"],
             "two_core_ess_per_s_vs_emcee_de_stretch": eff2 * rust_ess_per_cpu_s / de["ess_per_cpu_s"],
@@ -333,12 +351,17 @@ def markdown(r):
         "",
         f"Posterior: {r['problem']} ({r['dim']} parameters, {r['n_points']} points). "
         f"The numpy reimplementation equals Rust's log posterior to {r['check_max_rel_diff']:.1e} "
-        "(relative) at the check points. Both samplers start from the same walkers; "
-        f"emcee runs one ensemble of {de['n_walkers']} walkers, frfbayes {ru['n_ensembles']} "
-        f"ensembles of {ru['n_walkers']} (moves: {ru['moves']}). ESS: emcee's "
-        "`integrated_time` (c = 5) on both, after the same burn-in "
-        f"({ru['discarded_steps']} steps), smallest over parameters. Command: "
-        "`python3 benches/emcee_vs_rust.py`.",
+        "(relative) at the check points. "
+        f"frfbayes' default runs {ru['n_ensembles']} ensembles of {ru['n_walkers']} walkers "
+        f"(moves: {ru['moves']}); emcee has no independence move fitted to the complement, "
+        "so frfbayes also runs the moves emcee has, "
+        f"{ru['same_moves_run']['moves']}, with {ru['same_moves_run']['n_ensembles']} ensembles of "
+        f"{ru['same_moves_run']['n_walkers']} walkers (\"same moves\"). emcee runs one ensemble of "
+        f"{de['n_walkers']} walkers from the same-moves run's first initial ensemble, for as many "
+        "steps as that run. ESS: emcee's `integrated_time` (c = 5) on all chains, "
+        "smallest over parameters (frfbayes: after its own burn-in, summed over ensembles; emcee: "
+        f"after the same-moves run's burn-in, {ru['same_moves_run']['discarded_steps']} steps). "
+        "Command: `python3 benches/emcee_vs_rust.py`.",
         "",
         f"The machine is shared (load average {load:.1f} on {r['machine']['logical_cores']} "
         "logical cores at the end), so rates are per CPU second (what each process actually "
@@ -350,7 +373,7 @@ def markdown(r):
         "|---|---|",
         f"| Rust, log posterior alone | {ru['ln_posterior_evals_per_cpu_s']:.0f} |",
         f"| Rust, sampler on 1 thread (whole call, start search included) | {one['evaluations_per_cpu_s']:.0f} |",
-        f"| numpy, batches of {ru['n_walkers'] // 2} (a half-ensemble, as emcee calls it) | {r['numpy_evals_per_cpu_s_half_ensemble']:.0f} |",
+        f"| numpy, batches of {de['n_walkers'] // 2} (a half-ensemble, as emcee calls it) | {r['numpy_evals_per_cpu_s_half_ensemble']:.0f} |",
         f"| numpy, batches of 1024 | {r['numpy_evals_per_cpu_s_batch_1024']:.0f} |",
         f"| emcee 0.9 DE + 0.1 stretch, whole sampler | {de['evaluations_per_cpu_s']:.0f} |",
         "",
@@ -363,17 +386,22 @@ def markdown(r):
         "",
         "| sampler | steps | CPU (s) | wall (s) | min ESS | ESS / CPU s | tau (steps, max) | N > 50 tau |",
         "|---|---|---|---|---|---|---|---|",
-        f"| frfbayes, 1 thread | {one['n_steps']} | {one['call_cpu_s']:.2f} | {one['sampling_wall_s']:.2f} | {r['rust_ess_min_emcee_estimator']:.0f} | {r['rust_ess_per_cpu_s']:.0f} | {max(one['tau_steps']):.0f} | yes (its stop rule) |",
-        f"| frfbayes, 2 threads | {two['n_steps']} | {two['call_cpu_s']:.2f} | {two['sampling_wall_s']:.2f} | {r['rust_ess_min_emcee_estimator']:.0f} | - | {max(two['tau_steps']):.0f} | yes |",
+        f"| frfbayes same moves ({ru['same_moves_run']['n_walkers']} walkers), 1 thread | {ru['same_moves_run']['n_steps']} | {ru['same_moves_run']['call_cpu_s']:.2f} | {ru['same_moves_run']['call_wall_s']:.2f} | {r['rust_same_moves_ess_min_emcee_estimator']:.0f} | {r['rust_same_moves_ess_per_cpu_s']:.0f} | {max(ru['same_moves_run']['tau_steps']):.0f} | yes (its stop rule) |",
+        f"| frfbayes default, 1 thread | {one['n_steps']} | {one['call_cpu_s']:.2f} | {one['sampling_wall_s']:.2f} | {r['rust_ess_min_emcee_estimator']:.0f} | {r['rust_ess_per_cpu_s']:.0f} | {max(one['tau_steps']):.0f} | yes (its stop rule) |",
+        f"| frfbayes default, 2 threads | {two['n_steps']} | {two['call_cpu_s']:.2f} | {two['sampling_wall_s']:.2f} | {r['rust_ess_min_emcee_estimator']:.0f} | - | {max(two['tau_steps']):.0f} | yes |",
         f"| emcee 0.9 DEMove + 0.1 StretchMove | {de['n_steps']} | {de['cpu_s']:.2f} | {de['wall_s']:.2f} | {de['ess_min']:.0f} | {de['ess_per_cpu_s']:.0f} | {max(de['tau_steps']):.0f} | {'yes' if de['tau_reliable'] else 'no'} |",
         f"| emcee StretchMove (its default) | {st['n_steps']} | {st['cpu_s']:.2f} | {st['wall_s']:.2f} | {st['ess_min']:.0f} | {st['ess_per_cpu_s']:.0f} | {max(st['tau_steps']):.0f} | {'yes' if st['tau_reliable'] else 'no (its ESS is overestimated)'} |",
         "",
-        f"ESS per CPU second, frfbayes against emcee with the same moves: {ra['ess_per_cpu_s_vs_emcee_de_stretch']:.1f}x; "
-        f"against emcee's default stretch move: {ra['ess_per_cpu_s_vs_emcee_stretch']:.1f}x. "
+        f"ESS per CPU second with the same moves on both sides (raw speed only): "
+        f"{ra['same_moves_ess_per_cpu_s_vs_emcee_de_stretch']:.1f}x "
+        f"({ra['same_moves_two_core_ess_per_s_vs_emcee_de_stretch']:.0f}x using both cores). "
+        f"frfbayes' default (better moves) against emcee 0.9 DE + 0.1 stretch: "
+        f"{ra['ess_per_cpu_s_vs_emcee_de_stretch']:.1f}x; against emcee's default stretch move: "
+        f"{ra['ess_per_cpu_s_vs_emcee_stretch']:.1f}x. "
         f"Using both cores (times the 2-thread parallel efficiency from CPU time, "
         f"{2.0 / ru['cpu_time_ratio_2_to_1_threads']:.2f}): {ra['two_core_ess_per_s_vs_emcee_de_stretch']:.0f}x and "
-        f"{ra['two_core_ess_per_s_vs_emcee_stretch']:.0f}x. Goal >= 30x: "
-        f"{ok(ra['two_core_ess_per_s_vs_emcee_de_stretch'], 30)} against the same moves, "
+        f"{ra['two_core_ess_per_s_vs_emcee_stretch']:.0f}x. Goal >= 30x (better moves count): "
+        f"{ok(ra['two_core_ess_per_s_vs_emcee_de_stretch'], 30)} against emcee's best available mixture, "
         f"{ok(ra['two_core_ess_per_s_vs_emcee_stretch'], 30)} against emcee's default. "
         f"(Wall clock, 2 threads, as measured under the load: {ra['wall_ess_per_s_2_threads_vs_emcee_de_stretch']:.0f}x "
         f"and {ra['wall_ess_per_s_2_threads_vs_emcee_stretch']:.0f}x.)",

@@ -119,7 +119,7 @@ fn posterior_speed_threads_and_export() {
         .map(PathBuf::from)
         .unwrap_or_else(|| std::env::temp_dir().join("frfbayes_bench"));
     std::fs::create_dir_all(&out).unwrap();
-    let settings = SampleSettings::new(
+    let mut settings = SampleSettings::new(
         "bundled:four-story".into(),
         DampingModel::Caughey,
         FrfKind::Receptance,
@@ -127,6 +127,24 @@ fn posterior_speed_threads_and_export() {
         1,
     )
     .unwrap();
+    // Experiments: another move mixture (TOML `[[moves]]` tables) or walker count.
+    if let Ok(text) = std::env::var("FRFBAYES_BENCH_MOVES") {
+        #[derive(serde::Deserialize)]
+        struct File {
+            moves: Vec<frfbayes::mcmc::WeightedMove>,
+        }
+        settings.moves = toml::from_str::<File>(&text).unwrap().moves;
+    }
+    if let Ok(w) = std::env::var("FRFBAYES_BENCH_WALKERS_PER_DIM") {
+        settings.walkers_per_dim = w.parse().unwrap();
+    }
+    let moves = frfbayes::mcmc::Moves::from_specs(&settings.moves)
+        .unwrap()
+        .describe();
+    println!(
+        "moves: {moves}; {} walkers per dimension",
+        settings.walkers_per_dim
+    );
     let prep = prepare(&settings).unwrap();
     let post = &prep.posterior;
 
@@ -155,6 +173,24 @@ fn posterior_speed_threads_and_export() {
         );
         runs.push((threads, s, wall, cpu));
     }
+    // The moves emcee also has (0.9 DE + 0.1 stretch, 4 x dim walkers), one thread: the
+    // like-for-like comparison of `benches/emcee_vs_rust.py`.
+    let mut same = settings.clone();
+    same.moves = frfbayes::bayes::run::de_stretch_moves();
+    same.walkers_per_dim = 4;
+    let (t, c) = (Instant::now(), cpu_seconds());
+    let same_run = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| sample_posterior(post, &same))
+        .unwrap();
+    let (same_wall, same_cpu) = (t.elapsed().as_secs_f64(), cpu_seconds() - c);
+    println!(
+        "same moves as emcee (0.9 DE + 0.1 stretch, 4 x dim walkers), 1 thread: {} steps, \
+         {same_cpu:.2} s CPU, min bulk ESS {:.0}",
+        same_run.summary.n_steps, same_run.summary.ess_bulk_min
+    );
     let (one, two) = (&runs[0].1, &runs[1].1);
     assert!(
         one.draws == two.draws && one.summary.parameters == two.summary.parameters,
@@ -197,13 +233,14 @@ fn posterior_speed_threads_and_export() {
     );
 
     // 3. Export.
-    let start = &two.start;
+    // emcee starts from the first ensemble of the same-moves run.
+    let start = &same_run.start;
     let walkers = ball_positions(
         post,
         start,
-        two.summary.n_walkers,
-        settings.ball_factor,
-        settings.seed,
+        same_run.summary.n_walkers,
+        same.ball_factor,
+        same.seed,
     )
     .unwrap();
     let mut checks = vec![start.z.clone(), walkers[0].clone()];
@@ -215,6 +252,10 @@ fn posterior_speed_threads_and_export() {
     )
     .unwrap();
     two.draws.write_npy(&out.join("rust_draws.npy")).unwrap();
+    same_run
+        .draws
+        .write_npy(&out.join("rust_draws_same_moves.npy"))
+        .unwrap();
     let run_json =
         |(threads, s, wall, cpu): &(usize, frfbayes::bayes::run::PosteriorSample, f64, f64)| {
             let sm = &s.summary;
@@ -241,7 +282,7 @@ fn posterior_speed_threads_and_export() {
         "n_points": post.data().len(),
         "n_walkers": two.summary.n_walkers,
         "n_ensembles": two.summary.n_ensembles,
-        "moves": "0.9 DE + 0.1 stretch",
+        "moves": moves,
         "thin_by": settings.thin_by,
         "discarded_steps": two.draws.discarded_steps,
         "thin_steps": two.draws.thin_steps,
@@ -250,6 +291,18 @@ fn posterior_speed_threads_and_export() {
         "cpu_time_ratio_2_to_1_threads": cpu_ratio,
         "draws_identical_1_and_2_threads": true,
         "ln_posterior_evals_per_cpu_s": per_core,
+        "same_moves_run": {
+            "moves": frfbayes::mcmc::Moves::from_specs(&same.moves).unwrap().describe(),
+            "n_walkers": same_run.summary.n_walkers,
+            "n_ensembles": same_run.summary.n_ensembles,
+            "n_steps": same_run.summary.n_steps,
+            "n_evaluations": same_run.summary.n_likelihood_evals,
+            "discarded_steps": same_run.draws.discarded_steps,
+            "call_wall_s": same_wall,
+            "call_cpu_s": same_cpu,
+            "ess_bulk_min": same_run.summary.ess_bulk_min,
+            "tau_steps": same_run.summary.parameters.iter().map(|p| p.tau).collect::<Vec<_>>(),
+        },
         "ln_posterior_evals_per_wall_s": n_evals as f64 / wall,
     });
     std::fs::write(

@@ -6,8 +6,8 @@ use std::ops::ControlFlow;
 use std::path::Path;
 
 use frfbayes::mcmc::{
-    Ball, Burn, CheckpointConfig, DifferentialEvolution, Draws, LogDensity, Moves, Sampler,
-    SamplerConfig, Snooker, Start, StopReason, Stretch, Walk,
+    Ball, Burn, CheckpointConfig, DifferentialEvolution, Draws, Independence, LogDensity, Moves,
+    Sampler, SamplerConfig, Snooker, Start, StopReason, Stretch, Walk,
 };
 use frfbayes::{Error, Result};
 
@@ -58,6 +58,8 @@ fn moves() -> Moves {
         (Box::new(Stretch::default()), 0.5),
         (Box::new(DifferentialEvolution::default()), 0.3),
         (Box::new(Snooker::default()), 0.2),
+        // Fitted to the complement once per split: exercises `Move::for_complement`.
+        (Box::new(Independence::default()), 0.2),
     ])
     .unwrap()
 }

@@ -92,7 +92,7 @@ pub struct Args {
     /// Floor on the relative standard deviation of a magnitude [default: 0.001].
     #[arg(long)]
     pub rel_sigma_floor: Option<f64>,
-    /// Walkers per ensemble = this x number of parameters [default: 4].
+    /// Walkers per ensemble = this x number of parameters [default: 12].
     #[arg(long)]
     pub walkers_per_dim: Option<usize>,
     /// Independent ensembles [default: 4].

@@ -178,6 +178,8 @@ impl Ensemble {
                     .map(|(x, _)| x)
                     .collect();
                 let complement = Complement::new(&comp_refs);
+                let fitted = mv.for_complement(&complement);
+                let mv = fitted.as_deref().unwrap_or(mv);
                 let members: Vec<(usize, &mut ChaCha8Rng)> = self
                     .walker_rngs
                     .iter_mut()

@@ -51,6 +51,7 @@ mod convergence;
 mod density;
 mod draws;
 mod ensemble;
+mod independence;
 mod moves;
 mod rng;
 mod sampler;
@@ -65,6 +66,7 @@ pub use density::{DensityFn, LogDensity};
 pub use draws::{Draws, ParamSummary};
 /// Used by `discrepancy::evidence` to run tempered ensembles with the same step.
 pub(crate) use ensemble::Ensemble;
+pub use independence::{FittedIndependence, Independence};
 pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};
 pub(crate) use rng::{key_from_seed, walker_rng};
 pub use sampler::{

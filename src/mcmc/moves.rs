@@ -8,6 +8,7 @@
 //! | [`DifferentialEvolution`] (ter Braak 2006; Nelson et al. 2013) | `x + gamma (c1 - c2)` | 0 |
 //! | [`Snooker`] (ter Braak & Vrugt 2008) | `x + gamma e e·(z1 - z2)`, `e = (x - z)/‖x - z‖` | `(d-1) ln(‖q - z‖/‖x - z‖)` |
 //! | [`Walk`] (Goodman & Weare 2010) | `x + Σ_j w_j (c_j - c̄)/sqrt(s-1)`, `w_j ~ N(0,1)` | 0 |
+//! | [`Independence`](super::Independence) | `m + L n / sqrt(w/nu)`, `(m, L L^T)` the complement's mean and covariance | `ln g(x) - ln g(q)` |
 //!
 //! `c`, `c1`, `c2`, `z`, `z1`, `z2`, `c_j` are distinct walkers of the complementary
 //! set, so they do not depend on `x` and detailed balance holds for the product target.
@@ -60,6 +61,14 @@ pub trait Move: Send + Sync {
     /// Fewest complementary walkers the move needs.
     fn min_complement(&self) -> usize {
         1
+    }
+
+    /// This move specialised to one complement, built once per split before the split's
+    /// proposals (e.g. a proposal density fitted to the complement, see
+    /// [`super::Independence`]); `None` (the default): use the move itself. Must not
+    /// draw randomness and must propose as [`Self::propose`] would.
+    fn for_complement(&self, _complement: &Complement<'_>) -> Option<Box<dyn Move + '_>> {
+        None
     }
 
     /// Writes the proposal for `walker` into `proposal` (same length) and returns the

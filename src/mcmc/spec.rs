@@ -11,6 +11,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::independence::Independence;
 use super::moves::{DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};
 use crate::error::{Error, Result};
 
@@ -40,6 +41,24 @@ pub enum MoveSpec {
         #[serde(default)]
         subset: Option<usize>,
     },
+    /// [`Independence`]: multivariate t proposal with `nu` degrees of freedom (default
+    /// 10; `gaussian = true` for a Gaussian) fitted to the complement, covariance
+    /// scaled by `scale^2` (default 1).
+    Independence {
+        #[serde(default = "default_nu")]
+        nu: f64,
+        #[serde(default)]
+        gaussian: bool,
+        #[serde(default = "default_scale")]
+        scale: f64,
+    },
+}
+
+fn default_nu() -> f64 {
+    10.0
+}
+fn default_scale() -> f64 {
+    1.0
 }
 
 fn default_a() -> f64 {
@@ -94,6 +113,11 @@ impl MoveSpec {
                 }
                 Box::new(Walk { subset })
             }
+            MoveSpec::Independence {
+                nu,
+                gaussian,
+                scale,
+            } => Box::new(Independence::new((!gaussian).then_some(nu), scale)?),
         })
     }
 }
@@ -140,6 +164,15 @@ mod tests {
             moves.describe(),
             "stretch(a=2):0.4, de(gamma0=2.38/sqrt(2d),sigma=0.00001):0.05, \
              snooker(gamma=1.5):0.05, walk(s=5):0.5"
+        );
+        let ind: File = toml::from_str(
+            "[[moves]]\nkind = \"independence\"\n\
+             [[moves]]\nkind = \"independence\"\ngaussian = true\nscale = 1.3\n",
+        )
+        .unwrap();
+        assert_eq!(
+            Moves::from_specs(&ind.moves).unwrap().describe(),
+            "independence(t,nu=10,scale=1):0.5, independence(gaussian,scale=1.3):0.5"
         );
         let bad: File = toml::from_str("[[moves]]\nkind = \"stretch\"\na = 0.5\n").unwrap();
         assert!(Moves::from_specs(&bad.moves).is_err());

@@ -34,6 +34,26 @@ impl Modes {
         ground_influence: &DVector<f64>,
         n_modes: Option<usize>,
     ) -> Result<Self> {
+        let mut modes = Modes {
+            omega_rad_s: Vec::new(),
+            phi: DMatrix::zeros(0, 0),
+            participation: Vec::new(),
+        };
+        modes.solve_into(k, m, ground_influence, n_modes)?;
+        Ok(modes)
+    }
+
+    /// [`Self::solve`] into `self`, reusing its memory: for models of up to six DOFs
+    /// nothing is allocated once `self` has the right shape (the likelihood's inner
+    /// loop). The results are those of [`Self::solve`], bit for bit. On error `self` is
+    /// left in an unspecified (but valid) state.
+    pub fn solve_into(
+        &mut self,
+        k: &DMatrix<f64>,
+        m: &DMatrix<f64>,
+        ground_influence: &DVector<f64>,
+        n_modes: Option<usize>,
+    ) -> Result<()> {
         let n = k.nrows();
         let n_modes = n_modes.unwrap_or(n).min(n);
         macro_rules! fixed {
@@ -43,9 +63,9 @@ impl Modes {
                     Sq::from_fn(|i, j| k[(i, j)]),
                     Sq::from_fn(|i, j| m[(i, j)]),
                 )?;
-                Modes::assemble(
+                self.assemble(
                     eigenvalues.as_slice(),
-                    |i| shapes.column(i).iter().copied().collect(),
+                    |r, i| shapes[(r, i)],
                     m,
                     ground_influence,
                     n_modes,
@@ -60,9 +80,9 @@ impl Modes {
             6 => fixed!(6),
             _ => {
                 let (eigenvalues, shapes) = generalised_eigen(k.clone(), m.clone())?;
-                Modes::assemble(
+                self.assemble(
                     eigenvalues.as_slice(),
-                    |i| shapes.column(i).iter().copied().collect(),
+                    |r, i| shapes[(r, i)],
                     m,
                     ground_influence,
                     n_modes,
@@ -72,41 +92,83 @@ impl Modes {
     }
 
     /// Orders the eigenpairs ascending, keeps `n_modes`, fixes each shape's sign (largest
-    /// entry positive) and computes the participation factors (Eq. 15).
+    /// entry positive) and computes the participation factors (Eq. 15) into `self`.
+    /// `shape(r, i)` is entry `r` of eigenvector `i`.
     fn assemble(
+        &mut self,
         eigenvalues: &[f64],
-        shape: impl Fn(usize) -> Vec<f64>,
+        shape: impl Fn(usize, usize) -> f64,
         m: &DMatrix<f64>,
         ground_influence: &DVector<f64>,
         n_modes: usize,
-    ) -> Result<Self> {
+    ) -> Result<()> {
+        const STACK: usize = 8;
         let n = eigenvalues.len();
-        let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&i, &j| eigenvalues[i].total_cmp(&eigenvalues[j]));
-        let mut phi = DMatrix::zeros(n, n_modes);
-        let mut omega_rad_s = Vec::with_capacity(n_modes);
+        // Ascending order by a stable insertion sort (ties keep their index order).
+        let mut order_stack = [0usize; STACK];
+        let mut order_heap = Vec::new();
+        let order: &mut [usize] = if n <= STACK {
+            &mut order_stack[..n]
+        } else {
+            order_heap.resize(n, 0);
+            &mut order_heap
+        };
+        for i in 0..n {
+            let mut j = i;
+            while j > 0 && eigenvalues[order[j - 1]].total_cmp(&eigenvalues[i]).is_gt() {
+                order[j] = order[j - 1];
+                j -= 1;
+            }
+            order[j] = i;
+        }
+        if self.phi.nrows() != n || self.phi.ncols() != n_modes {
+            self.phi = DMatrix::zeros(n, n_modes);
+        }
+        self.omega_rad_s.clear();
         for (col, &i) in order.iter().take(n_modes).enumerate() {
             let lam = eigenvalues[i];
             if !lam.is_finite() {
                 return Err(Error::Numerical("non-finite eigenvalue".into()));
             }
-            omega_rad_s.push(lam.max(0.0).sqrt());
-            let v = shape(i);
+            self.omega_rad_s.push(lam.max(0.0).sqrt());
             let imax = (0..n)
-                .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()).then(b.cmp(&a)))
+                .max_by(|&a, &b| {
+                    shape(a, i)
+                        .abs()
+                        .total_cmp(&shape(b, i).abs())
+                        .then(b.cmp(&a))
+                })
                 .unwrap_or(0);
-            let sign = if v[imax] < 0.0 { -1.0 } else { 1.0 };
-            for (r, x) in v.iter().enumerate() {
-                phi[(r, col)] = x * sign;
+            let sign = if shape(imax, i) < 0.0 { -1.0 } else { 1.0 };
+            for r in 0..n {
+                self.phi[(r, col)] = shape(r, i) * sign;
             }
         }
-        let m_iota = m * ground_influence;
-        let participation = (0..n_modes).map(|i| phi.column(i).dot(&m_iota)).collect();
-        Ok(Modes {
-            omega_rad_s,
-            phi,
-            participation,
-        })
+        // `M iota`, summed column by column as nalgebra's matrix-vector product does.
+        let m_iota = |r: usize| {
+            let mut acc = m[(r, 0)] * ground_influence[0];
+            for j in 1..n {
+                acc += m[(r, j)] * ground_influence[j];
+            }
+            acc
+        };
+        let mut m_iota_stack = [0.0; STACK];
+        let m_iota_heap: Vec<f64>;
+        let m_iota: &[f64] = if n <= STACK {
+            for (r, x) in m_iota_stack[..n].iter_mut().enumerate() {
+                *x = m_iota(r);
+            }
+            &m_iota_stack[..n]
+        } else {
+            m_iota_heap = (0..n).map(m_iota).collect();
+            &m_iota_heap
+        };
+        let m_iota = nalgebra::DVectorView::from_slice(m_iota, n);
+        self.participation.clear();
+        for i in 0..n_modes {
+            self.participation.push(self.phi.column(i).dot(&m_iota));
+        }
+        Ok(())
     }
 
     /// Number of retained modes.
@@ -221,14 +283,10 @@ mod tests {
             let iota = DVector::from_element(n, 1.0);
             let modes = Modes::solve(&k, &m, &iota, None).unwrap();
             let (values, shapes) = generalised_eigen(k.clone(), m.clone()).unwrap();
-            let dynamic = Modes::assemble(
-                values.as_slice(),
-                |i| shapes.column(i).iter().copied().collect(),
-                &m,
-                &iota,
-                n,
-            )
-            .unwrap();
+            let mut dynamic = Modes::solve(&k, &m, &iota, Some(0)).unwrap();
+            dynamic
+                .assemble(values.as_slice(), |r, i| shapes[(r, i)], &m, &iota, n)
+                .unwrap();
             for i in 0..n {
                 let (a, b) = (modes.omega_rad_s[i], dynamic.omega_rad_s[i]);
                 assert!((a - b).abs() <= 1e-12 * b, "n {n} mode {i}: {a} vs {b}");
@@ -239,6 +297,31 @@ mod tests {
             assert!((&modes.phi - &dynamic.phi).amax() < 1e-10, "n {n}");
             let ptmp = modes.phi.transpose() * &m * &modes.phi;
             assert!((ptmp - DMatrix::identity(n, n)).amax() < 1e-12, "n {n}");
+        }
+    }
+
+    #[test]
+    fn solve_into_reuses_memory_and_equals_solve() {
+        // One `Modes` reused across sizes and truncations gives the bits of a fresh solve.
+        let mut reused = Modes::solve(
+            &DMatrix::identity(3, 3),
+            &DMatrix::identity(3, 3),
+            &DVector::from_element(3, 1.0),
+            None,
+        )
+        .unwrap();
+        for (n, keep) in [(4, None), (2, Some(1)), (7, Some(5)), (4, Some(3))] {
+            let masses: Vec<f64> = (0..n).map(|i| 1.0 + 0.3 * i as f64).collect();
+            let stiff: Vec<f64> = (0..n).map(|i| 900.0 - 50.0 * i as f64).collect();
+            let model = StructuralModel::shear_frame(&masses, &stiff).unwrap();
+            let (k, m) = (model.stiffness(&vec![0.1; n]), model.mass(&vec![-0.05; n]));
+            let fresh = Modes::solve(&k, &m, model.ground_influence(), keep).unwrap();
+            reused
+                .solve_into(&k, &m, model.ground_influence(), keep)
+                .unwrap();
+            assert_eq!(reused.omega_rad_s, fresh.omega_rad_s, "n {n}");
+            assert_eq!(reused.phi, fresh.phi, "n {n}");
+            assert_eq!(reused.participation, fresh.participation, "n {n}");
         }
     }
 }
