@@ -85,4 +85,3 @@ pub(super) fn select_bins(frfs: &[&TestFrf], range: (f64, f64), o: &DataOptions)
     sel.dedup();
     sel
 }
-
