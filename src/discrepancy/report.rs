@@ -123,11 +123,22 @@ pub fn explanation(d: &Diagnosis) -> String {
         }
         None => {
             let best = hypothesis_evidence(d).into_iter().next();
-            let _ = write!(
-                s,
+            let blocked: Vec<String> = d
+                .finalists
+                .iter()
+                .zip(&d.decision.reasons)
+                .filter(|(_, r)| r.starts_with("decisive"))
+                .map(|(f, r)| format!("{} was {}", f.name.replace('_', " "), r))
+                .collect();
+            let opening = if blocked.is_empty() {
                 "Nothing missing: no hypothesis is decisively better than the nominal model \
                  (shear frame, proportional damping, ideal sensors)"
-            );
+            } else {
+                "No hypothesis named: some are decisively better than the nominal model \
+                 (shear frame, proportional damping, ideal sensors), but none also has \
+                 physically plausible parameters and predicts held-out recordings better"
+            };
+            s.push_str(opening);
             if let Some(b) = best {
                 let _ = write!(
                     s,
@@ -142,19 +153,13 @@ pub fn explanation(d: &Diagnosis) -> String {
                 ". The nominal fit has chi2 per point {:.2} and mean FDAC {:.4}.",
                 before.chi2_per_point, before.fdac_mean
             );
-            let blocked: Vec<String> = d
-                .finalists
-                .iter()
-                .zip(&d.decision.reasons)
-                .filter(|(_, r)| r.starts_with("decisive"))
-                .map(|(f, r)| format!("{} was {}", f.name.replace('_', " "), r))
-                .collect();
             if !blocked.is_empty() {
                 let _ = write!(
                     s,
-                    " Decisive but not named: {}; the misfit is real, but none of the six \
-                     hypotheses explains it in a physically plausible way that predicts held-out \
-                     recordings.",
+                    " Decisive but not named: {}. The misfit is real but unexplained: check \
+                     the located channels and bands for physics outside the six hypotheses, or \
+                     a hypothesis whose model is too crude (its parameter then runs to the end \
+                     of its physical range).",
                     blocked.join("; ")
                 );
             }
