@@ -146,7 +146,9 @@ pub trait Hypothesis: Send + Sync + std::fmt::Debug {
 
     /// The factor channel `channel` puts on what it measures at Laplace variable `s`
     /// (`s = j omega + 1/tau` under an exponential window: exact for any LTI sensor).
-    /// The measured ratio is `H * factor(response) / factor(input)`.
+    /// The measured ratio is `H * factor(response) / factor(input)`. Called only for
+    /// channels where [`Self::affects_channel`] is true (every other channel's factor
+    /// is 1).
     fn sensor_factor(
         &self,
         loc: &Location,
