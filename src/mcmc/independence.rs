@@ -17,6 +17,7 @@
 //! of `S` (complements much larger than `d` help), so it is meant to be mixed with the
 //! local DE or stretch moves, which also carry the ensemble through the burn-in.
 
+use nalgebra::{DMatrix, DVector};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{ChiSquared, StandardNormal};
@@ -68,48 +69,16 @@ impl Independence {
             return None;
         }
         let d = complement.get(0).len();
-        let mut mean = vec![0.0; d];
-        for j in 0..n {
-            for (m, x) in mean.iter_mut().zip(complement.get(j)) {
-                *m += x;
-            }
+        let points = DMatrix::from_fn(d, n, |r, j| complement.get(j)[r]);
+        let mean = points.column_mean();
+        let mut dev = points;
+        for mut col in dev.column_iter_mut() {
+            col -= &mean;
         }
-        for m in mean.iter_mut() {
-            *m /= n as f64;
-        }
-        // Sample covariance (lower triangle, row-major d x d), scaled by scale^2.
-        let mut chol = vec![0.0; d * d];
-        let mut dev = vec![0.0; d];
-        for j in 0..n {
-            for ((e, x), m) in dev.iter_mut().zip(complement.get(j)).zip(&mean) {
-                *e = x - m;
-            }
-            for r in 0..d {
-                for c in 0..=r {
-                    chol[r * d + c] += dev[r] * dev[c];
-                }
-            }
-        }
-        let f = self.scale * self.scale / (n as f64 - 1.0);
-        for v in chol.iter_mut() {
-            *v *= f;
-        }
-        // In-place Cholesky of the lower triangle.
-        for r in 0..d {
-            for c in 0..=r {
-                let mut s = chol[r * d + c];
-                for k in 0..c {
-                    s -= chol[r * d + k] * chol[c * d + k];
-                }
-                if r == c {
-                    if !(s > 0.0 && s.is_finite()) {
-                        return None;
-                    }
-                    chol[r * d + r] = s.sqrt();
-                } else {
-                    chol[r * d + c] = s / chol[c * d + c];
-                }
-            }
+        let cov = (&dev * dev.transpose()) * (self.scale * self.scale / (n as f64 - 1.0));
+        let chol = cov.cholesky()?.l();
+        if !chol.iter().all(|x| x.is_finite()) {
+            return None;
         }
         Some(FittedIndependence {
             nu: self.nu,
@@ -155,38 +124,24 @@ impl Move for Independence {
 }
 
 /// A proposal fitted by [`Independence::fit`]: location, Cholesky factor of the scale
-/// matrix (lower triangle, row-major), degrees of freedom.
+/// matrix (lower-triangular), degrees of freedom.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FittedIndependence {
     nu: Option<f64>,
-    mean: Vec<f64>,
-    chol: Vec<f64>,
+    mean: DVector<f64>,
+    chol: DMatrix<f64>,
 }
 
 impl FittedIndependence {
     /// `ln g(v)` up to a constant.
     pub fn ln_density(&self, v: &[f64]) -> f64 {
-        let d = self.mean.len();
-        // Forward substitution L y = v - m, accumulating |y|^2.
-        let mut y = [0.0; 32];
-        let mut heap = Vec::new();
-        let y: &mut [f64] = if d <= y.len() {
-            &mut y[..d]
-        } else {
-            heap.resize(d, 0.0);
-            &mut heap
+        let centred = DVector::from_column_slice(v) - &self.mean;
+        let Some(y) = self.chol.solve_lower_triangular(&centred) else {
+            return f64::NEG_INFINITY;
         };
-        let mut delta = 0.0;
-        for r in 0..d {
-            let mut s = v[r] - self.mean[r];
-            for (l, yk) in self.chol[r * d..r * d + r].iter().zip(y.iter()) {
-                s -= l * yk;
-            }
-            y[r] = s / self.chol[r * d + r];
-            delta += y[r] * y[r];
-        }
+        let delta = y.norm_squared();
         match self.nu {
-            Some(nu) => -0.5 * (nu + d as f64) * (delta / nu).ln_1p(),
+            Some(nu) => -0.5 * (nu + v.len() as f64) * (delta / nu).ln_1p(),
             None => -0.5 * delta,
         }
     }
@@ -205,17 +160,7 @@ impl Move for FittedIndependence {
         proposal: &mut [f64],
     ) -> f64 {
         let d = self.mean.len();
-        let mut n = [0.0; 32];
-        let mut heap = Vec::new();
-        let n: &mut [f64] = if d <= n.len() {
-            &mut n[..d]
-        } else {
-            heap.resize(d, 0.0);
-            &mut heap
-        };
-        for v in n.iter_mut() {
-            *v = rng.sample(StandardNormal);
-        }
+        let n = DVector::<f64>::from_fn(d, |_, _| rng.sample(StandardNormal));
         let radius = match self.nu {
             Some(nu) => {
                 let w: f64 = match ChiSquared::new(nu) {
@@ -226,13 +171,8 @@ impl Move for FittedIndependence {
             }
             None => 1.0,
         };
-        for (r, (q, m)) in proposal.iter_mut().zip(&self.mean).enumerate() {
-            let mut s = 0.0;
-            for (l, nk) in self.chol[r * d..=r * d + r].iter().zip(n.iter()) {
-                s += l * nk;
-            }
-            *q = m + radius * s;
-        }
+        let q = &self.mean + (&self.chol * n) * radius;
+        proposal.copy_from_slice(q.as_slice());
         self.ln_density(walker) - self.ln_density(proposal)
     }
 }
@@ -287,13 +227,7 @@ mod tests {
                     .sum::<f64>()
                     / (n - 1.0)
                     * 2.25;
-                let llt: f64 = (0..3)
-                    .map(|k| {
-                        let a = if k <= r { f.chol[r * 3 + k] } else { 0.0 };
-                        let b = if k <= c { f.chol[c * 3 + k] } else { 0.0 };
-                        a * b
-                    })
-                    .sum();
+                let llt: f64 = (0..3).map(|k| f.chol[(r, k)] * f.chol[(c, k)]).sum();
                 assert!((llt - cov).abs() < 1e-12, "({r},{c}): {llt} vs {cov}");
             }
         }
