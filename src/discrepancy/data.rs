@@ -1,7 +1,7 @@
 //! The data of a diagnosis: complex FRF estimates of every *segment* (a shake-table test,
 //! or one impact of a hammer test) at a selected set of frequencies, each with its
 //! Bendat & Piersol relative random error, plus what amplitude-dependent models need
-//! (the effective mean-square story drift of each segment).
+//! (the equivalent-linearisation weight of each story's drift in each segment).
 //!
 //! # What is measured
 //! Each value is the exact ratio *channel / input channel* as recorded (see DIAGNOSE.md):
@@ -27,12 +27,12 @@
 //! # Amplitude
 //! For story `r` with displacement channels on floors `r - 1` (or the ground) and `r`,
 //! the drift `d(t)` over the analysed part of the record (the hammer block with its
-//! exponential window `w`, or the whole shake-table record), its local mean square
-//! `ms(t)` over one period of the nominal first mode, and the energy-weighted effective
-//! mean square `m_eff = sum (w d)^2 ms / sum (w d)^2` (the response's spectral centroid
-//! sits at the energy-weighted mean of the instantaneous frequency).
+//! exponential window `w`, or the whole shake-table record) and Caughey's
+//! equivalent-linearisation weight `sum (w d)^2 d^2 / sum (w d)^2`: a cubic spring
+//! `k3 d^3` acts on that segment's FRFs as the linear spring `k3` times this weight
+//! ([`super::amplitude`]).
 
-use super::amplitude::story_drift_ms;
+use super::amplitude::story_drift_lin_sq;
 use super::bins::{band_span, select_bins};
 use super::input_noise::input_gain_basis;
 pub use super::input_noise::{InputGainBasis, MAX_GAIN_RANK};
@@ -134,9 +134,9 @@ pub struct SegmentData {
     /// Resonance bands found in this segment.
     pub bands: Vec<Band>,
     pub channels: Vec<ChannelData>,
-    /// Effective mean-square drift of each story (index `r - 1`), m^2, where the
-    /// displacement channels allow it (see the module docs).
-    pub story_drift_ms_m2: Vec<Option<f64>>,
+    /// Equivalent-linearisation weight of each story's drift (index `r - 1`), m^2,
+    /// where the displacement channels allow it (see the module docs).
+    pub story_drift_lin_sq_m2: Vec<Option<f64>>,
     /// Correlated relative error that the input channel's noise puts on every ratio of
     /// a single-impact segment (see [`InputGainBasis`]); `None` otherwise.
     pub input_gain: Option<InputGainBasis>,
@@ -328,7 +328,7 @@ impl DiagnosisData {
         let mut segments = Vec::with_capacity(raw.len());
         for (i, r) in raw.iter().enumerate() {
             let sel = &selections[group_of[i]];
-            segments.push(build_segment(r, sel, options, n_floors, f1)?);
+            segments.push(build_segment(r, sel, options, n_floors)?);
         }
         let data = DiagnosisData {
             title: campaign.title.clone(),
@@ -382,13 +382,13 @@ impl DiagnosisData {
         q
     }
 
-    /// The largest effective mean-square drift of story `story` (1-based) over the
+    /// The largest equivalent-linearisation weight of story `story` (1-based) over the
     /// segments, m^2, if any segment has it.
-    pub fn max_story_drift_ms_m2(&self, story: usize) -> Option<f64> {
+    pub fn max_story_drift_lin_sq_m2(&self, story: usize) -> Option<f64> {
         self.segments
             .iter()
             .filter_map(|s| {
-                s.story_drift_ms_m2
+                s.story_drift_lin_sq_m2
                     .get(story.checked_sub(1)?)
                     .copied()
                     .flatten()
@@ -469,7 +469,6 @@ fn build_segment(
     sel: &[usize],
     o: &DataOptions,
     n_floors: usize,
-    f1_hz: f64,
 ) -> Result<SegmentData> {
     let frf = &r.frf;
     let ground = matches!(frf.input, InputKind::Ground { .. });
@@ -536,8 +535,8 @@ fn build_segment(
         }
     }
     let window = frf.exp_window_tau_s;
-    let story_drift_ms_m2 = (1..=n_floors)
-        .map(|s| story_drift_ms(&r.record, s, r.block_start, r.block_len, window, f1_hz))
+    let story_drift_lin_sq_m2 = (1..=n_floors)
+        .map(|s| story_drift_lin_sq(&r.record, s, r.block_start, r.block_len, window))
         .collect();
     let peak_force_n = if ground {
         None
@@ -575,7 +574,7 @@ fn build_segment(
         freq_hz,
         bands: frf.bands.clone(),
         channels,
-        story_drift_ms_m2,
+        story_drift_lin_sq_m2,
     })
 }
 

@@ -66,7 +66,7 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
         freq_hz: freq_hz.to_vec(),
         bands: Vec::new(),
         channels,
-        story_drift_ms_m2: vec![Some(1e-6), Some(2e-6), Some(0.5e-6), Some(3e-6)],
+        story_drift_lin_sq_m2: vec![Some(1e-6), Some(2e-6), Some(0.5e-6), Some(3e-6)],
         input_gain: None,
     }
 }
@@ -97,7 +97,7 @@ fn synthetic() -> Arc<DiagnosisData> {
     ];
     // A second impact of test h3, with a larger drift: shares h3's grid.
     let mut strong = segment("h3b", force(3), Some(19.4), &freq);
-    strong.story_drift_ms_m2 = vec![Some(4e-6), Some(8e-6), Some(2e-6), Some(9e-6)];
+    strong.story_drift_lin_sq_m2 = vec![Some(4e-6), Some(8e-6), Some(2e-6), Some(9e-6)];
     segments.push(strong);
     Arc::new(DiagnosisData {
         title: "synthetic".into(),
@@ -368,9 +368,9 @@ fn stiffness_nonlinearity_is_the_equivalent_linear_spring_per_segment() {
     let model = ExtendedModel::new(data.clone(), Some((h, Location::Story(story)))).unwrap();
     let pred = model.predict(&base(), &[k3]).unwrap();
     // Oracle: the simulator's frame (damping from the linear frame's modes) with the
-    // story spring raised by (3/2) k3 m_eff of each segment.
+    // story spring raised by k3 times each segment's equivalent-linearisation weight.
     let err = max_rel_err(&model, &pred, |seg, ch, s| {
-        let dk = 1.5 * k3 * seg.story_drift_ms_m2[story - 1].unwrap();
+        let dk = k3 * seg.story_drift_lin_sq_m2[story - 1].unwrap();
         let mut sys = simulator_system(&[]);
         let kk = &mut sys.stiffness_n_per_m;
         kk[(story - 1, story - 1)] += dk;

@@ -1,20 +1,23 @@
 //! `stiffness_nonlinearity`: a cubic story spring, force `k d + k3 d^3` for the drift `d`
 //! (hardening for `k3 > 0`), so the FRFs depend on the excitation level.
 //!
-//! Forward model: equivalent linearisation per segment. Harmonic balance of `k3 d^3` at
-//! drift amplitude `A` gives the stiffness `k + (3/4) k3 A^2`; with the segment's
-//! effective mean-square drift `m_eff = A^2 / 2` ([`SegmentData::story_drift_ms_m2`],
-//! measured from the displacement channels) that is `k + (3/2) k3 m_eff`, added across
-//! the story. Neglected: the amplitude's decay within a hammer block beyond its energy
-//! weighting, the frequency dependence of the amplitude along a chirp, and the
+//! Forward model: equivalent linearisation per segment (Caughey 1963). In each segment
+//! the cubic term acts as the linear spring `k3 c` added across the story, where
+//! `c = sum (w d)^2 d^2 / sum (w d)^2` is measured from the segment's displacement
+//! channels under the estimator's window `w` ([`SegmentData::story_drift_lin_sq_m2`]):
+//! the `k_eq` minimising the windowed mean square of `k3 d^3 - k_eq d`, which is what the
+//! least-squares H1 estimate sees. It is `3 A^2 / 4` for a sinusoid (harmonic balance),
+//! `3 sigma^2` for Gaussian drift, and in between for a hammer's decaying modes.
+//! Neglected: the frequency dependence of the equivalent stiffness within a segment
+//! (one `k_eq` for all modes; a chirp's amplitude changes along the sweep), and the
 //! harmonics (the third harmonic of mode 1 can drive a mode near three times its
 //! frequency). A segment without displacement channels at the story is treated as
 //! linear.
 //!
-//! Prior: the relative stiffness change at the largest measured effective amplitude,
-//! `r = (3/2) k3 m_max / k_s0` (`k_s0` nominal), uniform on -0.4..0.5 (so the
-//! linearised story keeps at least 10 % of its nominal stiffness); reported as `k3`
-//! (N/m^3). The nominal model is `k3 = 0`.
+//! Prior: the relative stiffness change at the largest measured weight,
+//! `r = k3 c_max / k_s0` (`k_s0` nominal), uniform on -0.4..0.5 (so the linearised
+//! story keeps at least 60 % of its nominal stiffness); reported as `k3` (N/m^3). The
+//! nominal model is `k3 = 0`.
 
 use crate::discrepancy::data::{DiagnosisData, SegmentData};
 use crate::discrepancy::hypothesis::{Coordinate, EffectParam, Hypothesis};
@@ -48,22 +51,22 @@ impl Hypothesis for StiffnessNonlinearityHypothesis {
 
     fn locations(&self, data: &DiagnosisData) -> Vec<Location> {
         (1..=data.n_floors())
-            .filter(|&s| data.max_story_drift_ms_m2(s).is_some_and(|m| m > 0.0))
+            .filter(|&s| data.max_story_drift_lin_sq_m2(s).is_some_and(|m| m > 0.0))
             .map(Location::Story)
             .collect()
     }
 
     fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
         let s = story_of(loc, data.n_floors())?;
-        let m_max = data
-            .max_story_drift_ms_m2(s)
+        let c_max = data
+            .max_story_drift_lin_sq_m2(s)
             .filter(|m| *m > 0.0)
             .ok_or_else(|| {
                 Error::Usage(format!(
                     "stiffness_nonlinearity at story {s} needs displacement channels on its floors"
                 ))
             })?;
-        let factor = data.nominal.story_stiffness_n_per_m[s - 1] / (1.5 * m_max);
+        let factor = data.nominal.story_stiffness_n_per_m[s - 1] / c_max;
         Ok(vec![EffectParam {
             name: "k3".into(),
             unit: "N/m^3",
@@ -79,7 +82,7 @@ impl Hypothesis for StiffnessNonlinearityHypothesis {
         true
     }
 
-    /// Adds `(3/2) k3 m_eff` across the story (`effect[0] = k3`, N/m^3).
+    /// Adds `k3 c` across the story (`effect[0] = k3`, N/m^3; `c` the segment's weight).
     fn modify_for_segment(
         &self,
         loc: &Location,
@@ -88,10 +91,10 @@ impl Hypothesis for StiffnessNonlinearityHypothesis {
         sys: &mut LinearSystem,
     ) -> Result<()> {
         let s = story_of(loc, sys.n_floors())?;
-        let Some(m_eff) = seg.story_drift_ms_m2.get(s - 1).copied().flatten() else {
+        let Some(c) = seg.story_drift_lin_sq_m2.get(s - 1).copied().flatten() else {
             return Ok(());
         };
-        let dk = 1.5 * effect[0] * m_eff;
+        let dk = effect[0] * c;
         let a = sys.dof_of_floor(s)?;
         let b = sys.dof_of_level(s - 1)?;
         let k = &mut sys.stiffness_n_per_m;
