@@ -6,6 +6,7 @@
 //!
 //!     cargo test --release --test discrepancy_model -- --ignored --nocapture
 
+use frfbayes::discrepancy::time_domain::TimeDomainModel;
 use frfbayes::discrepancy::{
     effect_starts, fit_map, frame_starts, hypothesis_by_name, DataOptions, DiagnosisData,
     Hypothesis, Location, MapOptions, ModelPosterior,
@@ -233,18 +234,59 @@ fn true_parameters_explain_the_estimated_frfs() {
             "  story drift equivalent amplitude sqrt(4/3 weight) (mm) per segment: {}",
             data.segments
                 .iter()
-                .map(|s| format!(
-                    "{} [{}]",
-                    s.name,
-                    s.story_drift_lin_sq_m2
-                        .iter()
-                        .map(|m| m.map_or("-".into(), |m| format!("{:.2}", (m / 0.75).sqrt() * 1e3)))
-                        .collect::<Vec<_>>()
-                        .join(" ")
-                ))
+                .map(|s| {
+                    format!(
+                        "{} [{}]",
+                        s.name,
+                        s.story_drift_lin_sq_m2
+                            .iter()
+                            .map(|m| m
+                                .map_or("-".into(), |m| format!("{:.2}", (m / 0.75).sqrt() * 1e3)))
+                            .collect::<Vec<_>>()
+                            .join(" ")
+                    )
+                })
                 .collect::<Vec<_>>()
                 .join("; ")
         );
+        if verdict == "none" {
+            // The replay of the tests in the time domain against the frequency-domain
+            // model, both at the truth (linear: they differ only by the replay's
+            // approximations).
+            let td = Arc::new(TimeDomainModel::new(&campaign, data.clone()).unwrap());
+            let post_td = post.clone().with_time_domain(td).unwrap();
+            let t0 = Instant::now();
+            let p = post_td.predict(&z).unwrap();
+            let dt = t0.elapsed().as_secs_f64();
+            let per: Vec<String> = data
+                .segments
+                .iter()
+                .zip(post_td.model().layout())
+                .map(|(seg, r)| {
+                    let range = r.first().map_or(0, |a| a.start)..r.last().map_or(0, |a| a.end);
+                    let (mut worst, mut sum) = (0.0f64, 0.0);
+                    for i in range.clone() {
+                        let d = ((p[i] - pred[i]) / pred[i]).norm();
+                        worst = worst.max(d);
+                        sum += d;
+                    }
+                    format!(
+                        "{} chi2 {:.2} vs {:.2}, rel diff mean {:.1e} max {:.1e}",
+                        seg.name,
+                        post_td.chi2_per_dof_of_range(&p, 1e-4, range.clone()),
+                        post.chi2_per_dof_of_range(&pred, 1e-4, range.clone()),
+                        sum / range.len().max(1) as f64,
+                        worst
+                    )
+                })
+                .collect();
+            println!(
+                "  time domain at the truth ({dt:.2} s): chi2/dof {:.2} (frequency domain {:.2}); per segment:\n    {}",
+                post_td.chi2_per_dof_of(&p, 1e-4),
+                post.chi2_per_dof_of(&pred, 1e-4),
+                per.join("\n    ")
+            );
+        }
         if verdict == "stiffness_nonlinearity" {
             let ie = post.eta_index() + 1;
             for f in [0.0, 0.25, 0.5, 0.75, 1.0, 1.25, 1.5] {
@@ -255,6 +297,39 @@ fn true_parameters_explain_the_estimated_frfs() {
                     "    k3 x {f}: chi2/dof {:.2}",
                     post.chi2_per_dof_of(&p, 1e-4)
                 );
+            }
+            // The same at the truth, replaying the tests in the time domain.
+            let td = Arc::new(TimeDomainModel::new(&campaign, data.clone()).unwrap());
+            let post_td = post.clone().with_time_domain(td).unwrap();
+            for f in [0.0, 0.5, 0.75, 1.0, 1.25] {
+                let mut zz = z.clone();
+                zz[ie] *= f;
+                let t0 = Instant::now();
+                let p = post_td.predict(&zz).unwrap();
+                let dt = t0.elapsed().as_secs_f64();
+                let eta = post_td.profile_eta(&p);
+                println!(
+                    "    time domain, k3 x {f}: chi2/dof {:.2} at eta 1e-4, eta* {eta:.2e}, chi2/dof {:.2} ({dt:.2} s)",
+                    post_td.chi2_per_dof_of(&p, 1e-4),
+                    post_td.chi2_per_dof_of(&p, eta)
+                );
+                if f == 1.0 {
+                    let per: Vec<String> = data
+                        .segments
+                        .iter()
+                        .zip(post_td.model().layout())
+                        .map(|(seg, r)| {
+                            let range =
+                                r.first().map_or(0, |a| a.start)..r.last().map_or(0, |a| a.end);
+                            format!(
+                                "{} {:.2}",
+                                seg.name,
+                                post_td.chi2_per_dof_of_range(&p, 1e-4, range)
+                            )
+                        })
+                        .collect();
+                    println!("      per segment: {}", per.join(", "));
+                }
             }
         }
         let mut by_seg: Vec<(String, f64)> = Vec::new();

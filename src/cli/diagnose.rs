@@ -64,6 +64,9 @@ fn stage_message(stage: &DiagnoseStage<'_>) -> String {
             done,
             of,
         } => format!("held-out check of {hypothesis}: {done}/{of} segments"),
+        DiagnoseStage::TimeDomain { hypothesis } => {
+            format!("refitting {hypothesis} by replaying the tests in the time domain")
+        }
     }
 }
 

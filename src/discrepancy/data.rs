@@ -36,6 +36,7 @@ use super::amplitude::story_drift_lin_sq;
 use super::bins::{band_span, select_bins};
 use super::input_noise::input_gain_basis;
 pub use super::input_noise::{InputGainBasis, MAX_GAIN_RANK};
+pub use super::time_domain::SegmentSource;
 use crate::error::{Error, Result};
 use crate::frf::FrfKind;
 use crate::io::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
@@ -137,6 +138,8 @@ pub struct SegmentData {
     /// Equivalent-linearisation weight of each story's drift (index `r - 1`), m^2,
     /// where the displacement channels allow it (see the module docs).
     pub story_drift_lin_sq_m2: Vec<Option<f64>>,
+    /// How the segment was cut and estimated (for a time-domain model of the test).
+    pub source: SegmentSource,
     /// Correlated relative error that the input channel's noise puts on every ratio of
     /// a single-impact segment (see [`InputGainBasis`]); `None` otherwise.
     pub input_gain: Option<InputGainBasis>,
@@ -256,6 +259,7 @@ impl DiagnosisData {
                         record: slice,
                         block_start: quiet,
                         block_len: len,
+                        source: SegmentSource::new(lo, hi, est),
                     });
                 }
             } else {
@@ -269,6 +273,7 @@ impl DiagnosisData {
                     record: t.clone(),
                     block_start: spans[0].0,
                     block_len: len,
+                    source: SegmentSource::new(0, t.n_samples(), e),
                 });
             }
         }
@@ -282,6 +287,7 @@ impl DiagnosisData {
                     record: t.clone(),
                     block_start: 0,
                     block_len: t.n_samples(),
+                    source: SegmentSource::new(0, t.n_samples(), est),
                 });
             }
         }
@@ -440,6 +446,8 @@ struct RawSegment {
     /// First sample of the analysed block in `record`.
     block_start: usize,
     block_len: usize,
+    /// Where `record` was cut from its test, and the estimator's settings.
+    source: SegmentSource,
 }
 
 fn test_path(c: &Campaign, t: &Test) -> std::path::PathBuf {
@@ -563,6 +571,10 @@ fn build_segment(
         _ => None,
     };
     Ok(SegmentData {
+        source: SegmentSource {
+            bins: sel.to_vec(),
+            ..r.source.clone()
+        },
         input_gain,
         name: r.name.clone(),
         test: frf.test.clone(),

@@ -21,6 +21,7 @@ use super::laplace::laplace;
 use super::locate::LocateReport;
 use super::location::Location;
 use super::posterior::ModelPosterior;
+use super::refine::{refit_in_time_domain, TimeDomainRefit};
 use super::residual_map::{ResidualMap, ResidualRow};
 use super::search::{search, HypothesisSearch, SearchOptions};
 use super::verdict::{decide, Candidate, Decision, EffectSummary, FitQuality};
@@ -84,6 +85,10 @@ pub enum DiagnoseStage<'a> {
         done: usize,
         of: usize,
     },
+    /// Refitting an amplitude-dependent hypothesis by replaying the tests.
+    TimeDomain {
+        hypothesis: &'a str,
+    },
 }
 
 /// One model's complete result.
@@ -101,6 +106,9 @@ pub struct ModelResult {
     pub plausible: bool,
     pub implausible_because: String,
     pub held_out: Option<HeldOut>,
+    /// The refit with the time-domain replay of the tests (amplitude-dependent
+    /// hypotheses that are decisive when linearised; see [`super::refine`]).
+    pub time_domain: Option<TimeDomainRefit>,
 }
 
 impl ModelResult {
@@ -218,7 +226,7 @@ pub fn effect_columns<'a>(
 /// a no-effect value) excludes that value and stays clear of the box's ends by more than
 /// its own width (a posterior piled at the end of the physically plausible range is not
 /// an identified effect).
-fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<EffectVerdict> {
+pub(super) fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<EffectVerdict> {
     let ie = post.eta_index();
     let (lo, hi) = post.bounds();
     let mut out = Vec::new();
@@ -324,6 +332,7 @@ fn complete(
         plausible,
         implausible_because: why,
         held_out: None,
+        time_domain: None,
     })
 }
 
@@ -436,14 +445,37 @@ pub fn diagnose(
             .total_cmp(&a.ln_z().unwrap_or(f64::NEG_INFINITY))
     });
 
-    // Held-out check only where it can change the verdict: decisive and plausible.
     let nominal_ln_z = nominal.ln_z().unwrap_or(f64::NEG_INFINITY);
     let nominal_se = nominal.evidence.as_ref().map_or(0.0, |e| e.ln_z_se);
-    for f in &mut finalists {
+    let decisive = |f: &ModelResult| {
         let ev = f.evidence.as_ref();
         let delta = ev.map_or(f64::NEG_INFINITY, |e| e.ln_z - nominal_ln_z);
         let se = ev.map_or(0.0, |e| (e.ln_z_se.powi(2) + nominal_se.powi(2)).sqrt());
-        if f.plausible && delta - 2.0 * se >= super::verdict::decisive_ln_bayes_factor() {
+        delta - 2.0 * se >= super::verdict::decisive_ln_bayes_factor()
+    };
+    // Amplitude-dependent hypotheses that are decisive when linearised: refit by
+    // replaying the tests in the time domain, and judge the effect on that fit.
+    for f in &mut finalists {
+        let amplitude = hypotheses
+            .iter()
+            .any(|h| h.name() == f.name && h.amplitude_dependent());
+        if amplitude && decisive(f) {
+            progress(DiagnoseStage::TimeDomain {
+                hypothesis: &f.name,
+            });
+            f.time_domain = Some(refit_in_time_domain(campaign, f, opts)?);
+            mark(&format!("time-domain refit {}", f.name), &mut timings);
+        }
+    }
+    finalists.sort_by(|a, b| {
+        b.ln_z()
+            .unwrap_or(f64::NEG_INFINITY)
+            .total_cmp(&a.ln_z().unwrap_or(f64::NEG_INFINITY))
+    });
+
+    // Held-out check only where it can change the verdict: decisive and plausible.
+    for f in &mut finalists {
+        if f.plausible && decisive(f) {
             let h = hypotheses
                 .iter()
                 .find(|h| h.name() == f.name)
@@ -456,6 +488,7 @@ pub fn diagnose(
                     of,
                 })
             };
+            let replay = f.time_domain.is_some().then_some(campaign);
             f.held_out = Some(held_out(
                 &data,
                 h,
@@ -463,6 +496,7 @@ pub fn diagnose(
                 &nominal.map.z,
                 &f.map.z,
                 &opts.map,
+                replay,
                 &mut cb,
             )?);
             mark(&format!("held-out {name}"), &mut timings);

@@ -1,7 +1,9 @@
 //! Predictive check on data held out of the fit: leave one segment (test or impact) out,
 //! fit the nominal model and the hypothesis to the rest (MAP, from their full-data fits),
 //! and score the held-out segment by its log-likelihood under each fit (plug-in log
-//! predictive density, error floor included).
+//! predictive density, error floor included). Effects carry over between the fits by
+//! their physical values. A hypothesis refitted by replaying the tests in the time
+//! domain ([`super::refine`]) is refitted and scored the same way here.
 //!
 //! The gain of a hypothesis is the sum over segments of its held-out log density minus
 //! the nominal model's. Its standard error is `sqrt(n) sd(per-segment gains)` (the
@@ -21,7 +23,10 @@ use super::fit::{fit_map, MapOptions};
 use super::hypothesis::Hypothesis;
 use super::location::Location;
 use super::posterior::ModelPosterior;
+use super::refine::replay_map_options;
+use super::time_domain::TimeDomainModel;
 use crate::error::{Error, Result};
+use crate::io::Campaign;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 
@@ -72,36 +77,66 @@ fn posterior_or_nominal(
     Ok((ModelPosterior::new(data, None)?, false))
 }
 
-/// `z` restricted to the frame (and error floor) when `full` is false.
-fn restrict(z: &[f64], full: bool, post: &ModelPosterior) -> Vec<f64> {
+/// Steps of a held-out fit that replays the tests (it starts from the full-data fit).
+const HELD_OUT_REPLAY_EVALUATIONS: usize = 6;
+
+/// The frame (and error floor) of `z`, then, when `post` has the hypothesis, the
+/// coordinates of the physical effect values `effect` in `post` (an effect's coordinate
+/// may be scaled by the data, as the cubic spring's is by the largest drift weight, so
+/// coordinates do not carry over between subsets of the data).
+fn start_for(z: &[f64], effect: &[f64], full: bool, post: &ModelPosterior) -> Vec<f64> {
+    let mut out = z[..=post.eta_index()].to_vec();
     if full {
-        z.to_vec()
-    } else {
-        z[..=post.eta_index()].to_vec()
+        out.extend(
+            post.effect_params()
+                .iter()
+                .zip(effect)
+                .map(|(p, &v)| p.coordinate_of(v)),
+        );
     }
+    out
 }
 
-/// Log density of segment `i` under a fit of all other segments, starting from `z`.
-/// Where the hypothesis cannot act on the rest (its channels are only in segment `i`)
-/// the rest is fitted by the nominal model; where it cannot act on segment `i` that
-/// segment is scored with the frame of the fit.
+/// Log density of segment `i` under a fit of all other segments, starting from `z`
+/// (effect: physical values `effect`). Where the hypothesis cannot act on the rest (its
+/// channels are only in segment `i`) the rest is fitted by the nominal model; where it
+/// cannot act on segment `i` that segment is scored with the frame of the fit. With
+/// `replay`, the hypothesis' fits replay the tests in the time domain.
 fn held_out_density(
     data: &DiagnosisData,
     i: usize,
     hypothesis: Option<(Arc<dyn Hypothesis>, Location)>,
-    z: &[f64],
+    (z, effect): (&[f64], &[f64]),
     map: &MapOptions,
+    replay: Option<&Campaign>,
 ) -> Result<f64> {
+    let with_replay = |post: ModelPosterior, full: bool| -> Result<ModelPosterior> {
+        match replay {
+            Some(c) if full => {
+                let td = TimeDomainModel::new(c, post.data().clone())?;
+                post.with_time_domain(Arc::new(td))
+            }
+            _ => Ok(post),
+        }
+    };
     let (post, full) = posterior_or_nominal(subset(data, |j| j != i), hypothesis.clone())?;
-    let start = restrict(z, full, &post);
-    let fit = fit_map(&post, &[start], map)?;
+    let post = with_replay(post, full)?;
+    let map = if post.is_time_domain() {
+        &replay_map_options(map, HELD_OUT_REPLAY_EVALUATIONS, 1)
+    } else {
+        map
+    };
+    let fit = fit_map(&post, &[start_for(z, effect, full, &post)], map)?;
+    let fitted_effect = post.effect_physical(&fit.z)?;
     let hyp = if full { hypothesis } else { None };
     let (post_one, full_one) = posterior_or_nominal(subset(data, |j| j == i), hyp)?;
-    post_one.ln_likelihood(&restrict(&fit.z, full_one, &post_one))
+    let post_one = with_replay(post_one, full_one)?;
+    post_one.ln_likelihood(&start_for(&fit.z, &fitted_effect, full_one, &post_one))
 }
 
 /// Leave-one-segment-out comparison of `hypothesis` at `location` (full-data MAP
 /// `hyp_z`) with the nominal model (full-data MAP `nominal_z`). Needs two segments.
+#[allow(clippy::too_many_arguments)]
 pub fn held_out(
     data: &DiagnosisData,
     hypothesis: &Arc<dyn Hypothesis>,
@@ -109,6 +144,7 @@ pub fn held_out(
     nominal_z: &[f64],
     hyp_z: &[f64],
     map: &MapOptions,
+    replay: Option<&Campaign>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<HeldOut> {
     let n = data.segments.len();
@@ -126,16 +162,26 @@ pub fn held_out(
         p_value: 1.0,
         n_ranked: 0,
     };
+    let hyp = Some((hypothesis.clone(), location.clone()));
+    let effect =
+        ModelPosterior::new(Arc::new(data.clone()), hyp.clone())?.effect_physical(hyp_z)?;
     for i in 0..n {
         out.segments.push(data.segments[i].name.clone());
-        out.nominal
-            .push(held_out_density(data, i, None, nominal_z, map)?);
+        out.nominal.push(held_out_density(
+            data,
+            i,
+            None,
+            (nominal_z, &[]),
+            map,
+            None,
+        )?);
         out.hypothesis.push(held_out_density(
             data,
             i,
-            Some((hypothesis.clone(), location.clone())),
-            hyp_z,
+            hyp.clone(),
+            (hyp_z, &effect),
             map,
+            replay,
         )?);
         progress(i + 1, n);
     }

@@ -18,7 +18,7 @@ use super::data::{DiagnosisData, SegmentData};
 use super::location::Location;
 use crate::error::Result;
 use crate::io::Channel;
-use crate::simulate::LinearSystem;
+use crate::simulate::{CubicSpring, LinearSystem};
 use num_complex::Complex64;
 
 /// How a sampled coordinate maps to the reported value.
@@ -136,6 +136,20 @@ pub trait Hypothesis: Send + Sync + std::fmt::Debug {
     ) -> Result<()> {
         let _ = (loc, effect, seg, sys);
         Ok(())
+    }
+
+    /// Nonlinear elements for a time-domain replay of the tests
+    /// ([`super::time_domain`]), on `sys` after [`Self::modify_system`]; none by default.
+    /// Hypotheses with elements are [`Self::amplitude_dependent`], and the replay of
+    /// the tests stands in for [`Self::modify_for_segment`].
+    fn cubic_springs(
+        &self,
+        loc: &Location,
+        effect: &[f64],
+        sys: &LinearSystem,
+    ) -> Result<Vec<CubicSpring>> {
+        let _ = (loc, effect, sys);
+        Ok(Vec::new())
     }
 
     /// True when [`Self::sensor_factor`] of `channel` can differ from 1 at `loc`.

@@ -21,12 +21,14 @@ pub mod locate;
 pub mod location;
 pub mod output;
 pub mod posterior;
+pub mod refine;
 pub mod report;
 pub mod residual_map;
 pub mod search;
 mod tempering;
 #[cfg(test)]
 mod tests;
+pub mod time_domain;
 pub mod verdict;
 
 pub use data::{ChannelData, DataOptions, DiagnosisData, SegmentData};

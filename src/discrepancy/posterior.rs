@@ -34,6 +34,7 @@ use super::data::DiagnosisData;
 use super::forward::{BaseParams, ExtendedModel};
 use super::hypothesis::{EffectParam, Hypothesis};
 use super::location::Location;
+use super::time_domain::TimeDomainModel;
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
 use num_complex::Complex64;
@@ -75,6 +76,9 @@ pub struct ModelPosterior {
     gains: Vec<GainSegment>,
     /// Extra whitened residuals (2 per gain coefficient).
     n_gain_residuals: usize,
+    /// When set, predictions replay the tests in the time domain instead of using
+    /// `model`'s frequency-domain solution ([`Self::with_time_domain`]).
+    time_domain: Option<Arc<TimeDomainModel>>,
 }
 
 /// A segment's [`super::data::InputGainBasis`] on the flat layout.
@@ -229,6 +233,7 @@ impl ModelPosterior {
         Ok(ModelPosterior {
             gains,
             n_gain_residuals,
+            time_domain: None,
             model,
             effect_params,
             names,
@@ -376,8 +381,31 @@ impl ModelPosterior {
     /// Predicted ratios at `z` (flat layout; see [`ExtendedModel::layout`]).
     pub fn predict(&self, z: &[f64]) -> Result<Vec<Complex64>> {
         self.check_len(z)?;
-        self.model
-            .predict(&self.base_params(z), &self.effect_physical(z)?)
+        let (base, effect) = (self.base_params(z), self.effect_physical(z)?);
+        match &self.time_domain {
+            Some(td) => {
+                let hyp = self.model.hypothesis();
+                td.predict(&base, hyp.map(|(h, l)| (h.as_ref(), l)), &effect)
+            }
+            None => self.model.predict(&base, &effect),
+        }
+    }
+
+    /// The same posterior with predictions from a time-domain replay of the tests
+    /// ([`super::time_domain`]); `td` must be built on this posterior's data.
+    pub fn with_time_domain(mut self, td: Arc<TimeDomainModel>) -> Result<Self> {
+        if !Arc::ptr_eq(td.data(), self.data()) && **td.data() != **self.data() {
+            return Err(Error::Usage(
+                "time-domain model built on other data than the posterior".into(),
+            ));
+        }
+        self.time_domain = Some(td);
+        Ok(self)
+    }
+
+    /// True when predictions come from a time-domain replay of the tests.
+    pub fn is_time_domain(&self) -> bool {
+        self.time_domain.is_some()
     }
 
     fn check_len(&self, z: &[f64]) -> Result<()> {

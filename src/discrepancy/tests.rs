@@ -68,6 +68,7 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
         channels,
         story_drift_lin_sq_m2: vec![Some(1e-6), Some(2e-6), Some(0.5e-6), Some(3e-6)],
         input_gain: None,
+        source: SegmentSource::default(),
     }
 }
 

@@ -204,11 +204,9 @@ fn kind_of(quantity: Quantity) -> Option<FrfKind> {
     }
 }
 
-/// Estimates the FRFs of one test: hammer tests by the whole-record transient or impact
-/// blocks ([`super::hammer`]), shake-table tests by the full-record transform
-/// ([`super::sweep`]) with accelerations made relative to the ground. `n_peaks` for band
-/// selection falls back to the highest floor among the response channels.
-pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
+/// Checks `test` and transforms its blocks (the part of [`estimate_test`] before the
+/// estimators); also the indices of its response channels.
+fn test_blocks(test: &Test, opts: &EstimateOptions) -> Result<(Blocks, Vec<usize>)> {
     let path = data_path(test);
     if test.sample_rate_hz.is_nan() || test.sample_rate_hz <= 0.0 {
         return Err(Error::invalid(path, "sample rate must be positive"));
@@ -225,15 +223,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
     }
     let pad = opts.zero_pad_factor.max(1);
     let fs = test.sample_rate_hz;
-    let Blocks {
-        input,
-        f_blocks,
-        input_noise,
-        y_blocks,
-        tau,
-        block_len,
-        impacts,
-    } = match test.kind {
+    let blocks = match test.kind {
         TestKind::Hammer { excited_floor } => {
             let fi = test
                 .find(Quantity::Force)
@@ -292,6 +282,45 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             }
         }
     };
+    Ok((blocks, resp_idx))
+}
+
+/// H1 alone of every response channel of `test` (in channel order), at every bin of
+/// [`estimate_test`] from 0 Hz (same blocks, windows and padding; no coherence, no
+/// bands, no truncation): what a model replay of a recorded test needs.
+pub fn estimate_h1(test: &Test, opts: &EstimateOptions) -> Result<Vec<(Channel, Vec<Complex64>)>> {
+    let (blocks, resp_idx) = test_blocks(test, opts)?;
+    resp_idx
+        .iter()
+        .zip(&blocks.y_blocks)
+        .map(|(&ci, yb)| {
+            let spectra = CrossSpectra::from_blocks(&blocks.f_blocks, yb)?;
+            Ok((test.channels[ci].clone(), spectra.h1()))
+        })
+        .collect::<Result<Vec<_>>>()
+        .map_err(|e| Error::invalid(data_path(test), e.to_string()))
+}
+
+/// Estimates the FRFs of one test: hammer tests by the whole-record transient or impact
+/// blocks ([`super::hammer`]), shake-table tests by the full-record transform
+/// ([`super::sweep`]) with accelerations made relative to the ground. `n_peaks` for band
+/// selection falls back to the highest floor among the response channels.
+pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
+    let path = data_path(test);
+    let pad = opts.zero_pad_factor.max(1);
+    let fs = test.sample_rate_hz;
+    let (
+        Blocks {
+            input,
+            f_blocks,
+            input_noise,
+            y_blocks,
+            tau,
+            block_len,
+            impacts,
+        },
+        resp_idx,
+    ) = test_blocks(test, opts)?;
     let n_fft = block_len * pad;
     let mut freq_hz = bin_freq_hz(n_fft, fs);
     let n_keep = match opts.freq_max_hz {

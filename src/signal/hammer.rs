@@ -354,6 +354,36 @@ pub struct HammerSpectra {
     pub n_fft: usize,
 }
 
+/// The union of the force windows of `pulses` over samples `[s, s + len)`.
+fn pulse_windows(pulses: &[Impact], s: usize, len: usize, margin: usize, taper: usize) -> Vec<f64> {
+    let mut w = vec![0.0; len];
+    for p in pulses {
+        let lo = p.trigger.saturating_sub(margin).max(s) - s;
+        let hi = (p.pulse_end + margin).saturating_sub(s).min(len - 1);
+        for (a, b) in w.iter_mut().zip(force_window(len, lo, hi, taper)) {
+            *a = f64::max(*a, b);
+        }
+    }
+    w
+}
+
+/// The force as [`hammer_spectra`] sees it, over the whole record: the median removed
+/// and, with `opts.force_window`, zero outside the force windows of every impact found
+/// ([`detect_all_impacts`]). The estimator attributes the responses to this force, so
+/// it is the input of a model replay of the test (the force noise outside the windows
+/// is not what drove the structure).
+pub fn windowed_force(force: &[f64], sample_rate_hz: f64, opts: &HammerOptions) -> Vec<f64> {
+    let base = median(force);
+    if !opts.force_window || force.is_empty() {
+        return force.iter().map(|f| f - base).collect();
+    }
+    let pulses = detect_all_impacts(force, sample_rate_hz, opts);
+    let margin = (opts.force_margin_s * sample_rate_hz).round() as usize;
+    let taper = (opts.force_taper_s * sample_rate_hz).round() as usize;
+    let w = pulse_windows(&pulses, 0, force.len(), margin, taper);
+    force.iter().zip(&w).map(|(f, w)| (f - base) * w).collect()
+}
+
 /// Detects impacts and returns the windowed spectra of the force and of each response
 /// record (`responses[i]`; force offset = its median, response offsets by
 /// [`response_offset`]) for the estimator of `opts.estimator`. `pad` is the zero-padding
@@ -409,15 +439,7 @@ pub fn hammer_spectra(
     let mut force_spectra = Vec::with_capacity(starts.len());
     for (pulses, &s) in windowed.iter().zip(&starts) {
         let mut w = if opts.force_window {
-            let mut w = vec![0.0; len];
-            for p in pulses {
-                let lo = p.trigger.saturating_sub(margin).max(s) - s;
-                let hi = (p.pulse_end + margin).saturating_sub(s).min(len - 1);
-                for (a, b) in w.iter_mut().zip(force_window(len, lo, hi, taper)) {
-                    *a = f64::max(*a, b);
-                }
-            }
-            w
+            pulse_windows(pulses, s, len, margin, taper)
         } else {
             vec![1.0; len]
         };

@@ -55,9 +55,9 @@ pub mod windows;
 
 pub use bands::{Band, BandOptions};
 pub use estimate::{
-    estimate_campaign, estimate_test, EstimateOptions, InputKind, ResponseFrf, TestFrf,
+    estimate_campaign, estimate_h1, estimate_test, EstimateOptions, InputKind, ResponseFrf, TestFrf,
 };
-pub use hammer::{HammerEstimator, HammerOptions};
+pub use hammer::{windowed_force, HammerEstimator, HammerOptions};
 pub use noise::{bendat_piersol_rel_std, CoherenceMethod};
 pub use windows::{
     correct_exp_window_damping, exp_window_modal_parameters, unwindowed_pole, windowed_modal_frf,

@@ -23,7 +23,7 @@ use crate::discrepancy::data::{DiagnosisData, SegmentData};
 use crate::discrepancy::hypothesis::{Coordinate, EffectParam, Hypothesis};
 use crate::discrepancy::location::Location;
 use crate::error::{Error, Result};
-use crate::simulate::LinearSystem;
+use crate::simulate::{CubicSpring, LinearSystem};
 
 #[derive(Debug, Clone, Copy, Default)]
 pub struct StiffnessNonlinearityHypothesis;
@@ -105,5 +105,34 @@ impl Hypothesis for StiffnessNonlinearityHypothesis {
             k[(b, a)] -= dk;
         }
         Ok(())
+    }
+
+    /// The cubic spring across the story (`effect[0] = k3`, N/m^3), for the replay of
+    /// the tests; its linear stiffness (for the stability check) is read off `sys`.
+    fn cubic_springs(
+        &self,
+        loc: &Location,
+        effect: &[f64],
+        sys: &LinearSystem,
+    ) -> Result<Vec<CubicSpring>> {
+        let s = story_of(loc, sys.n_floors())?;
+        let a = sys.dof_of_floor(s)?;
+        let b = sys.dof_of_level(s - 1)?;
+        let k = &sys.stiffness_n_per_m;
+        // Story s's spring is the coupling -K[a, b]; story 1 on a rigid base is what
+        // K[a, a] holds beyond the coupling to the floor above.
+        let linear = match b {
+            Some(b) => -k[(a, b)],
+            None => {
+                let above = sys.dof_of_floor(s + 1).ok().map_or(0.0, |u| -k[(a, u)]);
+                k[(a, a)] - above
+            }
+        };
+        Ok(vec![CubicSpring {
+            upper_dof: a,
+            lower_dof: b,
+            k3_n_per_m3: effect[0],
+            linear_stiffness_n_per_m: linear,
+        }])
     }
 }
