@@ -1,6 +1,8 @@
 //! Oracle tests of the forward model and its hypotheses on synthetic data layouts.
 
-use super::data::{nominal_frequencies, ChannelData, DataOptions, DiagnosisData, SegmentData};
+use super::data::{
+    nominal_frequencies, ChannelData, DataOptions, DiagnosisData, SegmentData, SegmentSource,
+};
 use super::forward::{frame_system, solve_in_place, BaseParams, ExtendedModel};
 use super::hypotheses::{all_hypotheses, hypothesis_by_name};
 use super::hypothesis::Hypothesis;
