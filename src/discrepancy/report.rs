@@ -94,13 +94,25 @@ pub fn explanation(d: &Diagnosis) -> String {
                 .iter()
                 .map(|(n, e)| {
                     format!(
-                        "{n} = {:.4} {} (95 % interval {:.4} to {:.4})",
-                        e.mean, e.unit, e.q2_5, e.q97_5
+                        "{n} = {} {} (95 % interval {} to {})",
+                        sig4(e.mean),
+                        e.unit,
+                        sig4(e.q2_5),
+                        sig4(e.q97_5)
                     )
                 })
                 .collect();
             if !effects.is_empty() {
                 let _ = write!(s, "Its size: {}. ", effects.join("; "));
+            }
+            if let Some(t) = &f.time_domain {
+                let _ = write!(
+                    s,
+                    "The size and the fit come from replaying the recorded tests with the \
+                     nonlinear model in the time domain (chi2 per point {:.2}; the \
+                     equivalent-linear model, which ranked it, reaches {:.2}). ",
+                    t.chi2_time_domain, t.chi2_linearised
+                );
             }
             let _ = write!(
                 s,
@@ -189,5 +201,35 @@ pub fn record(d: &Diagnosis) -> DiagnosisRecord {
         fit_after: d.fit_after,
         hypotheses: hypothesis_evidence(d),
         explanation: explanation(d),
+    }
+}
+
+/// `v` to four significant digits (scientific notation outside 1e-3..1e5).
+fn sig4(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && !(1e-3..1e5).contains(&a) {
+        format!("{v:.3e}")
+    } else {
+        let decimals = if a == 0.0 {
+            3
+        } else {
+            (3 - a.log10().floor() as i32).max(0) as usize
+        };
+        format!("{v:.decimals$}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::sig4;
+
+    #[test]
+    fn four_significant_digits() {
+        assert_eq!(sig4(1.4998e8), "1.500e8");
+        assert_eq!(sig4(3.01234), "3.012");
+        assert_eq!(sig4(0.0123456), "0.01235");
+        assert_eq!(sig4(-4.5e-5), "-4.500e-5");
+        assert_eq!(sig4(12345.6), "12346");
+        assert_eq!(sig4(0.0), "0.000");
     }
 }
