@@ -17,8 +17,9 @@
 use criterion::{criterion_group, Criterion};
 use frfbayes::bayes::run::{prepare, SampleSettings, TestSelection};
 use frfbayes::bayes::{ball_positions, find_start, FrfData, FrfPosterior};
-use frfbayes::frf::{Excitation, FrfBlock, FrfKind, FrfPair};
+use frfbayes::frf::{Excitation, FrfBlock, FrfKind, FrfPair, ModalFrf};
 use frfbayes::mcmc::LogDensity;
+use frfbayes::modal::Modes;
 use frfbayes::model::StructuralModel;
 use frfbayes::update::{DampingModel, MultistartOptions};
 use std::hint::black_box;
@@ -149,6 +150,67 @@ fn probe_loop(post: &FrfPosterior, points: &[Vec<f64>], n: usize) -> f64 {
     acc
 }
 
+/// CPU time per call of the parts of an evaluation: the eigen-solve, the modal sums
+/// (the forward model's blocks, one evaluator per block, no window), the forward model
+/// and the whole log posterior.
+fn parts(post: &FrfPosterior, points: &[Vec<f64>], n: usize) {
+    let fwd = post.forward();
+    let model = fwd.model();
+    let thetas: Vec<Vec<f64>> = points.iter().map(|z| post.theta(z)).collect();
+    let (n_alpha, n_beta) = (fwd.variables().n_alpha(), fwd.variables().n_beta());
+    let km: Vec<_> = thetas
+        .iter()
+        .map(|t| {
+            let (k, m) = (
+                model.stiffness(&t[..n_alpha]),
+                model.mass(&t[n_alpha..n_alpha + n_beta]),
+            );
+            let modes = Modes::solve(&k, &m, model.ground_influence(), None).unwrap();
+            let c: Vec<f64> = modes.omega_rad_s.iter().map(|w| 0.02 * w).collect();
+            (k, m, modes, c)
+        })
+        .collect();
+    let time = |name: &str, f: &mut dyn FnMut(usize)| {
+        let cpu0 = thread_cpu_seconds();
+        for i in 0..n {
+            f(i % points.len());
+        }
+        let us = 1e6 * (thread_cpu_seconds() - cpu0) / n as f64;
+        println!("{name}: {us:.3} us per call");
+    };
+    let mut modes = km[0].2.clone();
+    time("eigen-solve", &mut |i| {
+        let (k, m, ..) = &km[i];
+        modes
+            .solve_into(black_box(k), m, model.ground_influence(), None)
+            .unwrap();
+    });
+    let mut frfs: Vec<ModalFrf> = fwd
+        .blocks()
+        .iter()
+        .map(|b| ModalFrf::new(vec![b.clone()]))
+        .collect();
+    let mut out = vec![0.0; fwd.len()];
+    time("modal sums", &mut |i| {
+        let (_, _, modes, c) = &km[i];
+        let mut offset = 0;
+        for f in frfs.iter_mut() {
+            let len = f.len();
+            f.magnitudes(black_box(modes), c, &mut out[offset..offset + len])
+                .unwrap();
+            offset += len;
+        }
+    });
+    let mut ws = fwd.workspace();
+    time("forward model", &mut |i| {
+        fwd.magnitudes(black_box(&thetas[i]), &mut ws, &mut out)
+            .unwrap();
+    });
+    time("log posterior", &mut |i| {
+        black_box(post.ln_density(black_box(&points[i])).unwrap());
+    });
+}
+
 /// CPU time of the calling thread, s, from /proc (Linux; 100 Hz ticks); NaN elsewhere.
 fn thread_cpu_seconds() -> f64 {
     std::fs::read_to_string("/proc/thread-self/stat")
@@ -195,6 +257,10 @@ fn main() {
             while !std::path::Path::new(&go).exists() {
                 std::thread::sleep(std::time::Duration::from_millis(20));
             }
+        }
+        if std::env::var_os("FRFBAYES_PROBE_PARTS").is_some() {
+            parts(&post, &points, n);
+            return;
         }
         let cpu0 = thread_cpu_seconds();
         let acc = probe_loop(&post, &points, n);
