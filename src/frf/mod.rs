@@ -279,18 +279,15 @@ impl ModalFrf {
         for block in &self.blocks {
             let len = block.omega_rad_s.len() * block.pairs.len();
             // Modal coefficients of every pair, pair-major (Eqs. 7, 10, 15, 16).
-            self.coef.clear();
-            for pair in &block.pairs {
-                let columns = modes.phi.as_slice().chunks_exact(n);
-                match pair.excitation {
-                    Excitation::Dof(e) => self
-                        .coef
-                        .extend(columns.map(|phi| phi[pair.response] * phi[e])),
-                    Excitation::Ground => self.coef.extend(
-                        columns
-                            .zip(&modes.participation)
-                            .map(|(phi, g)| -phi[pair.response] * g),
-                    ),
+            let phi = modes.phi.as_slice();
+            self.coef.resize(block.pairs.len() * m, 0.0);
+            for (pair, coef) in block.pairs.iter().zip(self.coef.chunks_exact_mut(m)) {
+                let r = pair.response;
+                for (i, c) in coef.iter_mut().enumerate() {
+                    *c = match pair.excitation {
+                        Excitation::Dof(e) => phi[i * n + r] * phi[i * n + e],
+                        Excitation::Ground => -phi[i * n + r] * modes.participation[i],
+                    };
                 }
             }
             let args = BlockArgs {
@@ -387,7 +384,10 @@ fn store_magnitudes(re: &Lanes, im: &Lanes, power: i32, w: &Lanes, w2: &Lanes, d
         _ => *w2,
     };
     let mag: Lanes = std::array::from_fn(|l| (re[l] * re[l] + im[l] * im[l]).sqrt() * scale[l]);
-    dst.copy_from_slice(&mag[..dst.len()]);
+    match <&mut Lanes>::try_from(&mut *dst) {
+        Ok(full) => *full = mag,
+        Err(_) => dst.copy_from_slice(&mag[..dst.len()]),
+    }
 }
 
 /// [`block_magnitudes`] for exactly `M` modes.

@@ -63,10 +63,10 @@ impl Modes {
         let n_modes = n_modes.unwrap_or(n).min(n);
         macro_rules! fixed {
             ($n:literal) => {{
-                if let Some((eigenvalues, shapes, scale)) = shear_frame_eigen::<$n>(k, m) {
+                if let Some((eigenvalues, shapes)) = shear_frame_eigen::<$n>(k, m) {
                     return self.assemble(
                         &eigenvalues,
-                        |r, i| shapes[i][r] / scale[r],
+                        |r, i| shapes[i][r],
                         m,
                         ground_influence,
                         n_modes,
@@ -200,11 +200,11 @@ impl Modes {
     }
 }
 
-/// Eigenvalues `omega^2` (unordered), the eigenvectors `v_i` of `A = M^-1/2 K M^-1/2`
-/// (`v[i]`) and `M^1/2` (diagonal), so that shape `i` is `v[i][r] / scale[r]`, when `M`
-/// is diagonal with positive entries and `K` is tridiagonal and symmetric; `None`
+/// Eigenvalues `omega^2` (unordered) and `M`-orthonormal shapes (`shapes[i]`, from the
+/// eigenvectors `v_i` of `A = M^-1/2 K M^-1/2`: `phi_i = M^-1/2 v_i`) when `M` is
+/// diagonal with positive entries and `K` is tridiagonal and symmetric; `None`
 /// otherwise, or when the tridiagonal solver fails (the general path then decides).
-type TridiagonalPairs<const N: usize> = ([f64; N], [[f64; N]; N], [f64; N]);
+type TridiagonalPairs<const N: usize> = ([f64; N], [[f64; N]; N]);
 
 fn shear_frame_eigen<const N: usize>(
     k: &DMatrix<f64>,
@@ -234,7 +234,8 @@ fn shear_frame_eigen<const N: usize>(
         }
     });
     let (values, vectors) = tridiagonal::symmetric_tridiagonal_eigen(diag, off)?;
-    Some((values, vectors, scale))
+    let shapes = vectors.map(|v| std::array::from_fn(|r| v[r] / scale[r]));
+    Some((values, shapes))
 }
 
 /// Eigenvalues (unordered) and eigenvectors (columns) of a `D x D` problem.
