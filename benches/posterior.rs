@@ -15,7 +15,7 @@
 //! the slow campaign estimate.
 
 use criterion::{criterion_group, Criterion};
-use frfbayes::bayes::run::{prepare, SampleSettings, TestSelection};
+use frfbayes::bayes::run::{prepare, sample_posterior, SampleSettings, TestSelection};
 use frfbayes::bayes::{ball_positions, find_start, FrfData, FrfPosterior};
 use frfbayes::frf::{Excitation, FrfBlock, FrfKind, FrfPair, ModalFrf};
 use frfbayes::mcmc::LogDensity;
@@ -27,14 +27,17 @@ use std::path::PathBuf;
 
 const N_POINTS: usize = 64;
 
+/// One block in the cache: frequencies and pairs `(response, excitation or -1 for
+/// ground, power)`.
+type CachedBlock = (Vec<f64>, Vec<(usize, i64, i32)>);
+
 /// What the probe needs to rebuild the posterior without reading the campaign.
 #[derive(serde::Serialize, serde::Deserialize)]
 struct Cache {
     floor_mass_kg: Vec<f64>,
     story_stiffness_n_per_m: Vec<f64>,
     data: FrfData,
-    /// Per block: frequencies and pairs `(response, excitation or -1 for ground, power)`.
-    blocks: Vec<(Vec<f64>, Vec<(usize, i64, i32)>)>,
+    blocks: Vec<CachedBlock>,
     points: Vec<Vec<f64>>,
 }
 
@@ -257,6 +260,22 @@ fn main() {
             while !std::path::Path::new(&go).exists() {
                 std::thread::sleep(std::time::Duration::from_millis(20));
             }
+        }
+        if std::env::var_os("FRFBAYES_PROBE_SAMPLE").is_some() {
+            // `n` sampler steps of `frfbayes sample`'s settings (use RAYON_NUM_THREADS).
+            let mut s = settings();
+            s.max_steps = n as u64;
+            let cpu0 = thread_cpu_seconds();
+            let run = sample_posterior(&post, &s).unwrap();
+            println!(
+                "{} steps, {} evaluations, sampling {:.3} s wall ({:.3} s CPU of this thread \
+                 for the whole call)",
+                run.summary.n_steps,
+                run.summary.n_likelihood_evals,
+                run.summary.wall_s,
+                thread_cpu_seconds() - cpu0
+            );
+            return;
         }
         if std::env::var_os("FRFBAYES_PROBE_PARTS").is_some() {
             parts(&post, &points, n);

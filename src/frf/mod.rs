@@ -370,7 +370,10 @@ fn block_magnitudes(args: BlockArgs<'_>) {
 #[inline(always)]
 fn chunk_frequencies(omega: &[f64], k0: usize) -> (usize, Lanes, Lanes) {
     let n_valid = (omega.len() - k0).min(LANES);
-    let w: Lanes = std::array::from_fn(|l| omega[k0 + l.min(n_valid - 1)]);
+    let w: Lanes = match omega[k0..].first_chunk::<LANES>() {
+        Some(full) => *full,
+        None => std::array::from_fn(|l| omega[k0 + l.min(n_valid - 1)]),
+    };
     let w2: Lanes = std::array::from_fn(|l| w[l] * w[l]);
     (n_valid, w, w2)
 }

@@ -220,7 +220,7 @@ fn shear_frame_eigen<const N: usize>(
         if i + 1 < N && k[(i, i + 1)] != k[(i + 1, i)] {
             return None;
         }
-        if !(m[(i, i)] > 0.0) {
+        if m[(i, i)].is_nan() || m[(i, i)] <= 0.0 {
             return None;
         }
     }
