@@ -26,11 +26,17 @@ pub struct ForwardModel {
     n_modes: usize,
     k0: DMatrix<f64>,
     m0: DMatrix<f64>,
+    /// Non-zero entries `(column-major index, value)` of each stiffness influence matrix.
+    k_terms: Vec<Vec<(usize, f64)>>,
+    /// The same for the mass influence matrices.
+    m_terms: Vec<Vec<(usize, f64)>>,
     blocks: Vec<FrfBlock>,
     /// Per block: `1 / tau` in 1/s (0 without a window).
     window_eps: Vec<f64>,
     /// Per point: `|(j omega + eps)^p| / omega^p`, the window's change of the kind factor.
     window_gain: Vec<f64>,
+    /// Per block: every gain is exactly 1 (receptance, or no window).
+    unit_gain: Vec<bool>,
     /// Per block: offset into the long vector.
     offsets: Vec<usize>,
     len: usize,
@@ -115,9 +121,29 @@ impl ForwardModel {
             offsets.push(len);
             len += b.omega_rad_s.len() * b.pairs.len();
         }
+        let unit_gain = offsets
+            .iter()
+            .zip(&blocks)
+            .map(|(&o, b)| {
+                let n = b.omega_rad_s.len() * b.pairs.len();
+                window_gain[o..o + n].iter().all(|&g| g == 1.0)
+            })
+            .collect();
+        let terms = |matrices: &[DMatrix<f64>]| -> Vec<Vec<(usize, f64)>> {
+            matrices
+                .iter()
+                .map(|a| {
+                    let nonzero = a.as_slice().iter().enumerate().filter(|(_, y)| **y != 0.0);
+                    nonzero.map(|(i, &y)| (i, y)).collect()
+                })
+                .collect()
+        };
         Ok(ForwardModel {
             k0: model.stiffness(&model.alpha_zero()),
             m0: model.mass(&model.beta_zero()),
+            k_terms: terms(model.stiffness_influence()),
+            m_terms: terms(model.mass_influence()),
+            unit_gain,
             model,
             variables,
             n_modes,
@@ -216,14 +242,22 @@ impl ForwardModel {
         let n_alpha = self.variables.n_alpha();
         let (alpha, rest) = theta.split_at(n_alpha);
         let (beta, damping) = rest.split_at(self.variables.n_beta());
-        ws.k.copy_from(&self.k0);
-        for (a, kr) in alpha.iter().zip(self.model.stiffness_influence()) {
-            ws.k.zip_apply(kr, |x, y| *x += a * y);
-        }
-        ws.m.copy_from(&self.m0);
-        for (b, mr) in beta.iter().zip(self.model.mass_influence()) {
-            ws.m.zip_apply(mr, |x, y| *x += b * y);
-        }
+        // K(alpha) = K0 + sum alpha_r K0_r, M(beta) likewise (Eqs. 20-21), over the
+        // influence matrices' non-zero entries (adding `a * 0` changes nothing).
+        let assemble = |out: &mut DMatrix<f64>,
+                        base: &DMatrix<f64>,
+                        x: &[f64],
+                        terms: &[Vec<(usize, f64)>]| {
+            let out = out.as_mut_slice();
+            out.copy_from_slice(base.as_slice());
+            for (a, terms) in x.iter().zip(terms) {
+                for &(i, y) in terms {
+                    out[i] += a * y;
+                }
+            }
+        };
+        assemble(&mut ws.k, &self.k0, alpha, &self.k_terms);
+        assemble(&mut ws.m, &self.m0, beta, &self.m_terms);
         let modes = &mut ws.modes;
         modes.solve_into(
             &ws.k,
@@ -254,22 +288,35 @@ impl ForwardModel {
             }
         }
         ws.omega.copy_from_slice(&modes.omega_rad_s);
+        // The window of the modal parameters currently in `modes` / `c_window`.
+        let mut current_eps = 0.0;
         for (b, frf) in ws.frfs.iter_mut().enumerate() {
             let eps = self.window_eps[b];
             let range = self.offsets[b]..self.offsets[b] + frf.len();
             if eps == 0.0 {
+                if current_eps != 0.0 {
+                    modes.omega_rad_s.copy_from_slice(&ws.omega);
+                    current_eps = 0.0;
+                }
                 frf.magnitudes(modes, &ws.c, &mut out[range])?;
                 continue;
             }
-            for i in 0..self.n_modes {
-                let (w, c) = (ws.omega[i], ws.c[i]);
-                modes.omega_rad_s[i] = (w * w + eps * eps + c * eps).sqrt();
-                ws.c_window[i] = c + 2.0 * eps;
+            if eps != current_eps {
+                for i in 0..self.n_modes {
+                    let (w, c) = (ws.omega[i], ws.c[i]);
+                    modes.omega_rad_s[i] = (w * w + eps * eps + c * eps).sqrt();
+                    ws.c_window[i] = c + 2.0 * eps;
+                }
+                current_eps = eps;
             }
             frf.magnitudes(modes, &ws.c_window, &mut out[range.clone()])?;
-            for (o, g) in out[range.clone()].iter_mut().zip(&self.window_gain[range]) {
-                *o *= g;
+            if !self.unit_gain[b] {
+                for (o, g) in out[range.clone()].iter_mut().zip(&self.window_gain[range]) {
+                    *o *= g;
+                }
             }
+        }
+        if current_eps != 0.0 {
             modes.omega_rad_s.copy_from_slice(&ws.omega);
         }
         Ok(())
@@ -317,8 +364,13 @@ mod tests {
     #[test]
     fn windowed_magnitudes_match_the_complex_frequency_oracle() {
         let model = frame();
-        let taus = [Some(7.5), None];
-        for damping in [DampingModel::Rayleigh, DampingModel::Caughey] {
+        // A window then none, the same window twice (its modal parameters reused), none
+        // then a window.
+        let windows = [[Some(7.5), None], [Some(7.5), Some(7.5)], [None, Some(3.0)]];
+        for (taus, damping) in windows
+            .into_iter()
+            .flat_map(|t| [(t, DampingModel::Rayleigh), (t, DampingModel::Caughey)])
+        {
             let vars = Variables::new(&model, damping, 4, &VariablesConfig::default()).unwrap();
             let fm = ForwardModel::new(model.clone(), vars.clone(), 4, blocks(), &taus).unwrap();
             let mut theta = vec![0.05, -0.1, 0.2, 0.02, 0.03, -0.05, 0.1, 0.0];

@@ -239,6 +239,7 @@ impl FrfPosterior {
     /// the per-point terms.
     pub fn ln_likelihood(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
         self.check_dim(z)?;
+        self.check_pointwise(pointwise)?;
         let mut ws = self.take_workspace();
         let r = self.ln_likelihood_with(z, &mut ws, pointwise);
         self.return_workspace(ws);
@@ -260,48 +261,50 @@ impl FrfPosterior {
         let result = r.map(|()| {
             let ln_s = z[n_free];
             let inv_s = (-ln_s).exp();
-            let log = self.data.residual == ResidualForm::LogMagnitude;
-            let mut ss = 0.0;
-            let points = mag.iter().zip(&self.target).zip(&self.inv_sigma);
-            if pointwise.is_empty() && !log {
-                // The sampler's case: free of branches, and four partial sums so the
-                // additions do not wait on each other.
-                const L: usize = 4;
-                let n = mag.len() / L * L;
-                let mut part = [0.0; L];
-                for ((h, t), w) in mag[..n]
-                    .chunks_exact(L)
-                    .zip(self.target[..n].chunks_exact(L))
-                    .zip(self.inv_sigma[..n].chunks_exact(L))
-                {
+            if self.data.residual == ResidualForm::LogMagnitude {
+                for h in mag.iter_mut() {
+                    *h = h.ln();
+                }
+            }
+            // Four partial sums over chunks of four points (so the additions do not wait
+            // on each other and vectorise), the remainder after them; with or without
+            // the pointwise terms, the same grouping and so the same bits.
+            const L: usize = 4;
+            let n = mag.len() / L * L;
+            let mut part = [0.0; L];
+            let chunks = mag[..n]
+                .chunks_exact(L)
+                .zip(self.target[..n].chunks_exact(L))
+                .zip(self.inv_sigma[..n].chunks_exact(L));
+            if pointwise.is_empty() {
+                for ((a, t), w) in chunks {
                     for l in 0..L {
-                        let e = (h[l] - t[l]) * w[l] * inv_s;
+                        let e = (a[l] - t[l]) * w[l] * inv_s;
                         part[l] += e * e;
                     }
                 }
-                for ((&h, &t), &w) in points.skip(n) {
-                    let e = (h - t) * w * inv_s;
-                    ss += e * e;
-                }
-                ss += (part[0] + part[1]) + (part[2] + part[3]);
             } else {
-                // The same sum, grouped as above (so both paths give the same bits).
-                let n = mag.len() / 4 * 4;
-                let mut part = [0.0; 4];
-                for (k, ((&h, &t), &w)) in points.enumerate() {
-                    let a = if log { h.ln() } else { h };
-                    let e = (a - t) * w * inv_s;
-                    if k < n {
-                        part[k % 4] += e * e;
-                    } else {
-                        ss += e * e;
-                    }
-                    if let Some(p) = pointwise.get_mut(k) {
-                        *p = -0.5 * e * e - ln_s + self.ln_norm[k];
+                let terms = pointwise[..n]
+                    .chunks_exact_mut(L)
+                    .zip(self.ln_norm[..n].chunks_exact(L));
+                for (((a, t), w), (p, ln_norm)) in chunks.zip(terms) {
+                    for l in 0..L {
+                        let e = (a[l] - t[l]) * w[l] * inv_s;
+                        part[l] += e * e;
+                        p[l] = -0.5 * e * e - ln_s + ln_norm[l];
                     }
                 }
-                ss += (part[0] + part[1]) + (part[2] + part[3]);
             }
+            let mut ss = 0.0;
+            let rest = mag.iter().zip(&self.target).zip(&self.inv_sigma);
+            for (k, ((&a, &t), &w)) in rest.enumerate().skip(n) {
+                let e = (a - t) * w * inv_s;
+                ss += e * e;
+                if let Some(p) = pointwise.get_mut(k) {
+                    *p = -0.5 * e * e - ln_s + self.ln_norm[k];
+                }
+            }
+            ss += (part[0] + part[1]) + (part[2] + part[3]);
             -0.5 * ss - self.data.len() as f64 * ln_s + self.ln_norm_sum
         });
         ws.magnitude = mag;
@@ -346,6 +349,18 @@ impl FrfPosterior {
         Ok(())
     }
 
+    /// `pointwise` must be empty or hold one slot per point.
+    fn check_pointwise(&self, pointwise: &[f64]) -> Result<()> {
+        if !pointwise.is_empty() && pointwise.len() != self.data.len() {
+            return Err(Error::Usage(format!(
+                "{} pointwise slots for {} points",
+                pointwise.len(),
+                self.data.len()
+            )));
+        }
+        Ok(())
+    }
+
     fn take_workspace(&self) -> ForwardWorkspace {
         let popped = self.pool.lock().ok().and_then(|mut p| p.pop());
         popped.unwrap_or_else(|| self.forward.workspace())
@@ -384,13 +399,13 @@ impl LogDensity for FrfPosterior {
     }
 
     fn ln_density_with_pointwise(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
-        if pointwise.len() != self.data.len() {
+        if pointwise.is_empty() && !self.data.is_empty() {
             return Err(Error::Usage(format!(
-                "{} pointwise slots for {} points",
-                pointwise.len(),
+                "0 pointwise slots for {} points",
                 self.data.len()
             )));
         }
+        self.check_pointwise(pointwise)?;
         self.evaluate(z, pointwise)
     }
 }

@@ -99,9 +99,10 @@ pub fn modal_frf(modes: &Modes, modal_c: &[f64], pair: &FrfPair, omega_rad_s: f6
 /// Fast modal-sum evaluator for a fixed set of blocks (the long vectors of Eqs. 18-19).
 /// Holds its scratch buffers, so evaluation does not allocate after the first call.
 ///
-/// Layout for speed: the pole table `1 / (omega_i^2 - omega_k^2 + j c_i omega_k)` is
-/// stored mode-major as separate real and imaginary arrays, and each pair's modal sum
-/// accumulates over modes into per-frequency arrays, so the inner loops vectorise.
+/// Layout for speed: [`Self::complex`] stores the pole table
+/// `1 / (omega_i^2 - omega_k^2 + j c_i omega_k)` mode-major as separate real and imaginary
+/// arrays, and each pair's modal sum accumulates over modes into per-frequency arrays, so
+/// the inner loops vectorise; [`Self::magnitudes`] works chunk by chunk of frequencies.
 #[derive(Debug, Clone)]
 pub struct ModalFrf {
     blocks: Vec<FrfBlock>,
@@ -110,6 +111,12 @@ pub struct ModalFrf {
     pole_im: Vec<f64>,
     acc_re: Vec<f64>,
     acc_im: Vec<f64>,
+    /// Scratch of [`Self::magnitudes`]: modal coefficients of one block's pairs.
+    coef: Vec<f64>,
+    /// Scratch of [`Self::magnitudes`]: one chunk's poles (3 lane arrays per mode).
+    chunk: Vec<Lanes>,
+    /// DOF count for which every pair has been checked (pairs never change).
+    checked_n_dof: Option<usize>,
 }
 
 impl ModalFrf {
@@ -127,6 +134,9 @@ impl ModalFrf {
             pole_im: Vec::new(),
             acc_re: Vec::new(),
             acc_im: Vec::new(),
+            coef: Vec::new(),
+            chunk: Vec::new(),
+            checked_n_dof: None,
         }
     }
 
@@ -145,21 +155,27 @@ impl ModalFrf {
         self.len == 0
     }
 
-    fn check(&self, modes: &Modes, modal_c: &[f64], out_len: usize) -> Result<()> {
+    fn check(&mut self, modes: &Modes, modal_c: &[f64], out_len: usize) -> Result<()> {
         if out_len != self.len {
             return Err(Error::Usage(format!(
                 "output has {out_len} entries, expected {}",
                 self.len
             )));
         }
-        if modal_c.len() != modes.n_modes() {
+        let m = modes.n_modes();
+        if modal_c.len() != m || modes.phi.ncols() != m || modes.participation.len() != m {
             return Err(Error::Usage(format!(
-                "{} damping coefficients for {} modes",
+                "{} damping coefficients, {} mode shapes and {} participation factors for \
+                 {m} modes",
                 modal_c.len(),
-                modes.n_modes()
+                modes.phi.ncols(),
+                modes.participation.len(),
             )));
         }
         let n = modes.phi.nrows();
+        if self.checked_n_dof == Some(n) {
+            return Ok(());
+        }
         for b in &self.blocks {
             for p in &b.pairs {
                 let e_ok = match p.excitation {
@@ -173,6 +189,7 @@ impl ModalFrf {
                 }
             }
         }
+        self.checked_n_dof = Some(n);
         Ok(())
     }
 
@@ -239,47 +256,57 @@ impl ModalFrf {
 
     /// FRF magnitudes (Eq. 17) into `out` (length [`Self::len`]).
     ///
-    /// The inner loop of every likelihood evaluation: per block, the pole table once,
-    /// then each pair's modal sum and magnitude in one pass over the frequencies, in
-    /// chunks of [`LANES`] frequencies held in registers (no intermediate arrays). The
-    /// arithmetic (order of the sums included) is that of [`Self::complex`] before the
-    /// kind factor, so the results do not depend on the CPU; on x86-64 CPUs with AVX
-    /// the same code runs with 4-wide vectors (IEEE division and square root are exact,
-    /// and Rust never fuses multiply-adds, so the bits are the same).
+    /// The inner loop of every likelihood evaluation. Per block, chunk by chunk of
+    /// [`LANES`] frequencies held in registers (no intermediate arrays): the chunk's poles
+    /// `1 / (omega_i^2 - omega^2 + j c_i omega)` of every mode, then each pair's modal sum
+    /// (modes in order) and magnitude. The poles' real reciprocals `1 / |den_i|^2` are
+    /// found by batch inversion, one division per group of [`GROUP`] modes (a division
+    /// costs as much as a dozen multiplications), which differs from [`Self::complex`]'s
+    /// one division per pole by a few ulps. The results do not depend on the CPU: on
+    /// x86-64 CPUs with AVX the same code runs with 4-wide vectors, and IEEE division and
+    /// square root are exact and Rust never fuses multiply-adds, so the bits are the same
+    /// (a test checks it).
     pub fn magnitudes(&mut self, modes: &Modes, modal_c: &[f64], out: &mut [f64]) -> Result<()> {
         self.check(modes, modal_c, out.len())?;
         let m = modes.n_modes();
+        if m == 0 {
+            out.fill(0.0);
+            return Ok(());
+        }
+        let n = modes.phi.nrows();
+        self.chunk.resize(3 * m, [0.0; LANES]);
         let mut offset = 0;
         for block in &self.blocks {
-            let nw = block.omega_rad_s.len();
-            let len = nw * block.pairs.len();
-            self.pole_re.resize(m * nw, 0.0);
-            self.pole_im.resize(m * nw, 0.0);
-            // Modal coefficients of every pair, pair-major (`acc_re` is free scratch here).
-            self.acc_re.clear();
-            for pair in &block.pairs {
-                self.acc_re
-                    .extend((0..m).map(|i| modal_coefficient(modes, pair, i)));
+            let len = block.omega_rad_s.len() * block.pairs.len();
+            // Modal coefficients of every pair, pair-major (Eqs. 7, 10, 15, 16).
+            let phi = modes.phi.as_slice();
+            self.coef.resize(block.pairs.len() * m, 0.0);
+            for (pair, coef) in block.pairs.iter().zip(self.coef.chunks_exact_mut(m)) {
+                let r = pair.response;
+                for (i, c) in coef.iter_mut().enumerate() {
+                    *c = match pair.excitation {
+                        Excitation::Dof(e) => phi[i * n + r] * phi[i * n + e],
+                        Excitation::Ground => -phi[i * n + r] * modes.participation[i],
+                    };
+                }
             }
             let args = BlockArgs {
                 omega_rad_s: &block.omega_rad_s,
                 pairs: &block.pairs,
                 omega_n_rad_s: &modes.omega_rad_s,
                 modal_c,
-                coef: &self.acc_re,
-                pole_re: &mut self.pole_re,
-                pole_im: &mut self.pole_im,
+                coef: &self.coef,
+                chunk: &mut self.chunk,
                 out: &mut out[offset..offset + len],
             };
+            offset += len;
             #[cfg(target_arch = "x86_64")]
             if std::arch::is_x86_feature_detected!("avx") {
                 // SAFETY: the CPU supports AVX, checked just above.
                 unsafe { block_magnitudes_avx(args) };
-                offset += len;
                 continue;
             }
             block_magnitudes(args);
-            offset += len;
         }
         Ok(())
     }
@@ -287,6 +314,12 @@ impl ModalFrf {
 
 /// Frequencies per chunk of the fused magnitude kernel.
 const LANES: usize = 4;
+
+/// Modes per batch inversion in the magnitude kernel.
+const GROUP: usize = 4;
+
+/// One value per frequency of a chunk.
+type Lanes = [f64; LANES];
 
 /// Inputs of [`block_magnitudes`] for one block.
 struct BlockArgs<'a> {
@@ -296,8 +329,8 @@ struct BlockArgs<'a> {
     modal_c: &'a [f64],
     /// `coef[p * m + i]`: modal coefficient of mode `i` for pair `p`.
     coef: &'a [f64],
-    pole_re: &'a mut [f64],
-    pole_im: &'a mut [f64],
+    /// Scratch, `3 m` lane arrays.
+    chunk: &'a mut [Lanes],
     out: &'a mut [f64],
 }
 
@@ -307,71 +340,198 @@ unsafe fn block_magnitudes_avx(args: BlockArgs<'_>) {
     block_magnitudes(args);
 }
 
-/// Pole table `1 / (omega_i^2 - omega^2 + j c_i omega)` (mode-major) and the magnitudes
-/// `|sum_i coef_i pole_i| omega^p` of every pair of one block.
+/// Most modes for which the magnitude kernel is compiled for the exact mode count (all
+/// values in registers); more take a general path with the same arithmetic.
+const MAX_FIXED_MODES: usize = 8;
+
+/// The magnitudes `|sum_i coef_i / (omega_i^2 - omega^2 + j c_i omega)| omega^p` of every
+/// pair of one block, chunk by chunk of frequencies (a last partial chunk repeats its
+/// last frequency in the unused lanes).
 #[inline(always)]
 fn block_magnitudes(args: BlockArgs<'_>) {
+    match args.omega_n_rad_s.len() {
+        1 => block_magnitudes_fixed::<1>(args),
+        2 => block_magnitudes_fixed::<2>(args),
+        3 => block_magnitudes_fixed::<3>(args),
+        4 => block_magnitudes_fixed::<4>(args),
+        5 => block_magnitudes_fixed::<5>(args),
+        6 => block_magnitudes_fixed::<6>(args),
+        7 => block_magnitudes_fixed::<7>(args),
+        8 => block_magnitudes_fixed::<8>(args),
+        m => {
+            debug_assert!(m > MAX_FIXED_MODES);
+            block_magnitudes_any(args)
+        }
+    }
+}
+
+/// The frequencies of the chunk at `k0` and their squares; a partial chunk repeats its
+/// last frequency.
+#[inline(always)]
+fn chunk_frequencies(omega: &[f64], k0: usize) -> (usize, Lanes, Lanes) {
+    let n_valid = (omega.len() - k0).min(LANES);
+    let w: Lanes = match omega[k0..].first_chunk::<LANES>() {
+        Some(full) => *full,
+        None => std::array::from_fn(|l| omega[k0 + l.min(n_valid - 1)]),
+    };
+    let w2: Lanes = std::array::from_fn(|l| w[l] * w[l]);
+    (n_valid, w, w2)
+}
+
+/// `|re + j im| omega^p` of one chunk, into the valid part of `dst`.
+#[inline(always)]
+fn store_magnitudes(re: &Lanes, im: &Lanes, power: i32, w: &Lanes, w2: &Lanes, dst: &mut [f64]) {
+    let scale = match power {
+        0 => [1.0; LANES],
+        1 => *w,
+        _ => *w2,
+    };
+    let mag: Lanes = std::array::from_fn(|l| (re[l] * re[l] + im[l] * im[l]).sqrt() * scale[l]);
+    match <&mut Lanes>::try_from(&mut *dst) {
+        Ok(full) => *full = mag,
+        Err(_) => dst.copy_from_slice(&mag[..dst.len()]),
+    }
+}
+
+/// [`block_magnitudes`] for exactly `M` modes.
+#[inline(always)]
+fn block_magnitudes_fixed<const M: usize>(args: BlockArgs<'_>) {
     let BlockArgs {
         omega_rad_s: omega,
         pairs,
         omega_n_rad_s,
         modal_c,
         coef,
-        pole_re,
-        pole_im,
+        out,
+        ..
+    } = args;
+    let nw = omega.len();
+    let wn: [f64; M] = std::array::from_fn(|i| omega_n_rad_s[i]);
+    let c: [f64; M] = std::array::from_fn(|i| modal_c[i]);
+    let mut k0 = 0;
+    while k0 < nw {
+        let (n_valid, w, w2) = chunk_frequencies(omega, k0);
+        let mut pole_re = [[0.0; LANES]; M];
+        let mut pole_im = [[0.0; LANES]; M];
+        let mut den_sq = [[0.0; LANES]; M];
+        for i in 0..M {
+            for l in 0..LANES {
+                pole_re[i][l] = wn[i] * wn[i] - w2[l];
+                pole_im[i][l] = c[i] * w[l];
+                den_sq[i][l] = pole_re[i][l] * pole_re[i][l] + pole_im[i][l] * pole_im[i][l];
+            }
+        }
+        reciprocals(&mut den_sq);
+        for i in 0..M {
+            for l in 0..LANES {
+                pole_re[i][l] *= den_sq[i][l];
+                pole_im[i][l] = -pole_im[i][l] * den_sq[i][l];
+            }
+        }
+        for ((pair, coef), dst) in pairs
+            .iter()
+            .zip(coef.chunks_exact(M))
+            .zip(out.chunks_exact_mut(nw))
+        {
+            let mut re = [0.0; LANES];
+            let mut im = [0.0; LANES];
+            for i in 0..M {
+                for l in 0..LANES {
+                    re[l] += coef[i] * pole_re[i][l];
+                    im[l] += coef[i] * pole_im[i][l];
+                }
+            }
+            let dst = &mut dst[k0..k0 + n_valid];
+            store_magnitudes(&re, &im, pair.kind.power(), &w, &w2, dst);
+        }
+        k0 += n_valid;
+    }
+}
+
+/// [`block_magnitudes`] for any number of modes (scratch in `args.chunk`).
+#[inline(always)]
+fn block_magnitudes_any(args: BlockArgs<'_>) {
+    let BlockArgs {
+        omega_rad_s: omega,
+        pairs,
+        omega_n_rad_s,
+        modal_c,
+        coef,
+        chunk,
         out,
     } = args;
     let nw = omega.len();
     let m = omega_n_rad_s.len();
-    for (i, (&wn, &c)) in omega_n_rad_s.iter().zip(modal_c).enumerate() {
-        let pre = &mut pole_re[i * nw..(i + 1) * nw];
-        let pim = &mut pole_im[i * nw..(i + 1) * nw];
-        for ((pr, pi), &w) in pre.iter_mut().zip(pim.iter_mut()).zip(omega) {
-            let re = wn * wn - w * w;
-            let im = c * w;
-            let inv = 1.0 / (re * re + im * im);
-            *pr = re * inv;
-            *pi = -im * inv;
+    let (pole_re, rest) = chunk.split_at_mut(m);
+    let (pole_im, den_sq) = rest.split_at_mut(m);
+    let mut k0 = 0;
+    while k0 < nw {
+        let (n_valid, w, w2) = chunk_frequencies(omega, k0);
+        for i in 0..m {
+            for l in 0..LANES {
+                pole_re[i][l] = omega_n_rad_s[i] * omega_n_rad_s[i] - w2[l];
+                pole_im[i][l] = modal_c[i] * w[l];
+                den_sq[i][l] = pole_re[i][l] * pole_re[i][l] + pole_im[i][l] * pole_im[i][l];
+            }
         }
-    }
-    let (pole_re, pole_im) = (&*pole_re, &*pole_im);
-    let n_chunks = nw / LANES;
-    for ((pair, coef), dst) in pairs
-        .iter()
-        .zip(coef.chunks_exact(m))
-        .zip(out.chunks_exact_mut(nw))
-    {
-        let power = pair.kind.power();
-        let scale = |w: f64| match power {
-            0 => 1.0,
-            1 => w,
-            _ => w * w,
-        };
-        for chunk in 0..n_chunks {
-            let k0 = chunk * LANES;
+        reciprocals(den_sq);
+        for i in 0..m {
+            for l in 0..LANES {
+                pole_re[i][l] *= den_sq[i][l];
+                pole_im[i][l] = -pole_im[i][l] * den_sq[i][l];
+            }
+        }
+        for ((pair, coef), dst) in pairs
+            .iter()
+            .zip(coef.chunks_exact(m))
+            .zip(out.chunks_exact_mut(nw))
+        {
             let mut re = [0.0; LANES];
             let mut im = [0.0; LANES];
-            for (i, &c) in coef.iter().enumerate() {
-                let pr = &pole_re[i * nw + k0..i * nw + k0 + LANES];
-                let pi = &pole_im[i * nw + k0..i * nw + k0 + LANES];
+            for i in 0..m {
                 for l in 0..LANES {
-                    re[l] += c * pr[l];
-                    im[l] += c * pi[l];
+                    re[l] += coef[i] * pole_re[i][l];
+                    im[l] += coef[i] * pole_im[i][l];
                 }
             }
-            let w = &omega[k0..k0 + LANES];
-            let o = &mut dst[k0..k0 + LANES];
+            let dst = &mut dst[k0..k0 + n_valid];
+            store_magnitudes(&re, &im, pair.kind.power(), &w, &w2, dst);
+        }
+        k0 += n_valid;
+    }
+}
+
+/// Replaces every entry by its reciprocal, in groups of [`GROUP`] by batch inversion:
+/// with prefix products `p_j = d_0 ... d_j`, `1 / p_last` is the only division and
+/// `1 / d_j = p_(j-1) / p_j`, unwound from the last. A group whose product is not a
+/// normal number (an overflow, an underflow, a zero or a NaN) in some lane is divided
+/// entry by entry instead.
+#[inline(always)]
+fn reciprocals(d: &mut [Lanes]) {
+    for group in d.chunks_mut(GROUP) {
+        let g = group.len();
+        let mut prefix = [[0.0; LANES]; GROUP];
+        prefix[0] = group[0];
+        for i in 1..g {
             for l in 0..LANES {
-                o[l] = (re[l] * re[l] + im[l] * im[l]).sqrt() * scale(w[l]);
+                prefix[i][l] = prefix[i - 1][l] * group[i][l];
             }
         }
-        for k in n_chunks * LANES..nw {
-            let (mut re, mut im) = (0.0, 0.0);
-            for (i, &c) in coef.iter().enumerate() {
-                re += c * pole_re[i * nw + k];
-                im += c * pole_im[i * nw + k];
+        let total = prefix[g - 1];
+        if total.iter().fold(true, |ok, p| ok & p.is_normal()) {
+            let mut inv: Lanes = std::array::from_fn(|l| 1.0 / total[l]);
+            for i in (1..g).rev() {
+                for l in 0..LANES {
+                    let r = inv[l] * prefix[i - 1][l];
+                    inv[l] *= group[i][l];
+                    group[i][l] = r;
+                }
             }
-            dst[k] = (re * re + im * im).sqrt() * scale(omega[k]);
+            group[0] = inv;
+        } else {
+            for x in group.iter_mut().flatten() {
+                *x = 1.0 / *x;
+            }
         }
     }
 }

@@ -214,3 +214,105 @@ fn fused_magnitudes_equal_direct_inverse_for_every_grid_length() {
         );
     }
 }
+
+/// The AVX build of the magnitude kernel gives the bits of the portable build (the
+/// crate docs promise CPU-independent results), on grids of 1..=9 frequencies (every
+/// partial chunk) and 1..=10 modes (every batch-inversion group size, the kernels for
+/// a fixed mode count and the general one).
+#[test]
+fn magnitude_kernel_bits_do_not_depend_on_the_instruction_set() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for m in 1..=MAX_FIXED_MODES + 2 {
+        for nw in 1..=9 {
+            let omega: Vec<f64> = (0..nw).map(|_| rng.random_range(1.0..200.0)).collect();
+            let omega_n: Vec<f64> = (0..m).map(|_| rng.random_range(1.0..200.0)).collect();
+            let modal_c: Vec<f64> = (0..m).map(|_| rng.random_range(0.01..5.0)).collect();
+            let pairs = all_pairs(2);
+            let coef: Vec<f64> = (0..pairs.len() * m)
+                .map(|_| rng.random_range(-1.0..1.0))
+                .collect();
+            let run = |avx: bool| {
+                let mut chunk = vec![[0.0; LANES]; 3 * m];
+                let mut out = vec![0.0; nw * pairs.len()];
+                let args = BlockArgs {
+                    omega_rad_s: &omega,
+                    pairs: &pairs,
+                    omega_n_rad_s: &omega_n,
+                    modal_c: &modal_c,
+                    coef: &coef,
+                    chunk: &mut chunk,
+                    out: &mut out,
+                };
+                if avx {
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: only called when the CPU supports AVX.
+                    unsafe {
+                        block_magnitudes_avx(args)
+                    };
+                } else {
+                    block_magnitudes(args);
+                }
+                out
+            };
+            let portable = run(false);
+            // Against the modal sum with one division per pole, to rounding.
+            for (p, pair) in pairs.iter().enumerate() {
+                for (k, &w) in omega.iter().enumerate() {
+                    let mut h = Complex64::new(0.0, 0.0);
+                    for i in 0..m {
+                        let den = Complex64::new(omega_n[i].powi(2) - w * w, modal_c[i] * w);
+                        h += coef[p * m + i] / den;
+                    }
+                    let want = h.norm() * w.powi(pair.kind.power());
+                    let got = portable[p * nw + k];
+                    assert!((got - want).abs() <= 1e-12 * want, "{got} vs {want}");
+                }
+            }
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx") {
+                assert_eq!(run(true), portable, "{m} modes, {nw} frequencies");
+            }
+        }
+    }
+}
+
+/// Batch inversion: within a few ulps of `1 / x` for groups of every size, and exactly
+/// `1 / x` for a group whose product leaves the normal range in some lane.
+#[test]
+fn batch_reciprocals_match_division() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    for n in 1..=9 {
+        let x: Vec<Lanes> = (0..n)
+            .map(|_| std::array::from_fn(|_| 10f64.powf(rng.random_range(-8.0..8.0))))
+            .collect();
+        let mut r = x.clone();
+        reciprocals(&mut r);
+        for (a, b) in x.iter().flatten().zip(r.iter().flatten()) {
+            // Each reciprocal takes at most 2 GROUP roundings: relative error < 8 eps.
+            assert!((a * b - 1.0).abs() < 8.0 * f64::EPSILON, "{a} * {b}");
+        }
+    }
+    for odd in [0.0, 1e-320, 1e307, f64::NAN, f64::INFINITY] {
+        let x = vec![[2.0, 4.0, odd, 8.0], [1e3; LANES], [3.0; LANES]];
+        let mut r = x.clone();
+        reciprocals(&mut r);
+        for (a, b) in x.iter().flatten().zip(r.iter().flatten()) {
+            assert!(b.to_bits() == (1.0 / a).to_bits() || (b.is_nan() && a.is_nan()));
+        }
+    }
+}
+
+/// No modes: all magnitudes zero (no panic on the empty coefficient table).
+#[test]
+fn magnitudes_without_modes_are_zero() {
+    let model = StructuralModel::shear_frame(&[1.0, 2.0], &[100.0, 200.0]).unwrap();
+    let (k, m) = (model.stiffness(&[0.0; 2]), model.mass(&[0.0; 2]));
+    let modes = Modes::solve(&k, &m, model.ground_influence(), Some(0)).unwrap();
+    let mut fast = ModalFrf::new(vec![FrfBlock {
+        omega_rad_s: vec![1.0, 2.0],
+        pairs: all_pairs(2),
+    }]);
+    let mut mag = vec![1.0; fast.len()];
+    fast.magnitudes(&modes, &[], &mut mag).unwrap();
+    assert!(mag.iter().all(|&x| x == 0.0));
+}

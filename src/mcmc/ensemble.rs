@@ -38,14 +38,6 @@ pub(crate) struct Ensemble {
     pub chain_pointwise: Vec<f64>,
 }
 
-/// Outcome of one walker's proposal.
-struct Outcome {
-    accept: bool,
-    proposal: Vec<f64>,
-    ln_p: f64,
-    pointwise: Vec<f64>,
-}
-
 impl Ensemble {
     /// Builds ensemble `index` from explicit positions (walker-major, `dim` each),
     /// evaluates them and checks the ensemble is usable: all log densities finite and
@@ -168,8 +160,17 @@ impl Ensemble {
                 split_of.swap(i, j);
             }
         }
+        let np = self.n_pointwise;
+        // Proposals and their pointwise terms go to buffers allocated once per step, one
+        // row per walker of the split (rows of at least one entry, for `par_chunks_mut`).
+        let (q_stride, pw_stride) = (dim.max(1), np.max(1));
+        let mut proposals = Vec::new();
+        let mut proposal_pointwise = Vec::new();
         for split in 0..n_splits {
-            let outcomes: Vec<Result<Outcome>> = {
+            let members: Vec<usize> = (0..n_walkers).filter(|&i| split_of[i] == split).collect();
+            proposals.resize(members.len() * q_stride, 0.0);
+            proposal_pointwise.resize(members.len() * pw_stride, 0.0);
+            let outcomes: Vec<Result<(bool, f64)>> = {
                 let comp_refs: Vec<&[f64]> = self
                     .positions
                     .chunks(dim)
@@ -180,42 +181,38 @@ impl Ensemble {
                 let complement = Complement::new(&comp_refs);
                 let fitted = mv.for_complement(&complement);
                 let mv = fitted.as_deref().unwrap_or(mv);
-                let members: Vec<(usize, &mut ChaCha8Rng)> = self
+                let rngs: Vec<&mut ChaCha8Rng> = self
                     .walker_rngs
                     .iter_mut()
-                    .enumerate()
-                    .filter(|(i, _)| split_of[*i] == split)
+                    .zip(&split_of)
+                    .filter(|(_, &s)| s == split)
+                    .map(|(r, _)| r)
                     .collect();
                 let positions = &self.positions;
                 let ln_p = &self.ln_p;
-                let n_pointwise = self.n_pointwise;
                 members
-                    .into_par_iter()
-                    .map(|(w, rng)| {
+                    .par_iter()
+                    .zip(rngs)
+                    .zip(proposals.par_chunks_mut(q_stride))
+                    .zip(proposal_pointwise.par_chunks_mut(pw_stride))
+                    .map(|(((&w, rng), q), pw)| {
                         let x = &positions[w * dim..(w + 1) * dim];
-                        let mut q = vec![0.0; dim];
-                        let ln_factor = mv.propose(x, &complement, rng, &mut q);
-                        let mut pw = vec![0.0; n_pointwise];
-                        let lp = checked_ln_density(density, &q, &mut pw)?;
+                        let q = &mut q[..dim];
+                        let ln_factor = mv.propose(x, &complement, rng, q);
+                        let lp = checked_ln_density(density, q, &mut pw[..np])?;
                         let u: f64 = rng.random();
-                        let accept = ln_factor + lp - ln_p[w] > u.ln();
-                        Ok(Outcome {
-                            accept,
-                            proposal: q,
-                            ln_p: lp,
-                            pointwise: pw,
-                        })
+                        Ok((ln_factor + lp - ln_p[w] > u.ln(), lp))
                     })
                     .collect()
             };
-            let members = (0..n_walkers).filter(|&i| split_of[i] == split);
-            for (w, outcome) in members.zip(outcomes) {
-                let o = outcome?;
-                if o.accept {
-                    self.positions[w * dim..(w + 1) * dim].copy_from_slice(&o.proposal);
-                    self.ln_p[w] = o.ln_p;
-                    let np = self.n_pointwise;
-                    self.pointwise[w * np..(w + 1) * np].copy_from_slice(&o.pointwise);
+            for (j, (&w, outcome)) in members.iter().zip(outcomes).enumerate() {
+                let (accept, lp) = outcome?;
+                if accept {
+                    self.positions[w * dim..(w + 1) * dim]
+                        .copy_from_slice(&proposals[j * q_stride..j * q_stride + dim]);
+                    self.ln_p[w] = lp;
+                    self.pointwise[w * np..(w + 1) * np]
+                        .copy_from_slice(&proposal_pointwise[j * pw_stride..j * pw_stride + np]);
                     self.accepted[w] += 1;
                 }
             }
