@@ -24,7 +24,7 @@ use super::posterior::ModelPosterior;
 use super::refine::{refit_in_time_domain, TimeDomainRefit};
 use super::residual_map::{ResidualMap, ResidualRow};
 use super::search::{search, HypothesisSearch, SearchOptions};
-use super::verdict::{decide, Candidate, Decision, EffectSummary, FitQuality};
+use super::verdict::{decide, held_out_passes, Candidate, Decision, EffectSummary, FitQuality};
 use crate::error::Result;
 use crate::io::Campaign;
 use crate::mcmc::quantile;
@@ -473,9 +473,16 @@ pub fn diagnose(
             .total_cmp(&a.ln_z().unwrap_or(f64::NEG_INFINITY))
     });
 
-    // Held-out check only where it can change the verdict: decisive and plausible.
-    for f in &mut finalists {
+    // Held-out check only where it can change the verdict: decisive and plausible, and,
+    // for a check that replays the tests, not below a hypothesis that already passed.
+    let mut passed = false;
+    let mut skipped = vec![false; finalists.len()];
+    for (k, f) in finalists.iter_mut().enumerate() {
         if f.plausible && decisive(f) {
+            if passed && f.time_domain.is_some() {
+                skipped[k] = true;
+                continue;
+            }
             let h = hypotheses
                 .iter()
                 .find(|h| h.name() == f.name)
@@ -500,12 +507,15 @@ pub fn diagnose(
                 &mut cb,
             )?);
             mark(&format!("held-out {name}"), &mut timings);
+            passed |= f.held_out.as_ref().is_some_and(held_out_passes);
         }
     }
 
     let candidates: Vec<Candidate> = finalists
         .iter()
-        .map(|f| Candidate {
+        .zip(&skipped)
+        .map(|(f, &heldout_skipped)| Candidate {
+            heldout_skipped,
             name: f.name.clone(),
             log_evidence: f.ln_z().unwrap_or(f64::NEG_INFINITY),
             log_evidence_se: f.evidence.as_ref().map_or(0.0, |e| e.ln_z_se),

@@ -93,6 +93,9 @@ pub struct Candidate {
     /// non-zero gains it ranked.
     pub heldout_p_value: f64,
     pub heldout_n_ranked: usize,
+    /// The held-out check was skipped: it replays the tests (minutes) and a candidate
+    /// with more evidence had already passed every test, so this one cannot win.
+    pub heldout_skipped: bool,
 }
 
 /// Level of the held-out signed-rank test.
@@ -104,6 +107,23 @@ pub const MIN_RANKED_SEGMENTS: usize = 5;
 
 /// Rule 3 of this module: whether a candidate predicts held-out data better, and how
 /// that was judged.
+/// True when a held-out comparison passes the rule of [`decide`].
+pub fn held_out_passes(h: &super::heldout::HeldOut) -> bool {
+    let c = Candidate {
+        name: String::new(),
+        log_evidence: 0.0,
+        log_evidence_se: 0.0,
+        plausible: true,
+        implausible_because: String::new(),
+        heldout_gain: h.gain,
+        heldout_gain_se: h.gain_se,
+        heldout_p_value: h.p_value,
+        heldout_n_ranked: h.n_ranked,
+        heldout_skipped: false,
+    };
+    predicts_better(&c).0
+}
+
 fn predicts_better(c: &Candidate) -> (bool, String) {
     if c.heldout_n_ranked >= MIN_RANKED_SEGMENTS {
         let ok = c.heldout_gain > 0.0 && c.heldout_p_value < HELDOUT_TEST_LEVEL;
@@ -151,6 +171,11 @@ pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidat
                 "decisive (delta ln Z = {delta:.1}) but implausible: {}",
                 c.implausible_because
             )
+        } else if c.heldout_skipped {
+            format!(
+                "decisive (delta ln Z = {delta:.1}) and plausible; its held-out check was not run \
+                 (a hypothesis with more evidence passed every test)"
+            )
         } else {
             let (ok, how) = predicts_better(c);
             if !ok {
@@ -184,7 +209,17 @@ mod tests {
             heldout_gain_se: 1.0,
             heldout_p_value: 0.002,
             heldout_n_ranked: 9,
+            heldout_skipped: false,
         }
+    }
+
+    #[test]
+    fn a_candidate_whose_held_out_check_was_skipped_is_not_named() {
+        let mut c = vec![cand("a", 30.0), cand("b", 20.0)];
+        c[1].heldout_skipped = true;
+        let d = decide(0.0, 0.5, &c);
+        assert_eq!(d.winner, Some(0));
+        assert!(d.reasons[1].contains("was not run"), "{}", d.reasons[1]);
     }
 
     #[test]
