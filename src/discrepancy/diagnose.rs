@@ -11,12 +11,14 @@
 
 use super::consistency::{check_campaign, ConsistencyOptions};
 use super::data::{DataOptions, DiagnosisData};
+pub use super::effect_summary::effect_columns;
+use super::effect_summary::effect_summaries;
 use super::evidence::{stepping_stone, Evidence, EvidenceOptions, EvidenceProgress};
 use super::fit::{fit_map, frame_starts, MapFit, MapOptions};
 use super::forward::frame_system;
 use super::heldout::{held_out, HeldOut};
 use super::hypotheses::all_hypotheses;
-use super::hypothesis::{Coordinate, Hypothesis};
+use super::hypothesis::Hypothesis;
 use super::laplace::laplace;
 use super::locate::LocateReport;
 use super::location::Location;
@@ -27,7 +29,6 @@ use super::search::{search, HypothesisSearch, SearchOptions};
 use super::verdict::{decide, held_out_passes, Candidate, Decision, EffectSummary, FitQuality};
 use crate::error::Result;
 use crate::io::Campaign;
-use crate::mcmc::quantile;
 use crate::update::fdac;
 use num_complex::Complex64;
 use std::sync::Arc;
@@ -205,82 +206,6 @@ pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQu
         chi2_per_point: post.chi2_per_dof_of(pred, eta),
     }
 }
-
-/// The effect parameters of every draw (rows of `z`) in physical units, one column per
-/// parameter.
-pub fn effect_columns<'a>(
-    post: &ModelPosterior,
-    draws: impl IntoIterator<Item = &'a [f64]>,
-) -> Result<Vec<Vec<f64>>> {
-    let mut cols = vec![Vec::new(); post.effect_params().len()];
-    for z in draws {
-        for (c, v) in cols.iter_mut().zip(post.effect_physical(z)?) {
-            c.push(v);
-        }
-    }
-    Ok(cols)
-}
-
-/// Summaries of the effect parameters from posterior draws `draws` (rows of `z`), and
-/// whether the effect is plausible: the 95 % interval of every size parameter (one with
-/// a no-effect value) excludes that value and stays clear of the box's ends by more than
-/// its own width (a posterior piled at the end of the physically plausible range is not
-/// an identified effect).
-pub(super) fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<EffectVerdict> {
-    let ie = post.eta_index();
-    let (lo, hi) = post.bounds();
-    let mut out = Vec::new();
-    let mut reasons = Vec::new();
-    let columns = effect_columns(post, draws.iter().map(Vec::as_slice))?;
-    for ((k, p), mut phys) in post.effect_params().iter().enumerate().zip(columns) {
-        let i = ie + 1 + k;
-        let mut zs: Vec<f64> = draws.iter().map(|d| d[i]).collect();
-        zs.sort_by(f64::total_cmp);
-        let (z_lo, z_hi) = (quantile(&zs, 0.025), quantile(&zs, 0.975));
-        let mean = phys.iter().sum::<f64>() / phys.len().max(1) as f64;
-        phys.sort_by(f64::total_cmp);
-        let s = EffectSummary {
-            mean,
-            q2_5: quantile(&phys, 0.025),
-            q97_5: quantile(&phys, 0.975),
-            unit: p.unit.to_string(),
-        };
-        // The posterior "reaches" a box end when its 95 % interval comes closer to that
-        // end than its own width (or than 0.1 % of the box): its mass runs into the
-        // prior's edge instead of being identified inside it.
-        let margin = (z_hi - z_lo).max(1e-3 * (hi[i] - lo[i]));
-        if let Some(v) = p.no_effect {
-            let zv = match p.coordinate {
-                Coordinate::Log if v <= 0.0 => f64::NEG_INFINITY,
-                _ => p.coordinate_of(v),
-            };
-            if zv >= z_lo && zv <= z_hi {
-                reasons.push(format!(
-                    "{} = {:.3e} [{:.3e}, {:.3e}] {} includes no effect ({v})",
-                    p.name, s.mean, s.q2_5, s.q97_5, p.unit
-                ));
-            }
-        }
-        // Shape parameters (no_effect None, e.g. a damping ratio) may be weakly
-        // identified and rest on a prior end without making the effect implausible.
-        if p.no_effect.is_some() && (z_lo < lo[i] + margin || z_hi > hi[i] - margin) {
-            reasons.push(format!(
-                "{} [{:.3e}, {:.3e}] {} reaches the end of its plausible range [{:.3e}, {:.3e}]",
-                p.name,
-                s.q2_5,
-                s.q97_5,
-                p.unit,
-                p.physical(lo[i]),
-                p.physical(hi[i])
-            ));
-        }
-        out.push((p.name.clone(), s));
-    }
-    Ok((out, reasons.is_empty(), reasons.join("; ")))
-}
-
-/// Effect summaries, plausible or not, and why not.
-type EffectVerdict = (Vec<(String, EffectSummary)>, bool, String);
 
 fn evidence_options(opts: &DiagnoseOptions, dim: usize, model_index: u64) -> EvidenceOptions {
     let mut e = opts
@@ -463,7 +388,15 @@ pub fn diagnose(
             progress(DiagnoseStage::TimeDomain {
                 hypothesis: &f.name,
             });
-            f.time_domain = Some(refit_in_time_domain(campaign, f, opts)?);
+            // A replay that fails (a softening spring losing its stiffness, say) leaves
+            // only the linearisation, which cannot size this effect: not plausible.
+            match refit_in_time_domain(campaign, f, opts) {
+                Ok(r) => f.time_domain = Some(r),
+                Err(e) => {
+                    f.plausible = false;
+                    f.implausible_because = format!("its time-domain refit failed ({e})");
+                }
+            }
             mark(&format!("time-domain refit {}", f.name), &mut timings);
         }
     }
@@ -496,7 +429,7 @@ pub fn diagnose(
                 })
             };
             let replay = f.time_domain.is_some().then_some(campaign);
-            f.held_out = Some(held_out(
+            match held_out(
                 &data,
                 h,
                 &f.location,
@@ -505,7 +438,14 @@ pub fn diagnose(
                 &opts.map,
                 replay,
                 &mut cb,
-            )?);
+            ) {
+                Ok(ho) => f.held_out = Some(ho),
+                Err(e) if replay.is_some() => {
+                    f.plausible = false;
+                    f.implausible_because = format!("its time-domain held-out check failed ({e})");
+                }
+                Err(e) => return Err(e),
+            }
             mark(&format!("held-out {name}"), &mut timings);
             passed |= f.held_out.as_ref().is_some_and(held_out_passes);
         }

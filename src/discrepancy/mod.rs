@@ -8,6 +8,7 @@ mod bins;
 pub mod consistency;
 pub mod data;
 pub mod diagnose;
+pub mod effect_summary;
 pub mod evidence;
 pub mod figures;
 pub mod fit;

@@ -15,7 +15,8 @@
 //!   same Occam factor for both forward models of the same hypothesis. The gain and the
 //!   replay's fit are reported.
 
-use super::diagnose::{effect_summaries, DiagnoseOptions, ModelResult};
+use super::diagnose::{DiagnoseOptions, ModelResult};
+use super::effect_summary::effect_summaries;
 use super::fit::{fit_map, MapOptions};
 use super::time_domain::TimeDomainModel;
 use crate::error::{Error, Result};
