@@ -103,15 +103,13 @@ pub fn refit_in_time_domain(
         }
     }
     n_evaluations += free.len() + 1;
-    let jtj = jac.tr_mul(&jac);
-    let chol = jtj.clone().cholesky().ok_or_else(|| {
+    let chol = jac.tr_mul(&jac).cholesky().ok_or_else(|| {
         Error::Numerical(format!(
             "{}: the time-domain refit's Gauss-Newton matrix is singular",
             result.name
         ))
     })?;
-    let cov = chol.inverse();
-    let l = cov.clone().cholesky().map(|c| c.l()).ok_or_else(|| {
+    let l = chol.inverse().cholesky().map(|c| c.l()).ok_or_else(|| {
         Error::Numerical(format!(
             "{}: the time-domain refit's covariance is not positive definite",
             result.name
