@@ -7,7 +7,7 @@ use std::path::Path;
 
 use frfbayes::mcmc::{
     Ball, Burn, CheckpointConfig, DifferentialEvolution, Draws, Independence, LogDensity, Moves,
-    Sampler, SamplerConfig, Snooker, Start, StopReason, Stretch, Walk,
+    Sampler, SamplerConfig, Snooker, Start, StopReason, Stretch, Walk, REPORT_EVERY_STEPS,
 };
 use frfbayes::{Error, Result};
 
@@ -158,9 +158,12 @@ fn interrupted_run_with_periodic_checkpoints_resumes_exactly() {
         every_steps: 100,
     });
     let mut b = Sampler::new(&OK_DENSITY, moves(), cfg, start()).unwrap();
+    // Reports come every REPORT_EVERY_STEPS steps (a divisor of 250 and of the checkpoint
+    // interval), so a break is honoured exactly at step 250.
+    assert_eq!(250 % REPORT_EVERY_STEPS, 0);
     let mut seen = 0;
     let mut stop_at_250 = |p: &frfbayes::mcmc::Progress| {
-        seen += 1;
+        seen += REPORT_EVERY_STEPS;
         assert_eq!(p.step, seen);
         assert_eq!(p.n_evaluations, 48 * (p.step + 1));
         if p.step == 250 {

@@ -12,7 +12,8 @@ use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
-use std::sync::Mutex;
+use std::cell::RefCell;
+use thread_local::ThreadLocal;
 
 /// Settings of an [`FrfPosterior`] beyond the data and the variables.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -40,7 +41,8 @@ impl Default for PosteriorOptions {
 ///
 /// The sampled vector `z` is the free updating variables in internal coordinates
 /// (multipliers as they are, damping as logarithms) followed by `ln s`.
-/// Evaluation is thread-safe; each thread borrows scratch memory from a pool.
+/// Evaluation is thread-safe; each thread keeps its own scratch memory (no lock, and
+/// the memory stays in that core's cache).
 pub struct FrfPosterior {
     forward: ForwardModel,
     data: FrfData,
@@ -54,7 +56,7 @@ pub struct FrfPosterior {
     /// pointwise term is a log density of `y_k` itself, comparable across residual forms).
     ln_norm: Vec<f64>,
     ln_norm_sum: f64,
-    pool: Mutex<Vec<ForwardWorkspace>>,
+    workspaces: ThreadLocal<RefCell<ForwardWorkspace>>,
 }
 
 impl Clone for FrfPosterior {
@@ -68,7 +70,7 @@ impl Clone for FrfPosterior {
             inv_sigma: self.inv_sigma.clone(),
             ln_norm: self.ln_norm.clone(),
             ln_norm_sum: self.ln_norm_sum,
-            pool: Mutex::new(Vec::new()),
+            workspaces: ThreadLocal::new(),
         }
     }
 }
@@ -131,7 +133,7 @@ impl FrfPosterior {
             target,
             inv_sigma,
             ln_norm,
-            pool: Mutex::new(Vec::new()),
+            workspaces: ThreadLocal::new(),
         })
     }
 
@@ -219,15 +221,16 @@ impl FrfPosterior {
     /// Model magnitudes `|H^A|` at `z` in long-vector order.
     pub fn magnitudes(&self, z: &[f64]) -> Result<Vec<f64>> {
         self.check_dim(z)?;
-        let mut ws = self.take_workspace();
-        self.variables()
-            .from_internal(&z[..self.n_free()], &mut ws.theta);
         let mut out = vec![0.0; self.data.len()];
-        let theta = std::mem::take(&mut ws.theta);
-        let r = self.forward.magnitudes(&theta, &mut ws, &mut out);
-        ws.theta = theta;
-        self.return_workspace(ws);
-        r.map(|()| out)
+        self.with_workspace(|ws| {
+            self.variables()
+                .from_internal(&z[..self.n_free()], &mut ws.theta);
+            let theta = std::mem::take(&mut ws.theta);
+            let r = self.forward.magnitudes(&theta, ws, &mut out);
+            ws.theta = theta;
+            r
+        })?;
+        Ok(out)
     }
 
     /// Log prior at `z` (`-inf` outside the box).
@@ -240,10 +243,19 @@ impl FrfPosterior {
     pub fn ln_likelihood(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
         self.check_dim(z)?;
         self.check_pointwise(pointwise)?;
-        let mut ws = self.take_workspace();
-        let r = self.ln_likelihood_with(z, &mut ws, pointwise);
-        self.return_workspace(ws);
-        r
+        self.with_workspace(|ws| self.ln_likelihood_with(z, ws, pointwise))
+    }
+
+    /// Runs `f` with this thread's scratch memory (a nested call on the same thread,
+    /// which nothing does today, gets fresh memory).
+    fn with_workspace<T>(&self, f: impl FnOnce(&mut ForwardWorkspace) -> T) -> T {
+        let cell = self
+            .workspaces
+            .get_or(|| RefCell::new(self.forward.workspace()));
+        match cell.try_borrow_mut() {
+            Ok(mut ws) => f(&mut ws),
+            Err(_) => f(&mut self.forward.workspace()),
+        }
     }
 
     fn ln_likelihood_with(
@@ -361,27 +373,14 @@ impl FrfPosterior {
         Ok(())
     }
 
-    fn take_workspace(&self) -> ForwardWorkspace {
-        let popped = self.pool.lock().ok().and_then(|mut p| p.pop());
-        popped.unwrap_or_else(|| self.forward.workspace())
-    }
-
-    fn return_workspace(&self, ws: ForwardWorkspace) {
-        if let Ok(mut p) = self.pool.lock() {
-            p.push(ws);
-        }
-    }
-
     fn evaluate(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
         self.check_dim(z)?;
         let lp = self.prior.ln_density(z);
         if lp == f64::NEG_INFINITY {
             return Ok(lp);
         }
-        let mut ws = self.take_workspace();
-        let ll = self.ln_likelihood_with(z, &mut ws, pointwise);
-        self.return_workspace(ws);
-        Ok(lp + ll?)
+        let ll = self.with_workspace(|ws| self.ln_likelihood_with(z, ws, pointwise))?;
+        Ok(lp + ll)
     }
 }
 

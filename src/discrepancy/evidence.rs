@@ -332,7 +332,7 @@ pub fn stepping_stone<T: TemperedTarget>(
         };
         for (r, ens) in ensembles.iter_mut().enumerate() {
             for step in 0..opts.final_steps {
-                ens.step(&density, &moves, true)?;
+                ens.step(&density, &moves, true, true)?;
                 ens.store();
                 if let Some(cb) = progress.as_deref_mut() {
                     cb(EvidenceProgress {

@@ -164,7 +164,7 @@ pub(crate) fn temper<'a, T: TemperedTarget>(
         let accepted_before: u64 = ens.accepted.iter().sum();
         let mut steps = 0;
         while steps < opts.max_steps_per_temperature {
-            ens.step(&density, moves, true)?;
+            ens.step(&density, moves, true, true)?;
             steps += 1;
             if steps >= opts.min_steps_per_temperature
                 && metric.mean_squared_jump(&start, &ens.positions) >= opts.jump_target

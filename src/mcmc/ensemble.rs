@@ -142,12 +142,16 @@ impl Ensemble {
         self.ln_p.len()
     }
 
-    /// One red-blue step with a move picked from `moves`.
+    /// One red-blue step with a move picked from `moves`. With `parallel`, the walkers
+    /// of each half are proposed and evaluated in parallel on rayon's pool; without, in
+    /// turn on this thread (for callers that already run several ensembles in parallel).
+    /// Either way every walker draws from its own stream, so the outcome is the same.
     pub fn step<D: LogDensity + ?Sized>(
         &mut self,
         density: &D,
         moves: &Moves,
         randomize_split: bool,
+        parallel: bool,
     ) -> Result<()> {
         let n_walkers = self.n_walkers();
         let dim = self.dim;
@@ -190,20 +194,34 @@ impl Ensemble {
                     .collect();
                 let positions = &self.positions;
                 let ln_p = &self.ln_p;
-                members
-                    .par_iter()
-                    .zip(rngs)
-                    .zip(proposals.par_chunks_mut(q_stride))
-                    .zip(proposal_pointwise.par_chunks_mut(pw_stride))
-                    .map(|(((&w, rng), q), pw)| {
-                        let x = &positions[w * dim..(w + 1) * dim];
-                        let q = &mut q[..dim];
-                        let ln_factor = mv.propose(x, &complement, rng, q);
-                        let lp = checked_ln_density(density, q, &mut pw[..np])?;
-                        let u: f64 = rng.random();
-                        Ok((ln_factor + lp - ln_p[w] > u.ln(), lp))
-                    })
-                    .collect()
+                let one = |(((&w, rng), q), pw): (
+                    ((&usize, &mut ChaCha8Rng), &mut [f64]),
+                    &mut [f64],
+                )| {
+                    let x = &positions[w * dim..(w + 1) * dim];
+                    let q = &mut q[..dim];
+                    let ln_factor = mv.propose(x, &complement, rng, q);
+                    let lp = checked_ln_density(density, q, &mut pw[..np])?;
+                    let u: f64 = rng.random();
+                    Ok((ln_factor + lp - ln_p[w] > u.ln(), lp))
+                };
+                if parallel {
+                    members
+                        .par_iter()
+                        .zip(rngs)
+                        .zip(proposals.par_chunks_mut(q_stride))
+                        .zip(proposal_pointwise.par_chunks_mut(pw_stride))
+                        .map(one)
+                        .collect()
+                } else {
+                    members
+                        .iter()
+                        .zip(rngs)
+                        .zip(proposals.chunks_mut(q_stride))
+                        .zip(proposal_pointwise.chunks_mut(pw_stride))
+                        .map(one)
+                        .collect()
+                }
             };
             for (j, (&w, outcome)) in members.iter().zip(outcomes).enumerate() {
                 let (accept, lp) = outcome?;

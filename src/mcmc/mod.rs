@@ -71,6 +71,6 @@ pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch
 pub(crate) use rng::{key_from_seed, walker_rng};
 pub use sampler::{
     Ball, Burn, CheckpointConfig, Progress, ProgressFn, RunSummary, Sampler, SamplerConfig, Start,
-    StopReason, TauCheck, MIN_DRAWS_PER_WALKER, MIN_ENSEMBLES,
+    StopReason, TauCheck, MIN_DRAWS_PER_WALKER, MIN_ENSEMBLES, REPORT_EVERY_STEPS,
 };
 pub use spec::{MoveSpec, WeightedMove};

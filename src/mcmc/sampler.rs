@@ -196,8 +196,14 @@ pub struct Progress<'a> {
     pub n_evaluations: u64,
 }
 
-/// The progress callback of [`Sampler::run`]: called after every step; returning
-/// `ControlFlow::Break(())` stops the run (a checkpoint is written when configured).
+/// Steps between progress reports: the ensembles run this many steps in parallel
+/// between meetings (see [`Sampler::run`]).
+pub const REPORT_EVERY_STEPS: u64 = 10;
+
+/// The progress callback of [`Sampler::run`]: called every [`REPORT_EVERY_STEPS`] steps
+/// and after every convergence check, checkpoint and the last step; returning
+/// `ControlFlow::Break(())` stops the run there (a checkpoint is written when
+/// configured).
 pub type ProgressFn<'a> = dyn FnMut(&Progress) -> ControlFlow<()> + 'a;
 
 /// Outcome of [`Sampler::run`].
@@ -306,7 +312,7 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
             if self.step >= self.config.max_steps {
                 break StopReason::StepCap;
             }
-            if let Err(e) = self.advance() {
+            if let Err(e) = self.advance(self.block_len()) {
                 self.failed = Some(e.to_string());
                 return Err(e);
             }
@@ -344,19 +350,42 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
         })
     }
 
-    /// One step of every ensemble (in parallel), then store if due.
-    fn advance(&mut self) -> Result<()> {
+    /// Steps to the next event: a progress report (every [`REPORT_EVERY_STEPS`]), a
+    /// convergence check, a checkpoint or the step cap.
+    fn block_len(&self) -> u64 {
+        let to_next = |every: u64| every - self.step % every;
+        let mut n = to_next(REPORT_EVERY_STEPS).min(to_next(self.config.check_every));
+        if let Some(cp) = &self.config.checkpoint {
+            n = n.min(to_next(cp.every_steps));
+        }
+        n.min(self.config.max_steps - self.step)
+    }
+
+    /// `n_steps` steps of every ensemble, storing every `thin_by`-th state. The ensembles
+    /// run their blocks in parallel and meet only at the end, so each thread works
+    /// undisturbed for `n_steps` steps. With fewer ensembles than threads, each one
+    /// also spreads its walkers over the pool. Every walker draws from its own stream,
+    /// so the chains are the same whatever the thread count.
+    fn advance(&mut self, n_steps: u64) -> Result<()> {
         let (density, moves, rs) = (self.density, &self.moves, self.config.randomize_split);
+        let (start, thin_by) = (self.step, self.config.thin_by);
+        let walkers_parallel = self.ensembles.len() < rayon::current_num_threads();
         let results: Vec<Result<()>> = self
             .ensembles
             .par_iter_mut()
-            .map(|e| e.step(density, moves, rs))
+            .with_max_len(1)
+            .map(|e| {
+                for step in start + 1..=start + n_steps {
+                    e.step(density, moves, rs, walkers_parallel)?;
+                    if step.is_multiple_of(thin_by) {
+                        e.store();
+                    }
+                }
+                Ok(())
+            })
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;
-        self.step += 1;
-        if self.step.is_multiple_of(self.config.thin_by) {
-            self.ensembles.iter_mut().for_each(Ensemble::store);
-        }
+        self.step += n_steps;
         Ok(())
     }
 
