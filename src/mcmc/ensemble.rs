@@ -194,10 +194,7 @@ impl Ensemble {
                     .collect();
                 let positions = &self.positions;
                 let ln_p = &self.ln_p;
-                let one = |(((&w, rng), q), pw): (
-                    ((&usize, &mut ChaCha8Rng), &mut [f64]),
-                    &mut [f64],
-                )| {
+                let one = |(((&w, rng), q), pw): WalkerTask<'_>| {
                     let x = &positions[w * dim..(w + 1) * dim];
                     let q = &mut q[..dim];
                     let ln_factor = mv.propose(x, &complement, rng, q);
@@ -250,6 +247,13 @@ impl Ensemble {
         self.chain_ln_p.len() / self.n_walkers()
     }
 }
+
+/// One walker's share of a half-step: its index, its stream, its proposal row and its
+/// pointwise row.
+type WalkerTask<'a> = (
+    ((&'a usize, &'a mut ChaCha8Rng), &'a mut [f64]),
+    &'a mut [f64],
+);
 
 /// Errors unless the walkers span all `dim` directions: every parameter must vary, and
 /// the smallest eigenvalue of the walkers' correlation matrix must exceed
