@@ -17,7 +17,9 @@
 //! `w` of ensemble `k` owns stream `k << 32 | w` (initial ball, proposals, accept
 //! uniforms); ensemble `k`'s move choice and split shuffle use stream
 //! `k << 32 | 0xFFFF_FFFF`. Results are bit-identical for a seed whatever the number of
-//! threads (rayon parallelises over ensembles and over the walkers of a split).
+//! threads. rayon parallelises over ensembles, which run blocks of up to
+//! `REPORT_EVERY_STEPS` steps between meetings, and, when there are fewer ensembles than
+//! threads, also over the walkers of a split.
 //!
 //! ## Chains for R-hat and ESS
 //! ESS (bulk and tail) treats every walker of every ensemble as a chain, as ArviZ does
