@@ -92,3 +92,24 @@ fn warnings_go_to_stderr_and_do_not_fail() {
     );
     assert!(stdout.contains("2 tests"), "{stdout}");
 }
+
+#[test]
+fn thread_count_is_checked_and_honoured() {
+    let run = |threads: &str| {
+        Command::new(env!("CARGO_BIN_EXE_frfbayes"))
+            .args(["--threads", threads, "check"])
+            .arg(fixtures().join("valid"))
+            .output()
+            .unwrap()
+    };
+    let zero = run("0");
+    let stderr = String::from_utf8_lossy(&zero.stderr);
+    assert_eq!(zero.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("--threads 0: give a number of threads of at least 1"));
+    let one = run("1");
+    assert!(
+        one.status.success(),
+        "{}",
+        String::from_utf8_lossy(&one.stderr)
+    );
+}
