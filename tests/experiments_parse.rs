@@ -28,3 +28,32 @@ fn bad_experiment_file_names_the_file() {
     let e = ExperimentConfig::load(&p).unwrap_err().to_string();
     assert!(e.contains("bad.toml") && e.contains("unknown_key"), "{e}");
 }
+
+#[test]
+fn hammer_estimator_is_chosen_in_the_file() {
+    use frfbayes::signal::HammerEstimator;
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("blocks.toml");
+    let write = |estimator: &str| {
+        std::fs::write(
+            &p,
+            format!("name = \"x\"\nout = \"o\"\n[estimate]\nhammer_estimator = \"{estimator}\"\n"),
+        )
+        .unwrap()
+    };
+    write("impact_blocks");
+    let c = ExperimentConfig::load(&p).unwrap();
+    assert_eq!(
+        c.estimate.options().hammer.estimator,
+        HammerEstimator::ImpactBlocks
+    );
+    write("whole_record");
+    let c = ExperimentConfig::load(&p).unwrap();
+    assert_eq!(
+        c.estimate.options().hammer.estimator,
+        HammerEstimator::WholeRecord
+    );
+    write("welch");
+    let e = ExperimentConfig::load(&p).unwrap_err().to_string();
+    assert!(e.contains("blocks.toml") && e.contains("welch"), "{e}");
+}

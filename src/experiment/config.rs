@@ -26,7 +26,7 @@
 //! ```
 
 use crate::error::{Error, Result};
-use crate::signal::{EstimateOptions, ExpWindow};
+use crate::signal::{EstimateOptions, ExpWindow, HammerEstimator};
 use crate::update::{DampingModel, ResidualForm, VariablesConfig};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -64,7 +64,11 @@ fn default_data() -> String {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct EstimateSection {
-    /// Time constant of the exponential window on impact blocks, s; `None`: no window.
+    /// How hammer tests become spectra: `whole_record` (one transform from the first
+    /// impact, a force window around every impact; the default) or `impact_blocks` (one
+    /// block per impact, averaged).
+    pub hammer_estimator: HammerEstimator,
+    /// Time constant of the exponential window on hammer records, s; `None`: no window.
     /// One common value keeps the added damping the same for every hammer test, so it can
     /// be removed from the updated damping exactly (see [`crate::signal::windows`]).
     pub exp_window_tau_s: Option<f64>,
@@ -91,6 +95,7 @@ pub struct SensorLowPass {
 impl Default for EstimateSection {
     fn default() -> Self {
         EstimateSection {
+            hammer_estimator: HammerEstimator::default(),
             exp_window_tau_s: Some(20.0),
             band_factor: 1.0,
             freq_max_hz: Some(25.0),
@@ -103,6 +108,7 @@ impl EstimateSection {
     /// The estimator options these settings stand for.
     pub fn options(&self) -> EstimateOptions {
         let mut o = EstimateOptions::default();
+        o.hammer.estimator = self.hammer_estimator;
         o.hammer.exp_window = match self.exp_window_tau_s {
             Some(t) => ExpWindow::TauS(t),
             None => ExpWindow::None,
