@@ -13,11 +13,12 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use super::config::validate;
 use super::density::LogDensity;
 use super::ensemble::Ensemble;
 use super::moves::Moves;
 use super::rng::RngState;
-use super::sampler::{validate, Sampler, SamplerConfig, TauCheck};
+use super::sampler::{Sampler, SamplerConfig, TauCheck};
 use crate::error::{Error, Result};
 use crate::io::write_atomic_with;
 

@@ -49,6 +49,7 @@
 
 mod autocorr;
 mod checkpoint;
+mod config;
 mod convergence;
 mod density;
 mod draws;
