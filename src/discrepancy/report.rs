@@ -152,13 +152,28 @@ pub fn explanation(d: &Diagnosis) -> String {
             };
             s.push_str(opening);
             if let Some(b) = best {
+                let se = |m: &ModelResult| m.evidence.as_ref().map(|e| e.ln_z_se);
+                let delta_se = d
+                    .finalists
+                    .iter()
+                    .find(|f| f.name == b.name)
+                    .and_then(se)
+                    .zip(se(&d.nominal))
+                    .map(|(a, n)| a.hypot(n));
                 let _ = write!(
                     s,
-                    "; the best, {}, changes the log evidence by {:.1} (decisive needs {:.1})",
+                    "; the best, {}, changes the log evidence by {:.1}",
                     b.name.replace('_', " "),
                     b.delta_log_evidence,
-                    decisive_ln_bayes_factor()
                 );
+                let _ = match delta_se {
+                    Some(se) => write!(
+                        s,
+                        " +- {se:.1} (decisive needs {:.1} or more after two standard errors)",
+                        decisive_ln_bayes_factor()
+                    ),
+                    None => write!(s, " (decisive needs {:.1})", decisive_ln_bayes_factor()),
+                };
             }
             let _ = write!(
                 s,
