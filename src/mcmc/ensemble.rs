@@ -194,31 +194,24 @@ impl Ensemble {
                     .collect();
                 let positions = &self.positions;
                 let ln_p = &self.ln_p;
-                let one = |(((&w, rng), q), pw): WalkerTask<'_>| {
-                    let x = &positions[w * dim..(w + 1) * dim];
-                    let q = &mut q[..dim];
-                    let ln_factor = mv.propose(x, &complement, rng, q);
-                    let lp = checked_ln_density(density, q, &mut pw[..np])?;
-                    let u: f64 = rng.random();
-                    Ok((ln_factor + lp - ln_p[w] > u.ln(), lp))
-                };
-                if parallel {
-                    members
-                        .par_iter()
-                        .zip(rngs)
-                        .zip(proposals.par_chunks_mut(q_stride))
-                        .zip(proposal_pointwise.par_chunks_mut(pw_stride))
-                        .map(one)
-                        .collect()
-                } else {
-                    members
-                        .iter()
-                        .zip(rngs)
-                        .zip(proposals.chunks_mut(q_stride))
-                        .zip(proposal_pointwise.chunks_mut(pw_stride))
-                        .map(one)
-                        .collect()
-                }
+                // Without `parallel`, one piece as long as the half: rayon runs it on
+                // this thread without splitting it into tasks.
+                let min_len = if parallel { 1 } else { members.len().max(1) };
+                members
+                    .par_iter()
+                    .zip(rngs)
+                    .zip(proposals.par_chunks_mut(q_stride))
+                    .zip(proposal_pointwise.par_chunks_mut(pw_stride))
+                    .with_min_len(min_len)
+                    .map(|(((&w, rng), q), pw)| {
+                        let x = &positions[w * dim..(w + 1) * dim];
+                        let q = &mut q[..dim];
+                        let ln_factor = mv.propose(x, &complement, rng, q);
+                        let lp = checked_ln_density(density, q, &mut pw[..np])?;
+                        let u: f64 = rng.random();
+                        Ok((ln_factor + lp - ln_p[w] > u.ln(), lp))
+                    })
+                    .collect()
             };
             for (j, (&w, outcome)) in members.iter().zip(outcomes).enumerate() {
                 let (accept, lp) = outcome?;
@@ -247,13 +240,6 @@ impl Ensemble {
         self.chain_ln_p.len() / self.n_walkers()
     }
 }
-
-/// One walker's share of a half-step: its index, its stream, its proposal row and its
-/// pointwise row.
-type WalkerTask<'a> = (
-    ((&'a usize, &'a mut ChaCha8Rng), &'a mut [f64]),
-    &'a mut [f64],
-);
 
 /// Errors unless the walkers span all `dim` directions: every parameter must vary, and
 /// the smallest eigenvalue of the walkers' correlation matrix must exceed
