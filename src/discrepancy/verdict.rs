@@ -105,39 +105,24 @@ pub const HELDOUT_TEST_LEVEL: f64 = 0.05;
 /// [`HELDOUT_TEST_LEVEL`] (`2^-5 = 0.031`).
 pub const MIN_RANKED_SEGMENTS: usize = 5;
 
-/// Rule 3 of this module: whether a candidate predicts held-out data better, and how
-/// that was judged.
 /// True when a held-out comparison passes the rule of [`decide`].
 pub fn held_out_passes(h: &super::heldout::HeldOut) -> bool {
-    let c = Candidate {
-        name: String::new(),
-        log_evidence: 0.0,
-        log_evidence_se: 0.0,
-        plausible: true,
-        implausible_because: String::new(),
-        heldout_gain: h.gain,
-        heldout_gain_se: h.gain_se,
-        heldout_p_value: h.p_value,
-        heldout_n_ranked: h.n_ranked,
-        heldout_skipped: false,
-    };
-    predicts_better(&c).0
+    predicts_better(h.gain, h.gain_se, h.p_value, h.n_ranked).0
 }
 
-fn predicts_better(c: &Candidate) -> (bool, String) {
-    if c.heldout_n_ranked >= MIN_RANKED_SEGMENTS {
-        let ok = c.heldout_gain > 0.0 && c.heldout_p_value < HELDOUT_TEST_LEVEL;
+/// Rule 3 of this module: whether held-out data are predicted better (total gain `gain`
+/// +- `gain_se` nats; one-sided signed-rank `p_value` over `n_ranked` non-zero segment
+/// gains), and how that was judged.
+fn predicts_better(gain: f64, gain_se: f64, p_value: f64, n_ranked: usize) -> (bool, String) {
+    if n_ranked >= MIN_RANKED_SEGMENTS {
+        let ok = gain > 0.0 && p_value < HELDOUT_TEST_LEVEL;
         let how = format!(
-            "held-out gain {:.1} nats, signed-rank p = {:.3} over {} segments",
-            c.heldout_gain, c.heldout_p_value, c.heldout_n_ranked
+            "held-out gain {gain:.1} nats, signed-rank p = {p_value:.3} over {n_ranked} segments"
         );
         (ok, how)
     } else {
-        let ok = c.heldout_gain - 2.0 * c.heldout_gain_se > 0.0;
-        let how = format!(
-            "held-out gain {:.1} +- {:.1} nats over {} segments",
-            c.heldout_gain, c.heldout_gain_se, c.heldout_n_ranked
-        );
+        let ok = gain - 2.0 * gain_se > 0.0;
+        let how = format!("held-out gain {gain:.1} +- {gain_se:.1} nats over {n_ranked} segments");
         (ok, how)
     }
 }
@@ -177,7 +162,12 @@ pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidat
                  (a hypothesis with more evidence passed every test)"
             )
         } else {
-            let (ok, how) = predicts_better(c);
+            let (ok, how) = predicts_better(
+                c.heldout_gain,
+                c.heldout_gain_se,
+                c.heldout_p_value,
+                c.heldout_n_ranked,
+            );
             if !ok {
                 format!(
                     "decisive (delta ln Z = {delta:.1}) but does not predict held-out data better ({how})"
