@@ -24,6 +24,10 @@
 //! - [`update`]: bounded multistart least squares (Eqs. 22-24), FDAC, RSD.
 //! - [`mcmc`]: affine-invariant ensemble sampler and diagnostics.
 //! - [`bayes`]: posterior of the model given FRF magnitudes, sampling runs, SBC.
+//! - [`predict`]: what a model predicts at the observed channels (one trait, fast paths
+//!   behind it).
+//! - [`infer`]: one posterior (prior, likelihood blocks) for fits, sampling, evidence and
+//!   Laplace.
 //! - [`plot`]: figures (PNG and SVG) from results.
 //! - [`discrepancy`]: locating and explaining missing physics.
 
@@ -32,11 +36,13 @@ pub mod discrepancy;
 pub mod error;
 pub mod experiment;
 pub mod frf;
+pub mod infer;
 pub mod io;
 pub mod mcmc;
 pub mod modal;
 pub mod model;
 pub mod plot;
+pub mod predict;
 pub mod real;
 pub mod signal;
 pub mod simulate;

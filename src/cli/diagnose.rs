@@ -3,9 +3,9 @@
 
 use frfbayes::discrepancy::benchmark::{benchmark_markdown, read_cases, CaseOutcome};
 use frfbayes::discrepancy::diagnose::{diagnose, DiagnoseOptions, DiagnoseStage};
-use frfbayes::discrepancy::evidence::Stage;
 use frfbayes::discrepancy::output::write_diagnosis;
 use frfbayes::discrepancy::report::record;
+use frfbayes::infer::evidence::Stage;
 use frfbayes::io::{read_campaign, write_atomic, Campaign};
 use frfbayes::simulate::{SimModel, Simulator};
 use indicatif::{ProgressBar, ProgressStyle};

@@ -13,13 +13,11 @@ use super::consistency::{check_campaign, ConsistencyOptions};
 use super::data::{DataOptions, DiagnosisData};
 pub use super::effect_summary::effect_columns;
 use super::effect_summary::effect_summaries;
-use super::evidence::{stepping_stone, Evidence, EvidenceOptions, EvidenceProgress};
 use super::fit::{fit_map, frame_starts, MapFit, MapOptions};
 use super::forward::frame_system;
 use super::heldout::{held_out, HeldOut};
 use super::hypotheses::all_hypotheses;
 use super::hypothesis::Hypothesis;
-use super::laplace::laplace;
 use super::locate::LocateReport;
 use super::location::Location;
 use super::posterior::ModelPosterior;
@@ -28,6 +26,8 @@ use super::residual_map::{ResidualMap, ResidualRow};
 use super::search::{search, HypothesisSearch, SearchOptions};
 use super::verdict::{decide, held_out_passes, Candidate, Decision, EffectSummary, FitQuality};
 use crate::error::Result;
+use crate::infer::evidence::{stepping_stone, Evidence, EvidenceOptions, EvidenceProgress};
+use crate::infer::laplace::laplace;
 use crate::io::Campaign;
 use crate::update::fdac;
 use num_complex::Complex64;
@@ -511,7 +511,7 @@ pub fn diagnose(
     })
 }
 
-impl super::evidence::TemperedTarget for ModelPosterior {
+impl crate::infer::TemperedTarget for ModelPosterior {
     fn dim(&self) -> usize {
         ModelPosterior::dim(self)
     }

@@ -9,7 +9,6 @@ pub mod consistency;
 pub mod data;
 pub mod diagnose;
 pub mod effect_summary;
-pub mod evidence;
 pub mod figures;
 pub mod fit;
 pub mod forward;
@@ -17,7 +16,6 @@ pub mod heldout;
 pub mod hypotheses;
 pub mod hypothesis;
 mod input_noise;
-pub mod laplace;
 pub mod locate;
 pub mod location;
 pub mod output;
@@ -26,12 +24,17 @@ pub mod refine;
 pub mod report;
 pub mod residual_map;
 pub mod search;
-mod tempering;
 #[cfg(test)]
 mod tests;
 pub mod time_domain;
 pub mod verdict;
 
+/// Evidence and Laplace live in the inference layer; re-exported for existing paths.
+pub use crate::infer::evidence;
+pub use crate::infer::laplace::{
+    laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION,
+};
+pub use crate::infer::TemperingRun;
 pub use data::{ChannelData, DataOptions, DiagnosisData, SegmentData};
 pub use evidence::{
     stepping_stone, Evidence, EvidenceOptions, EvidenceProgress, PosteriorDraws, Stage,
@@ -41,8 +44,6 @@ pub use fit::{effect_starts, fit_map, frame_starts, nominal_start, MapFit, MapOp
 pub use forward::{frame_system, BaseParams, ExtendedModel};
 pub use hypotheses::{all_hypotheses, hypothesis_by_name};
 pub use hypothesis::{Coordinate, EffectParam, Hypothesis};
-pub use laplace::{laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION};
 pub use location::Location;
 pub use posterior::{ModelPosterior, PhysicalValue};
-pub use tempering::TemperingRun;
 pub use verdict::{decide, Candidate, Decision, DiagnosisRecord, EffectSummary, FitQuality};

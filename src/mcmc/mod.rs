@@ -67,7 +67,7 @@ pub use convergence::{
 };
 pub use density::{DensityFn, LogDensity};
 pub use draws::{Draws, ParamSummary};
-/// Used by `discrepancy::evidence` to run tempered ensembles with the same step.
+/// Used by `infer::evidence` to run tempered ensembles with the same step.
 pub(crate) use ensemble::Ensemble;
 pub use independence::{FittedIndependence, Independence};
 pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};

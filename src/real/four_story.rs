@@ -43,9 +43,15 @@ use nalgebra::DMatrix;
 
 use super::mat::MatData;
 use crate::error::{Error, Result};
+use crate::infer::likelihood::Transform;
+use crate::infer::{Block, NoiseScale, Posterior};
 use crate::mcmc::LogDensity;
 use crate::modal::{mac, Modes};
 use crate::model::StructuralModel;
+use crate::predict::{
+    Coordinate, DenseModes, ModalPredictor, Parametrisation, Predict, Scale, Variable,
+};
+use std::sync::Arc;
 
 /// File name in the dataset folder.
 pub const FILE: &str = "FourStoryStructure.mat";
@@ -199,6 +205,40 @@ pub struct ModalLikelihood {
     pub modes: Vec<usize>,
     pub mass_model: MassModel,
     unit_shapes: Vec<Vec<f64>>,
+    /// The study's posterior on the inference layer: a shear frame's modal predictions
+    /// with a log-frequency block and a MAC shape block per mode.
+    posterior: Posterior<ModalPredictor<DenseModes>>,
+}
+
+/// The shear frame of the study (Table 1 initial stiffnesses, [`MASSES_KG`]) and its
+/// coordinates: `ln k_r` (so `1 + alpha_r = k_r / k_r0`), then for
+/// [`MassModel::FreeRatios`] `ln(m_r / m_1)`, r = 2..4.
+fn modal_predictor(mass_model: MassModel, modes: &[usize]) -> Result<ModalPredictor<DenseModes>> {
+    let model = Arc::new(StructuralModel::shear_frame(
+        &MASSES_KG,
+        &K_INITIAL_N_PER_M,
+    )?);
+    let mut coords: Vec<Coordinate> = (0..N_FLOORS)
+        .map(|r| Coordinate {
+            name: format!("ln k{}", r + 1),
+            variable: Variable::Alpha(r),
+            scale: Scale::Log {
+                ln_offset: K_INITIAL_N_PER_M[r].ln(),
+            },
+        })
+        .collect();
+    if mass_model == MassModel::FreeRatios {
+        coords.extend((1..N_FLOORS).map(|r| Coordinate {
+            name: format!("ln m{}/m1", r + 1),
+            variable: Variable::Beta(r),
+            scale: Scale::Log {
+                ln_offset: (MASSES_KG[r] / MASSES_KG[0]).ln(),
+            },
+        }));
+    }
+    let params = Parametrisation::new(&model, coords)?;
+    let floors = (0..N_FLOORS).collect();
+    ModalPredictor::new(DenseModes::new(model), params, floors, modes.to_vec())
 }
 
 /// Prior box of every coordinate, in sampling order.
@@ -232,12 +272,39 @@ impl ModalLikelihood {
                 "modes {modes:?}: need at least one mode, each below {N_FLOORS}"
             )));
         }
-        let unit_shapes = (0..N_FLOORS).map(|i| data.unit_shape(i)).collect();
+        let unit_shapes: Vec<Vec<f64>> = (0..N_FLOORS).map(|i| data.unit_shape(i)).collect();
+        let predictor = modal_predictor(mass_model, &modes)?;
+        let mut blocks = Vec::with_capacity(2 * modes.len());
+        for (i, &m) in modes.iter().enumerate() {
+            let (f, r) = (predictor.freq_range(), predictor.shape_range(i));
+            blocks.push(Block::values(
+                &format!("f{}", m + 1),
+                f.start + i..f.start + i + 1,
+                &[data.freq_hz[m]],
+                &[1.0],
+                Transform::Ln,
+                NoiseScale::Sampled(0),
+            )?);
+            blocks.push(Block::shape_mac(
+                &format!("shape{}", m + 1),
+                r,
+                &unit_shapes[m],
+                NoiseScale::Sampled(1),
+            )?);
+        }
+        let bounds = prior_bounds(mass_model);
+        let ns = predictor.n_params();
+        let scales = [
+            ("ln sigma_f".to_string(), bounds[ns]),
+            ("ln sigma_s".to_string(), bounds[ns + 1]),
+        ];
+        let posterior = Posterior::new(predictor, &bounds[..ns], &scales, blocks)?;
         Ok(ModalLikelihood {
             data,
             modes,
             mass_model,
             unit_shapes,
+            posterior,
         })
     }
 
@@ -280,17 +347,6 @@ impl ModalLikelihood {
         let (m, k) = self.structure(theta);
         predict_structure(&self.unit_shapes, &m, &k)
     }
-
-    /// The log-likelihood terms `(frequency, shape)` of one mode at a prediction, with
-    /// noise scales `sigma_f`, `sigma_s`.
-    pub fn mode_terms(&self, p: &Prediction, i: usize, sigma_f: f64, sigma_s: f64) -> (f64, f64) {
-        let r = (self.data.freq_hz[i] / p.freq_hz[i]).ln();
-        let ln2pi = (2.0 * std::f64::consts::PI).ln();
-        let lf = -0.5 * ln2pi - sigma_f.ln() - 0.5 * (r / sigma_f).powi(2);
-        let dof = (N_FLOORS - 1) as f64;
-        let ls = -0.5 * dof * ln2pi - dof * sigma_s.ln() - 0.5 * (1.0 - p.mac[i]) / sigma_s.powi(2);
-        (lf, ls)
-    }
 }
 
 /// Modes of a given structure compared with the data.
@@ -321,35 +377,20 @@ pub fn predict_structure(
     })
 }
 
+impl ModalLikelihood {
+    /// The posterior on the inference layer (coordinates as [`prior_bounds`]).
+    pub fn posterior(&self) -> &Posterior<ModalPredictor<DenseModes>> {
+        &self.posterior
+    }
+}
+
 impl LogDensity for ModalLikelihood {
     fn dim(&self) -> usize {
-        self.n_structural() + 2
+        self.posterior.dim()
     }
 
     fn ln_density(&self, theta: &[f64]) -> Result<f64> {
-        let bounds = prior_bounds(self.mass_model);
-        if theta
-            .iter()
-            .zip(&bounds)
-            .any(|(t, (lo, hi))| !(t >= lo && t <= hi))
-        {
-            return Ok(f64::NEG_INFINITY);
-        }
-        let ns = self.n_structural();
-        let (sigma_f, sigma_s) = (theta[ns].exp(), theta[ns + 1].exp());
-        let p = match self.predict(theta) {
-            Ok(p) => p,
-            Err(Error::Model(_)) => return Ok(f64::NEG_INFINITY),
-            Err(e) => return Err(e),
-        };
-        Ok(self
-            .modes
-            .iter()
-            .map(|&i| {
-                let (a, b) = self.mode_terms(&p, i, sigma_f, sigma_s);
-                a + b
-            })
-            .sum())
+        self.posterior.ln_density(theta)
     }
 }
 
@@ -422,6 +463,45 @@ mod tests {
         for i in 0..4 {
             assert!((p.freq_hz[i] / lik.data.freq_hz[i] - 1.0).abs() < 1e-12);
             assert!((p.mac[i] - 1.0).abs() < 1e-12);
+        }
+    }
+
+    /// Oracle: the layer's density is the module docs' likelihood written out by hand
+    /// (log-frequency Gaussian and `(1 - MAC)` shape term per mode) plus the log of the
+    /// normalised uniform prior, for both mass models.
+    #[test]
+    fn layer_density_equals_the_hand_written_likelihood() {
+        let data = synthetic(&[5.0, 5.2, 4.8, 5.1], &[1050.0, 1300.0, 1400.0, 2600.0]);
+        for (mm, extra) in [
+            (MassModel::Fixed, vec![]),
+            (MassModel::FreeRatios, vec![0.05, -0.1, 0.02]),
+        ] {
+            let lik = ModalLikelihood::new(data.clone(), vec![0, 1, 3], mm).unwrap();
+            let mut theta: Vec<f64> = [1100.0f64, 1250.0, 1390.0, 2700.0]
+                .iter()
+                .map(|k| k.ln())
+                .collect();
+            theta.extend(extra);
+            theta.extend([0.01f64.ln(), 0.03f64.ln()]);
+            let ns = lik.n_structural();
+            let (sf, ss) = (theta[ns].exp(), theta[ns + 1].exp());
+            let p = lik.predict(&theta).unwrap();
+            let ln2pi = (2.0 * std::f64::consts::PI).ln();
+            let hand: f64 = [0usize, 1, 3]
+                .iter()
+                .map(|&i| {
+                    let r = (data.freq_hz[i] / p.freq_hz[i]).ln();
+                    let lf = -0.5 * ln2pi - sf.ln() - 0.5 * (r / sf).powi(2);
+                    let ls = -1.5 * ln2pi - 3.0 * ss.ln() - 0.5 * (1.0 - p.mac[i]) / (ss * ss);
+                    lf + ls
+                })
+                .sum();
+            let ln_volume: f64 = prior_bounds(mm).iter().map(|(l, u)| (u - l).ln()).sum();
+            let layer = lik.ln_density(&theta).unwrap();
+            assert!(
+                (layer - (hand - ln_volume)).abs() < 1e-9 * hand.abs().max(1.0),
+                "{layer} {hand}"
+            );
         }
     }
 

@@ -13,12 +13,14 @@
 //! reproduces. The Jacobian is reduced by one Householder QR per iteration, so the
 //! subproblem work is `O(n^3)` and independent of the number of residuals.
 
+mod fd;
 mod linalg;
 mod multistart;
 mod qr;
 mod step;
 mod trf;
 
+pub use fd::fd_jacobian;
 pub use multistart::{
     latin_hypercube, multistart, multistart_from, start_points, MultistartOptions,
     MultistartResult, StartOutcome,

@@ -1,0 +1,348 @@
+//! Observation kinds: how a block of predictions meets its data.
+//!
+//! A [`Block`] turns a range of the prediction vector into residuals `r` (already
+//! divided by any per-entry standard deviation or multiplied by any weight) and has a
+//! noise scale `sigma`, fixed or sampled. Its log-likelihood is Gaussian,
+//!
+//! `ln L_b = c_b - nu_b ln sigma - ||r||^2 / (2 sigma^2)`,
+//!
+//! with `nu_b` its degrees of freedom and `c_b` the normalising constant
+//! (`-nu_b/2 ln 2 pi` plus the per-entry `-ln sd_i` or `+ln w_i`), so that the terms of
+//! different blocks and models are comparable (evidence, LOO).
+//!
+//! Kinds:
+//! - [`BlockKind::Values`]: real values with standard deviations, compared after a
+//!   transform (identity for FRF magnitudes, `ln` for log magnitudes and log
+//!   frequencies, `(2 pi f)^2` for eigenvalues from frequencies in Hz).
+//! - [`BlockKind::ShapeMac`]: a measured shape `psi` (scaled to unit length) against the
+//!   predicted `phi` with the amplitude integrated out under a flat prior: the residual
+//!   is `(I - P_phi) psi`, whose squared norm is `1 - MAC(psi, phi)`, with `n - 1`
+//!   degrees of freedom.
+//! - [`BlockKind::ShapeDifference`]: the eigenvector difference of SMU (Wang's
+//!   Structural Model Updating toolbox): both shapes scaled so that a reference entry is
+//!   1, then `r_j = w_j (phi_j / phi_ref - psi_j / psi_ref)` for every other entry.
+
+use std::ops::Range;
+
+use crate::error::{Error, Result};
+
+const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
+
+/// What the values of a [`BlockKind::Values`] block are compared as.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Transform {
+    Identity,
+    Ln,
+    /// Predicted and observed values are frequencies in Hz; compared as eigenvalues
+    /// `(2 pi f)^2` in rad^2/s^2 (paper Eq. 22b).
+    EigenvalueOfHz,
+}
+
+impl Transform {
+    fn apply(self, v: f64) -> f64 {
+        match self {
+            Transform::Identity => v,
+            Transform::Ln => v.ln(),
+            Transform::EigenvalueOfHz => (2.0 * std::f64::consts::PI * v).powi(2),
+        }
+    }
+}
+
+/// The noise scale `sigma` of a block.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NoiseScale {
+    /// Known.
+    Fixed(f64),
+    /// Sampled: `ln sigma` is the posterior's scale coordinate of this index.
+    Sampled(usize),
+}
+
+/// See the module docs.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BlockKind {
+    Values {
+        /// Observed values, already transformed.
+        observed: Vec<f64>,
+        inv_sd: Vec<f64>,
+        transform: Transform,
+    },
+    ShapeMac {
+        /// The measured shape scaled to unit length.
+        observed_unit: Vec<f64>,
+    },
+    ShapeDifference {
+        /// The measured shape divided by its reference entry.
+        observed: Vec<f64>,
+        reference: usize,
+        weight: Vec<f64>,
+    },
+}
+
+/// One block of observations (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Block {
+    pub name: String,
+    /// Where its predictions are in the prediction vector.
+    pub predictions: Range<usize>,
+    pub kind: BlockKind,
+    pub scale: NoiseScale,
+}
+
+fn check_finite(name: &str, what: &str, v: &[f64]) -> Result<()> {
+    match v.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(Error::Usage(format!(
+            "{name}: {what} entry {i} is {}",
+            v[i]
+        ))),
+        None => Ok(()),
+    }
+}
+
+impl Block {
+    /// Values observed with standard deviations `sd`, compared after `transform`
+    /// (`sd` is in the transformed unit).
+    pub fn values(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        sd: &[f64],
+        transform: Transform,
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        let n = predictions.len();
+        if observed.len() != n || sd.len() != n {
+            return Err(Error::Usage(format!(
+                "{name}: {} predictions, {} observations, {} standard deviations",
+                n,
+                observed.len(),
+                sd.len()
+            )));
+        }
+        if let Some(i) = sd.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(Error::Usage(format!(
+                "{name}: standard deviation {i} is {}",
+                sd[i]
+            )));
+        }
+        let observed: Vec<f64> = observed.iter().map(|&v| transform.apply(v)).collect();
+        check_finite(name, "observed (transformed)", &observed)?;
+        Self::checked(
+            name,
+            predictions,
+            BlockKind::Values {
+                observed,
+                inv_sd: sd.iter().map(|s| 1.0 / s).collect(),
+                transform,
+            },
+            scale,
+        )
+    }
+
+    /// A measured shape against a predicted one, amplitude integrated out.
+    pub fn shape_mac(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        check_finite(name, "shape", observed)?;
+        let norm = observed.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if observed.len() != predictions.len() || observed.len() < 2 || norm == 0.0 {
+            return Err(Error::Usage(format!(
+                "{name}: a shape needs at least 2 non-zero entries, one per predicted DOF ({})",
+                predictions.len()
+            )));
+        }
+        let observed_unit = observed.iter().map(|v| v / norm).collect();
+        Self::checked(
+            name,
+            predictions,
+            BlockKind::ShapeMac { observed_unit },
+            scale,
+        )
+    }
+
+    /// SMU's eigenvector difference about entry `reference`, weights per entry (the
+    /// reference entry's weight is not used).
+    pub fn shape_difference(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        reference: usize,
+        weight: &[f64],
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        check_finite(name, "shape", observed)?;
+        check_finite(name, "weight", weight)?;
+        let n = predictions.len();
+        if observed.len() != n || weight.len() != n || reference >= n {
+            return Err(Error::Usage(format!(
+                "{name}: {} shape entries, {} weights, reference {reference}, {n} predicted DOFs",
+                observed.len(),
+                weight.len()
+            )));
+        }
+        if observed[reference] == 0.0 || weight.iter().any(|w| *w <= 0.0) {
+            return Err(Error::Usage(format!(
+                "{name}: the reference entry must be non-zero and every weight positive"
+            )));
+        }
+        let observed = observed.iter().map(|v| v / observed[reference]).collect();
+        let kind = BlockKind::ShapeDifference {
+            observed,
+            reference,
+            weight: weight.to_vec(),
+        };
+        Self::checked(name, predictions, kind, scale)
+    }
+
+    fn checked(
+        name: &str,
+        predictions: Range<usize>,
+        kind: BlockKind,
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        if let NoiseScale::Fixed(s) = scale {
+            if !(s.is_finite() && s > 0.0) {
+                return Err(Error::Usage(format!(
+                    "{name}: noise scale {s} must be positive"
+                )));
+            }
+        }
+        Ok(Block {
+            name: name.to_string(),
+            predictions,
+            kind,
+            scale,
+        })
+    }
+
+    /// Number of residuals.
+    pub fn n_residuals(&self) -> usize {
+        match &self.kind {
+            BlockKind::ShapeDifference { .. } => self.predictions.len() - 1,
+            _ => self.predictions.len(),
+        }
+    }
+
+    /// Degrees of freedom `nu_b`.
+    pub fn dof(&self) -> f64 {
+        match &self.kind {
+            BlockKind::Values { .. } => self.predictions.len() as f64,
+            _ => (self.predictions.len() - 1) as f64,
+        }
+    }
+
+    /// The normalising constant `c_b`.
+    pub fn ln_norm(&self) -> f64 {
+        let base = -self.dof() * HALF_LN_2PI;
+        match &self.kind {
+            BlockKind::Values { inv_sd, .. } => base + inv_sd.iter().map(|w| w.ln()).sum::<f64>(),
+            BlockKind::ShapeMac { .. } => base,
+            BlockKind::ShapeDifference {
+                weight, reference, ..
+            } => {
+                let all: f64 = weight.iter().map(|w| w.ln()).sum();
+                base + all - weight[*reference].ln()
+            }
+        }
+    }
+
+    /// Residuals (before division by `sigma`) of the whole prediction vector `pred`
+    /// into `out` (length [`Self::n_residuals`]).
+    pub fn residuals(&self, pred: &[f64], out: &mut [f64]) {
+        let p = &pred[self.predictions.clone()];
+        match &self.kind {
+            BlockKind::Values {
+                observed,
+                inv_sd,
+                transform,
+            } => {
+                for i in 0..p.len() {
+                    out[i] = (transform.apply(p[i]) - observed[i]) * inv_sd[i];
+                }
+            }
+            BlockKind::ShapeMac { observed_unit } => {
+                let pp: f64 = p.iter().map(|v| v * v).sum();
+                let po: f64 = p.iter().zip(observed_unit).map(|(a, b)| a * b).sum();
+                let c = if pp > 0.0 { po / pp } else { 0.0 };
+                for i in 0..p.len() {
+                    out[i] = observed_unit[i] - c * p[i];
+                }
+            }
+            BlockKind::ShapeDifference {
+                observed,
+                reference,
+                weight,
+            } => {
+                let pref = p[*reference];
+                let mut k = 0;
+                for j in (0..p.len()).filter(|j| j != reference) {
+                    out[k] = weight[j] * (p[j] / pref - observed[j]);
+                    k += 1;
+                }
+            }
+        }
+    }
+
+    /// `ln L_b` given the residuals and `sigma`.
+    pub fn ln_likelihood(&self, residuals: &[f64], sigma: f64) -> f64 {
+        let ss: f64 = residuals.iter().map(|r| r * r).sum();
+        self.ln_norm() - self.dof() * sigma.ln() - 0.5 * ss / (sigma * sigma)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `||(I - P_phi) psi||^2 = 1 - MAC` for every pair of shapes, and the block is
+    /// invariant to the sign and scale of the prediction.
+    #[test]
+    fn mac_residual_norm_is_one_minus_mac() {
+        let psi = [0.3, -0.7, 1.0, 0.2];
+        let b = Block::shape_mac("s", 0..4, &psi, NoiseScale::Fixed(1.0)).unwrap();
+        let phi = [0.25, -0.8, 0.9, 0.35];
+        let mut r = [0.0; 4];
+        b.residuals(&phi, &mut r);
+        let ss: f64 = r.iter().map(|v| v * v).sum();
+        let mac = crate::modal::mac(&psi, &phi);
+        assert!((ss - (1.0 - mac)).abs() < 1e-15);
+        let flipped: Vec<f64> = phi.iter().map(|v| -3.0 * v).collect();
+        let mut r2 = [0.0; 4];
+        b.residuals(&flipped, &mut r2);
+        assert!(r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < 1e-15));
+    }
+
+    /// A Values block is the Gaussian density of its observations: sum of
+    /// `ln N(t(y_i); t(pred_i), (sd_i sigma)^2)`.
+    #[test]
+    fn values_block_is_the_gaussian_density() {
+        let (y, sd, pred, sigma) = ([2.0, 3.0], [0.1, 0.2], [2.1, 2.7], 1.5);
+        let b = Block::values("v", 0..2, &y, &sd, Transform::Ln, NoiseScale::Fixed(sigma)).unwrap();
+        let mut r = [0.0; 2];
+        b.residuals(&pred, &mut r);
+        let direct: f64 = (0..2)
+            .map(|i| {
+                let s = sd[i] * sigma;
+                let z = (pred[i] as f64).ln() - (y[i] as f64).ln();
+                -0.5 * (z / s).powi(2) - s.ln() - HALF_LN_2PI
+            })
+            .sum();
+        assert!((b.ln_likelihood(&r, sigma) - direct).abs() < 1e-12);
+    }
+
+    #[test]
+    fn shape_difference_is_zero_for_a_scaled_copy_and_skips_the_reference() {
+        let psi = [0.5, 1.0, -0.25];
+        let b =
+            Block::shape_difference("d", 0..3, &psi, 1, &[2.0, 9.0, 4.0], NoiseScale::Fixed(1.0))
+                .unwrap();
+        let mut r = [1.0; 2];
+        b.residuals(&[-1.0, -2.0, 0.5], &mut r);
+        assert_eq!(r, [0.0, 0.0]);
+        b.residuals(&[0.6, 1.0, -0.25], &mut r);
+        assert!((r[0] - 2.0 * 0.1).abs() < 1e-15 && r[1] == 0.0);
+        assert!((b.ln_norm() - (-2.0 * HALF_LN_2PI + 2f64.ln() + 4f64.ln())).abs() < 1e-15);
+    }
+}

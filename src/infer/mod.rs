@@ -1,0 +1,36 @@
+//! The inference layer: one posterior for every study.
+//!
+//! A study states its model (a [`crate::predict::Predict`] implementation: what the model
+//! predicts at the observed channels), its data and its likelihood (observation blocks),
+//! and gets from [`Posterior`] at once
+//! - a [`crate::mcmc::LogDensity`] for the ensemble sampler ([`sample`]),
+//! - a [`crate::update::lsq::LeastSquaresProblem`] for MAP fits by the trust-region
+//!   reflective solver ([`fit`]),
+//! - a [`TemperedTarget`] for evidence by stepping-stone ([`evidence`]) and Laplace's
+//!   approximation ([`laplace`]).
+//!
+//! Lower layers (model, modal, frf, predict, update, mcmc) never import this one; the
+//! studies (bayes, discrepancy, real, experiment) build on it.
+
+pub mod evidence;
+pub mod fit;
+pub mod laplace;
+pub mod likelihood;
+pub mod posterior;
+pub mod prior;
+pub mod sample;
+mod tempering;
+#[cfg(test)]
+mod tests;
+
+pub use evidence::{
+    stepping_stone, Evidence, EvidenceOptions, EvidenceProgress, PosteriorDraws, Stage,
+    TemperedTarget,
+};
+pub use fit::{fit_multistart, FitOptions, FitResult};
+pub use laplace::{laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION};
+pub use likelihood::{Block, BlockKind, NoiseScale};
+pub use posterior::Posterior;
+pub use prior::BoxPrior;
+pub use sample::{sample_to_targets, Sampled, Sampling, Targets};
+pub use tempering::TemperingRun;

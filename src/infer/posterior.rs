@@ -1,0 +1,326 @@
+//! [`Posterior`]: a prior, a predictor and observation blocks; at once a log density for
+//! the sampler, a least-squares problem for the MAP solver, and a tempered target for
+//! evidence.
+//!
+//! Coordinates `z = [theta, ln sigma_1 .. ln sigma_S]`: the predictor's coordinates,
+//! then the log of every sampled noise scale. The prior is uniform on a box
+//! ([`BoxPrior`]); the likelihood is the sum of the blocks' Gaussian terms
+//! ([`super::likelihood`]). A parameter point where the predictor reports an
+//! inadmissible model ([`Error::Model`]) has zero density.
+
+use std::cell::RefCell;
+
+use nalgebra::DMatrix;
+use rand_chacha::ChaCha8Rng;
+use thread_local::ThreadLocal;
+
+use super::evidence::TemperedTarget;
+use super::likelihood::{Block, NoiseScale};
+use super::prior::BoxPrior;
+use crate::error::{Error, Result};
+use crate::mcmc::LogDensity;
+use crate::predict::Predict;
+use crate::update::lsq::{fd_jacobian, Bounds, LeastSquaresProblem};
+
+/// Scratch memory of one thread.
+pub struct Scratch<W> {
+    ws: W,
+    pred: Vec<f64>,
+    res: Vec<f64>,
+}
+
+/// See the module docs.
+pub struct Posterior<P: Predict> {
+    predictor: P,
+    prior: BoxPrior,
+    blocks: Vec<Block>,
+    /// Offset of each block's residuals.
+    offsets: Vec<usize>,
+    n_residuals: usize,
+    scratch: ThreadLocal<RefCell<Scratch<P::Workspace>>>,
+}
+
+impl<P: Predict + Clone> Clone for Posterior<P> {
+    fn clone(&self) -> Self {
+        Posterior {
+            predictor: self.predictor.clone(),
+            prior: self.prior.clone(),
+            blocks: self.blocks.clone(),
+            offsets: self.offsets.clone(),
+            n_residuals: self.n_residuals,
+            scratch: ThreadLocal::new(),
+        }
+    }
+}
+
+impl<P: Predict> std::fmt::Debug for Posterior<P> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Posterior")
+            .field("names", &self.prior.names())
+            .field("blocks", &self.blocks.len())
+            .field("n_residuals", &self.n_residuals)
+            .finish()
+    }
+}
+
+impl<P: Predict> Posterior<P> {
+    /// `theta_bounds`: prior box of the predictor's coordinates; `scales`: name and
+    /// `ln sigma` box of each sampled noise scale (blocks refer to them by index).
+    pub fn new(
+        predictor: P,
+        theta_bounds: &[(f64, f64)],
+        scales: &[(String, (f64, f64))],
+        blocks: Vec<Block>,
+    ) -> Result<Self> {
+        if theta_bounds.len() != predictor.n_params() {
+            return Err(Error::Usage(format!(
+                "{} prior bounds for {} model coordinates",
+                theta_bounds.len(),
+                predictor.n_params()
+            )));
+        }
+        let n_out = predictor.n_outputs();
+        for b in &blocks {
+            if b.predictions.end > n_out || b.predictions.is_empty() {
+                return Err(Error::Usage(format!(
+                    "block `{}` reads predictions {:?} of {n_out}",
+                    b.name, b.predictions
+                )));
+            }
+            if let NoiseScale::Sampled(i) = b.scale {
+                if i >= scales.len() {
+                    return Err(Error::Usage(format!(
+                        "block `{}` uses noise scale {i} of {}",
+                        b.name,
+                        scales.len()
+                    )));
+                }
+            }
+        }
+        let mut names = predictor.param_names();
+        names.extend(scales.iter().map(|(n, _)| n.clone()));
+        let mut bounds = theta_bounds.to_vec();
+        bounds.extend(scales.iter().map(|(_, b)| *b));
+        let prior = BoxPrior::new(names, &bounds)?;
+        let mut offsets = Vec::with_capacity(blocks.len());
+        let mut n_residuals = 0;
+        for b in &blocks {
+            offsets.push(n_residuals);
+            n_residuals += b.n_residuals();
+        }
+        Ok(Posterior {
+            predictor,
+            prior,
+            blocks,
+            offsets,
+            n_residuals,
+            scratch: ThreadLocal::new(),
+        })
+    }
+
+    pub fn predictor(&self) -> &P {
+        &self.predictor
+    }
+    pub fn prior(&self) -> &BoxPrior {
+        &self.prior
+    }
+    pub fn blocks(&self) -> &[Block] {
+        &self.blocks
+    }
+    /// Number of coordinates (`theta` and the sampled `ln sigma`).
+    pub fn dim(&self) -> usize {
+        self.prior.dim()
+    }
+    /// Number of model coordinates (`theta`).
+    pub fn n_model(&self) -> usize {
+        self.predictor.n_params()
+    }
+    pub fn names(&self) -> &[String] {
+        self.prior.names()
+    }
+    /// Residuals of every block, concatenated (before division by the noise scales).
+    pub fn n_residuals(&self) -> usize {
+        self.n_residuals
+    }
+    /// Where block `b`'s residuals are.
+    pub fn residual_range(&self, b: usize) -> std::ops::Range<usize> {
+        self.offsets[b]..self.offsets[b] + self.blocks[b].n_residuals()
+    }
+
+    fn new_scratch(&self) -> Scratch<P::Workspace> {
+        Scratch {
+            ws: self.predictor.workspace(),
+            pred: vec![0.0; self.predictor.n_outputs()],
+            res: vec![0.0; self.n_residuals],
+        }
+    }
+
+    fn with_scratch<R>(&self, f: impl FnOnce(&mut Scratch<P::Workspace>) -> R) -> R {
+        let cell = self.scratch.get_or(|| RefCell::new(self.new_scratch()));
+        f(&mut cell.borrow_mut())
+    }
+
+    /// Predictions at the model coordinates `theta`.
+    pub fn predict(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        self.with_scratch(|s| {
+            self.predictor.predict(theta, &mut s.ws, &mut s.pred)?;
+            Ok(s.pred.clone())
+        })
+    }
+
+    /// Block residuals (before the noise scales) at `theta`, concatenated.
+    pub fn residuals(&self, theta: &[f64]) -> Result<Vec<f64>> {
+        self.with_scratch(|s| {
+            self.fill_residuals(theta, s)?;
+            Ok(s.res.clone())
+        })
+    }
+
+    fn fill_residuals(&self, theta: &[f64], s: &mut Scratch<P::Workspace>) -> Result<()> {
+        self.predictor.predict(theta, &mut s.ws, &mut s.pred)?;
+        for (b, &o) in self.blocks.iter().zip(&self.offsets) {
+            b.residuals(&s.pred, &mut s.res[o..o + b.n_residuals()]);
+        }
+        Ok(())
+    }
+
+    /// `sigma` of every block at `z`.
+    fn sigma(&self, b: &Block, z: &[f64]) -> f64 {
+        match b.scale {
+            NoiseScale::Fixed(s) => s,
+            NoiseScale::Sampled(i) => z[self.n_model() + i].exp(),
+        }
+    }
+
+    /// Log-likelihood at `z` (inside the prior box), one term per block into `terms`
+    /// when it is not empty; `-inf` for an inadmissible model.
+    pub fn ln_likelihood_terms(&self, z: &[f64], terms: &mut [f64]) -> Result<f64> {
+        self.with_scratch(|s| {
+            match self.fill_residuals(&z[..self.n_model()], s) {
+                Ok(()) => {}
+                Err(Error::Model(_)) => return Ok(f64::NEG_INFINITY),
+                Err(e) => return Err(e),
+            }
+            let mut total = 0.0;
+            for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
+                let l = b.ln_likelihood(&s.res[o..o + b.n_residuals()], self.sigma(b, z));
+                if !terms.is_empty() {
+                    terms[i] = l;
+                }
+                total += l;
+            }
+            Ok(if total.is_nan() {
+                f64::NEG_INFINITY
+            } else {
+                total
+            })
+        })
+    }
+
+    /// The least-squares view at fixed noise scales `sigma` (one per sampled scale):
+    /// residuals `r / sigma_b` over the model coordinates, so that its cost is
+    /// `-ln L + const` and its minimiser in the prior box is the MAP estimate.
+    pub fn least_squares(&self, sigma: &[f64]) -> Result<LeastSquares<'_, P>> {
+        let n_scales = self.prior.dim() - self.n_model();
+        if sigma.len() != n_scales || sigma.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(Error::Usage(format!(
+                "least squares needs {n_scales} positive noise scales, got {sigma:?}"
+            )));
+        }
+        let mut z = vec![0.0; self.n_model()];
+        z.extend(sigma.iter().map(|s| s.ln()));
+        let inv_sigma = self
+            .blocks
+            .iter()
+            .map(|b| 1.0 / self.sigma(b, &z))
+            .collect();
+        Ok(LeastSquares {
+            post: self,
+            inv_sigma,
+            bounds: self.prior.bounds_of_first(self.n_model())?,
+        })
+    }
+}
+
+impl<P: Predict> LogDensity for Posterior<P> {
+    fn dim(&self) -> usize {
+        self.prior.dim()
+    }
+    fn ln_density(&self, z: &[f64]) -> Result<f64> {
+        self.ln_density_with_pointwise(z, &mut [])
+    }
+    fn n_pointwise(&self) -> usize {
+        self.blocks.len()
+    }
+    fn ln_density_with_pointwise(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
+        let lp = self.prior.ln_density(z);
+        if lp == f64::NEG_INFINITY {
+            return Ok(lp);
+        }
+        Ok(lp + self.ln_likelihood_terms(z, pointwise)?)
+    }
+}
+
+impl<P: Predict> TemperedTarget for Posterior<P> {
+    fn dim(&self) -> usize {
+        self.prior.dim()
+    }
+    fn ln_prior(&self, z: &[f64]) -> f64 {
+        self.prior.ln_density(z)
+    }
+    fn ln_likelihood(&self, z: &[f64]) -> Result<f64> {
+        self.ln_likelihood_terms(z, &mut [])
+    }
+    fn sample_prior(&self, rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
+        Ok(self.prior.sample(rng))
+    }
+}
+
+/// [`Posterior::least_squares`]: the whitened residuals as a bounded least-squares
+/// problem in the model coordinates.
+pub struct LeastSquares<'a, P: Predict> {
+    post: &'a Posterior<P>,
+    inv_sigma: Vec<f64>,
+    bounds: Bounds,
+}
+
+impl<P: Predict> LeastSquares<'_, P> {
+    /// The prior box of the model coordinates.
+    pub fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+}
+
+impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
+    type Workspace = Scratch<P::Workspace>;
+
+    fn n_params(&self) -> usize {
+        self.post.n_model()
+    }
+    fn n_residuals(&self) -> usize {
+        self.post.n_residuals
+    }
+    fn workspace(&self) -> Self::Workspace {
+        self.post.new_scratch()
+    }
+    fn residuals(&self, x: &[f64], ws: &mut Self::Workspace, r: &mut [f64]) -> Result<()> {
+        self.post.fill_residuals(x, ws)?;
+        for (b, w) in self.inv_sigma.iter().enumerate() {
+            for i in self.post.residual_range(b) {
+                r[i] = ws.res[i] * w;
+            }
+        }
+        Ok(())
+    }
+    fn jacobian(&self, x: &[f64], ws: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()> {
+        let mut f0 = vec![0.0; self.n_residuals()];
+        self.residuals(x, ws, &mut f0)?;
+        fd_jacobian(
+            |xp: &[f64], r: &mut [f64]| self.residuals(xp, ws, r),
+            x,
+            &f0,
+            &self.bounds,
+            jac,
+        )
+    }
+}

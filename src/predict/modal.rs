@@ -1,0 +1,277 @@
+//! Modal predictions: natural frequencies and mode shapes at the measured DOFs.
+//!
+//! [`ModalPredictor`] pairs model modes with measured modes by index (model mode
+//! `modes[i]` for measured mode `i`) and predicts, in this order, the paired modes'
+//! natural frequencies (Hz) and then each paired mode's shape at the measured DOFs
+//! (mass-normalised, sign as the solver gives it: likelihoods of shapes must be
+//! invariant to the sign). The eigen-solution comes from a [`ModeSolver`]: the dense
+//! solver of [`crate::modal::Modes`] here ([`DenseModes`], with its shear-frame fast
+//! path), a partial or reduced-basis solver for large models.
+
+use std::ops::Range;
+use std::sync::Arc;
+
+use super::{Parametrisation, Predict};
+use crate::error::{Error, Result};
+use crate::modal::Modes;
+use crate::model::StructuralModel;
+use nalgebra::DMatrix;
+
+/// The lowest modes of `K(alpha) phi = omega^2 M(beta) phi` (Eqs. 20-22).
+pub trait ModeSolver: Sync {
+    /// Scratch memory of one thread.
+    type Workspace: Send;
+    /// DOFs of the model.
+    fn n_dof(&self) -> usize;
+    /// A fresh workspace.
+    fn workspace(&self) -> Self::Workspace;
+    /// The lowest `eigenvalues.len()` eigenvalues `omega^2` (rad^2/s^2, ascending) and
+    /// their mass-normalised shapes at `dofs`, column-major into `shapes`
+    /// (`dofs.len()` rows, one column per mode). [`Error::Model`] when `(alpha, beta)`
+    /// is not an admissible model.
+    fn lowest_modes(
+        &self,
+        alpha: &[f64],
+        beta: &[f64],
+        dofs: &[usize],
+        ws: &mut Self::Workspace,
+        eigenvalues: &mut [f64],
+        shapes: &mut [f64],
+    ) -> Result<()>;
+}
+
+/// Every mode by the dense solver of [`Modes`] (a tridiagonal solver for shear frames).
+#[derive(Debug, Clone)]
+pub struct DenseModes {
+    model: Arc<StructuralModel>,
+}
+
+impl DenseModes {
+    pub fn new(model: Arc<StructuralModel>) -> Self {
+        DenseModes { model }
+    }
+    pub fn model(&self) -> &StructuralModel {
+        &self.model
+    }
+}
+
+impl ModeSolver for DenseModes {
+    type Workspace = Modes;
+
+    fn n_dof(&self) -> usize {
+        self.model.n_dof()
+    }
+
+    fn workspace(&self) -> Modes {
+        Modes {
+            omega_rad_s: Vec::new(),
+            phi: DMatrix::zeros(0, 0),
+            participation: Vec::new(),
+        }
+    }
+
+    fn lowest_modes(
+        &self,
+        alpha: &[f64],
+        beta: &[f64],
+        dofs: &[usize],
+        modes: &mut Modes,
+        eigenvalues: &mut [f64],
+        shapes: &mut [f64],
+    ) -> Result<()> {
+        let (k, m) = (self.model.stiffness(alpha), self.model.mass(beta));
+        let n = eigenvalues.len();
+        modes
+            .solve_into(&k, &m, self.model.ground_influence(), Some(n))
+            .map_err(|e| {
+                Error::Model(format!("no modes at alpha {alpha:?}, beta {beta:?}: {e}"))
+            })?;
+        for i in 0..n {
+            eigenvalues[i] = modes.omega_rad_s[i] * modes.omega_rad_s[i];
+            for (s, &d) in shapes[i * dofs.len()..(i + 1) * dofs.len()]
+                .iter_mut()
+                .zip(dofs)
+            {
+                *s = modes.phi[(d, i)];
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Natural frequencies and shapes at measured DOFs of paired modes (see the module docs).
+#[derive(Debug, Clone)]
+pub struct ModalPredictor<S: ModeSolver> {
+    solver: S,
+    params: Parametrisation,
+    dofs: Vec<usize>,
+    modes: Vec<usize>,
+    n_solve: usize,
+}
+
+/// Scratch memory of a [`ModalPredictor`].
+pub struct ModalWorkspace<W> {
+    solver: W,
+    alpha: Vec<f64>,
+    beta: Vec<f64>,
+    eigenvalues: Vec<f64>,
+    shapes: Vec<f64>,
+}
+
+impl<S: ModeSolver> ModalPredictor<S> {
+    /// `dofs`: 0-based model DOFs of the measured shape entries; `modes`: 0-based model
+    /// mode paired with each measured mode.
+    pub fn new(
+        solver: S,
+        params: Parametrisation,
+        dofs: Vec<usize>,
+        modes: Vec<usize>,
+    ) -> Result<Self> {
+        let n = solver.n_dof();
+        if let Some(&d) = dofs.iter().find(|&&d| d >= n) {
+            return Err(Error::Usage(format!(
+                "measured DOF {d} (0-based) is out of range: the model has {n} DOFs"
+            )));
+        }
+        if modes.is_empty() {
+            return Err(Error::Usage(
+                "a modal prediction needs at least one mode".into(),
+            ));
+        }
+        let n_solve = modes.iter().max().map_or(0, |m| m + 1);
+        if n_solve > n {
+            return Err(Error::Usage(format!(
+                "model mode {} requested, but the model has {n} DOFs",
+                n_solve
+            )));
+        }
+        Ok(ModalPredictor {
+            solver,
+            params,
+            dofs,
+            modes,
+            n_solve,
+        })
+    }
+
+    pub fn n_modes(&self) -> usize {
+        self.modes.len()
+    }
+    pub fn n_dofs(&self) -> usize {
+        self.dofs.len()
+    }
+    pub fn solver(&self) -> &S {
+        &self.solver
+    }
+    pub fn parametrisation(&self) -> &Parametrisation {
+        &self.params
+    }
+    /// Where the frequencies (Hz) are in the prediction vector.
+    pub fn freq_range(&self) -> Range<usize> {
+        0..self.modes.len()
+    }
+    /// Where the shape of paired mode `i` is in the prediction vector.
+    pub fn shape_range(&self, i: usize) -> Range<usize> {
+        let start = self.modes.len() + i * self.dofs.len();
+        start..start + self.dofs.len()
+    }
+}
+
+impl<S: ModeSolver> Predict for ModalPredictor<S> {
+    type Workspace = ModalWorkspace<S::Workspace>;
+
+    fn n_params(&self) -> usize {
+        self.params.len()
+    }
+
+    fn n_outputs(&self) -> usize {
+        self.modes.len() * (1 + self.dofs.len())
+    }
+
+    fn param_names(&self) -> Vec<String> {
+        self.params.names()
+    }
+
+    fn workspace(&self) -> Self::Workspace {
+        ModalWorkspace {
+            solver: self.solver.workspace(),
+            alpha: Vec::new(),
+            beta: Vec::new(),
+            eigenvalues: vec![0.0; self.n_solve],
+            shapes: vec![0.0; self.n_solve * self.dofs.len()],
+        }
+    }
+
+    fn predict(&self, theta: &[f64], ws: &mut Self::Workspace, out: &mut [f64]) -> Result<()> {
+        self.params.apply(theta, &mut ws.alpha, &mut ws.beta);
+        self.solver.lowest_modes(
+            &ws.alpha,
+            &ws.beta,
+            &self.dofs,
+            &mut ws.solver,
+            &mut ws.eigenvalues,
+            &mut ws.shapes,
+        )?;
+        let nd = self.dofs.len();
+        for (i, &m) in self.modes.iter().enumerate() {
+            let lambda = ws.eigenvalues[m];
+            if !(lambda > 0.0) {
+                return Err(Error::Model(format!(
+                    "model mode {} has eigenvalue {lambda} (not positive)",
+                    m + 1
+                )));
+            }
+            out[i] = lambda.sqrt() / (2.0 * std::f64::consts::PI);
+            out[self.shape_range(i)].copy_from_slice(&ws.shapes[m * nd..(m + 1) * nd]);
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::predict::{Coordinate, Scale, Variable};
+
+    /// Oracle: a uniform fixed-free chain of n equal masses m and springs k has
+    /// omega_j = 2 sqrt(k/m) sin((2j - 1) pi / (2 (2n + 1))); its shapes are
+    /// sin(j' x) profiles. Coordinates on a log scale move k as expected.
+    #[test]
+    fn predicts_the_closed_form_chain() {
+        let model = Arc::new(StructuralModel::shear_frame(&[2.0; 4], &[800.0; 4]).unwrap());
+        let coords = (0..4)
+            .map(|r| Coordinate {
+                name: format!("k{}", r + 1),
+                variable: Variable::Alpha(r),
+                scale: Scale::Log { ln_offset: 0.0 },
+            })
+            .collect();
+        let params = Parametrisation::new(&model, coords).unwrap();
+        let p =
+            ModalPredictor::new(DenseModes::new(model), params, vec![3, 1], vec![0, 2]).unwrap();
+        let mut ws = p.workspace();
+        let mut out = vec![0.0; p.n_outputs()];
+        // 1 + alpha = exp(ln 2): every spring doubled, frequencies up by sqrt 2.
+        p.predict(&[2f64.ln(); 4], &mut ws, &mut out).unwrap();
+        for (i, j) in [0usize, 2].iter().enumerate() {
+            let w =
+                2.0 * (800.0f64).sqrt() * ((2 * j + 1) as f64 * std::f64::consts::PI / 18.0).sin();
+            assert!((out[i] * 2.0 * std::f64::consts::PI / w - 1.0).abs() < 1e-12);
+        }
+        // Shape of mode 1 at floors 4 and 2: sin(4 x) / sin(2 x), x = pi / 9.
+        let s = &out[p.shape_range(0)];
+        let x = std::f64::consts::PI / 9.0;
+        assert!((s[0] / s[1] - (4.0 * x).sin() / (2.0 * x).sin()).abs() < 1e-10);
+    }
+
+    #[test]
+    fn rejects_out_of_range_dofs_and_modes() {
+        let model = Arc::new(StructuralModel::shear_frame(&[1.0; 3], &[10.0; 3]).unwrap());
+        let params = Parametrisation::all_alphas(&model).unwrap();
+        let solver = DenseModes::new(model);
+        let e = ModalPredictor::new(solver.clone(), params.clone(), vec![3], vec![0]);
+        assert!(e.unwrap_err().to_string().contains("DOF 3"));
+        let e = ModalPredictor::new(solver, params, vec![0], vec![3]);
+        assert!(e.unwrap_err().to_string().contains("mode 4"));
+    }
+}
