@@ -249,11 +249,11 @@ def fd_check(obj, alpha):
     return float(np.max(np.abs(jac - fd)) / np.max(np.abs(jac)))
 
 
-def run_start(obj, x0):
+def run_start(obj, x0, max_nfev):
     t0 = time.perf_counter()
     res = least_squares(
         obj.residuals, x0, jac=obj.jacobian, bounds=(LOWER, UPPER), method="trf",
-        ftol=TOL, xtol=TOL, gtol=TOL, max_nfev=MAX_NFEV, x_scale="jac",
+        ftol=TOL, xtol=TOL, gtol=TOL, max_nfev=max_nfev, x_scale="jac",
     )
     wall_s = time.perf_counter() - t0
     return {
@@ -276,11 +276,11 @@ def on_bound(alpha):
     ]
 
 
-def multistart(obj, starts, label):
+def multistart(obj, starts, label, max_nfev):
     runs = []
     t0 = time.perf_counter()
     for s, x0 in enumerate(starts):
-        run = run_start(obj, x0)
+        run = run_start(obj, x0, max_nfev)
         run["start"] = s
         runs.append(run)
         print(
@@ -382,6 +382,41 @@ def fmt_alpha(alpha):
     return ", ".join(f"{a:.4f}" for a in alpha)
 
 
+def minima_lines(runs):
+    """The distinct end points: objectives grouped to 6 significant digits, with counts
+    and how many of those starts ran out of budget (least_squares status 0)."""
+    groups = {}
+    for r in runs:
+        key = float(f"{r['objective']:.6g}")
+        n, n_budget = groups.get(key, (0, 0))
+        groups[key] = (n + 1, n_budget + (r["status"] == 0))
+    lines = ["| f (6 digits) | starts | of which budget exhausted |", "|---|---|---|"]
+    for key in sorted(groups)[:12]:
+        lines.append(f"| {key:.6g} | {groups[key][0]} | {groups[key][1]} |")
+    if len(groups) > 12:
+        rest = sorted(groups)[12:]
+        lines.append(f"| {len(rest)} more, {rest[0]:.6g} .. {rest[-1]:.6g} | "
+                     f"{sum(groups[k][0] for k in rest)} | {sum(groups[k][1] for k in rest)} |")
+    return lines
+
+
+def comparison_lines(variants):
+    """Best alpha of every variant side by side, with its bound flags."""
+    names = list(variants)
+    lines = [
+        "## Best alphas side by side",
+        "",
+        "| j | group | published | " + " | ".join(names) + " |",
+        "|---|---|---|" + "---|" * len(names),
+    ]
+    flags = {n: {b["index"]: b["bound"][0].upper() for b in variants[n]["alphas_on_bound"]} for n in names}
+    for j in range(17):
+        cells = [f"{variants[n]['best_alpha'][j]:.4f} {flags[n].get(j + 1, '')}".strip() for n in names]
+        lines.append(f"| {j + 1} | {SMU_ORDER[j]} | {PUBLISHED_ALPHA[j]:g} | " + " | ".join(cells) + " |")
+    lines += ["", "L / U: on the lower / upper bound (within 1e-6 of the box width).", ""]
+    return lines
+
+
 def markdown(report):
     c = report["checks"]
     lines = [
@@ -420,9 +455,22 @@ def markdown(report):
             f"| median wall time per start | {v['median_start_wall_s']:.2f} s |",
             f"| median nfev per start; budget exhausted | {v['median_nfev']:.0f}; {v['n_budget_exhausted']} |",
             "",
+            "End points of the starts:",
+            "",
+            *minima_lines(v["runs"]),
+            "",
         ]
+    if len(report["variants"]) > 1:
+        lines += comparison_lines(report["variants"])
     m = report["machine"]
+    solver = report["solver"]
     lines += [
+        "## Solver",
+        "",
+        f"`least_squares(method=\"trf\")`, ftol = xtol = gtol = {solver['ftol']:g}, "
+        f"max_nfev = {solver['max_nfev']} per start, x_scale = \"jac\", analytic Jacobian; "
+        f"starts: {report['starts']}, seed {report['seed']}.",
+        "",
         "## Machine",
         "",
         f"{m['cpu']}, {m['logical_cores']} logical cores, load average at the end "
@@ -456,6 +504,29 @@ def run_checks(data, seed):
     return checks
 
 
+def write_report(report, stem):
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    Path(f"{stem}.json").write_text(json.dumps(report, indent=1) + "\n")
+    Path(f"{stem}.md").write_text(markdown(report))
+
+
+def merge_reports(paths, stem):
+    """One report from runs of single variants made with the same seed and starts (e.g.
+    run side by side on two cores)."""
+    if not stem:
+        raise SystemExit("--merge needs --report")
+    reports = [json.loads(Path(p).read_text()) for p in paths]
+    merged = dict(reports[0])
+    merged["variants"] = {}
+    for p, r in zip(paths, reports):
+        if (r["seed"], r["solver"]) != (reports[0]["seed"], reports[0]["solver"]):
+            raise SystemExit(f"{p}: seed or solver options differ from {paths[0]}")
+        merged["variants"].update(r["variants"])
+    merged["command"] = " ; ".join(r["command"] for r in reports)
+    write_report(merged, stem)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     shared = Path(os.environ.get("FRFBAYES_SHARED_DIR", REPO.parent / "shared"))
@@ -466,10 +537,21 @@ def main():
     )
     ap.add_argument("--starts", type=int, default=100)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated: smu, per_entry")
+    ap.add_argument(
+        "--max-nfev", type=int, default=MAX_NFEV,
+        help="evaluation budget per start (default: SMU's MaxFunctionEvaluations, 3000)",
+    )
     ap.add_argument("--report", help="output stem: writes <stem>.json and <stem>.md")
     ap.add_argument("--fixture", help="write the Rust oracle fixture JSON here")
+    ap.add_argument(
+        "--merge", nargs="+", metavar="JSON",
+        help="only merge the variants of these reports (same seed and starts) into --report",
+    )
     args = ap.parse_args()
+    if args.merge:
+        merge_reports(args.merge, args.report)
+        return
     for name in ("SteelPedestrianBridgeExp.mat", "ExpModeInfo_FEM.mat"):
         if not (Path(args.data) / name).is_file():
             raise SystemExit(f"{Path(args.data) / name} not found: pass --data or set FRFBAYES_SHARED_DIR")
@@ -482,12 +564,12 @@ def main():
     variants = {}
     if args.starts > 0:
         for v in args.variants.split(","):
-            variants[v] = multistart(SmuObjective(data, v), starts, v)
+            variants[v] = multistart(SmuObjective(data, v), starts, v, args.max_nfev)
     report = {
         "format": "frfbayes-bridge-smu-scipy/1",
         "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         "seed": args.seed,
-        "solver": {"method": "trf", "ftol": TOL, "xtol": TOL, "gtol": TOL, "max_nfev": MAX_NFEV,
+        "solver": {"method": "trf", "ftol": TOL, "xtol": TOL, "gtol": TOL, "max_nfev": args.max_nfev,
                    "x_scale": "jac", "jac": "analytic (Nelson)"},
         "starts": "numpy default_rng(seed) uniform in the box",
         "checks": checks,
@@ -495,10 +577,7 @@ def main():
         "machine": machine_info(),
     }
     if args.report:
-        stem = Path(args.report)
-        stem.parent.mkdir(parents=True, exist_ok=True)
-        Path(f"{stem}.json").write_text(json.dumps(report, indent=1) + "\n")
-        Path(f"{stem}.md").write_text(markdown(report))
+        write_report(report, args.report)
     for name, v in variants.items():
         print(f"{name}: best f {v['best_objective']:.6f}, n_reached {v['n_reached']}/{v['n_starts']}, "
               f"{v['wall_s']:.1f} s, alpha [{fmt_alpha(v['best_alpha'])}]")
