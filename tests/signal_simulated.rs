@@ -1,10 +1,10 @@
 //! Acceptance of FRF estimation (issue 2) on campaigns from the simulator.
 
-use frfbayes::experiment::config::EstimateSection;
 use frfbayes::frf::{modal_frf, FrfPair};
 use frfbayes::io::Campaign;
 use frfbayes::modal::Modes;
 use frfbayes::model::StructuralModel;
+use frfbayes::signal::EstimateSection;
 use frfbayes::signal::{
     estimate_campaign, windowed_modal_frf, EstimateOptions, HammerEstimator, InputKind, TestFrf,
 };

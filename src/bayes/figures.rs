@@ -5,8 +5,7 @@ use super::predictive::{predictive_bands, PredictiveTarget};
 use super::run::{Prepared, SampleSettings};
 use super::summary::{physical_draws, OutputParam};
 use crate::error::Result;
-use crate::experiment::figures::y_label;
-use crate::experiment::pipeline::pair_label;
+use crate::frf::labels::{pair_label, y_label};
 use crate::frf::{Excitation, FrfPair};
 use crate::mcmc::{Burn, Draws, Sampler};
 use crate::plot::{

@@ -23,16 +23,13 @@ use super::summary::{
     output_params, physical_draws, stuck_walkers, summarize, OutputParam, PosteriorSummary,
 };
 use crate::error::{Error, Result};
-use crate::experiment::config::{EstimateSection, ExperimentConfig};
-use crate::experiment::driver::resolve_data;
-use crate::experiment::runinfo::RunInfo;
 use crate::frf::FrfKind;
-use crate::io::{read_campaign, write_atomic};
+use crate::io::{read_campaign, resolve_data, write_atomic, RunInfo};
 use crate::mcmc::{
     Burn, CheckpointConfig, Draws, LogDensity, MoveSpec, Moves, ProgressFn, RunSummary, Sampler,
     SamplerConfig, Start, StopReason, WeightedMove,
 };
-use crate::signal::{estimate_campaign, InputKind, TestFrf};
+use crate::signal::{estimate_campaign, EstimateSection, InputKind, TestFrf};
 use crate::update::{DampingModel, MultistartOptions, ResidualForm, VariablesConfig};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -99,8 +96,10 @@ pub struct SampleSettings {
 }
 
 impl SampleSettings {
-    /// Defaults: FRF estimation and bounds of `experiments/paper_repro.toml`, default
-    /// noise model and prior, 4 ensembles of 12 x dim walkers, [`default_moves`].
+    /// Defaults: the default FRF estimation ([`EstimateSection::default`]) and bounds
+    /// ([`VariablesConfig::default`]), which are those of `experiments/paper_repro.toml`
+    /// (a test in `crate::experiment::config` keeps them equal), default noise model and
+    /// prior, 4 ensembles of 12 x dim walkers, [`default_moves`].
     pub fn new(
         campaign: String,
         damping: DampingModel,
@@ -108,7 +107,6 @@ impl SampleSettings {
         tests: TestSelection,
         seed: u64,
     ) -> Result<Self> {
-        let paper = ExperimentConfig::paper_repro()?;
         Ok(SampleSettings {
             campaign,
             damping,
@@ -128,8 +126,8 @@ impl SampleSettings {
             predictive_draws: 200,
             moves: default_moves(),
             posterior: PosteriorOptions::default(),
-            estimate: paper.estimate,
-            variables: paper.update.variables,
+            estimate: EstimateSection::default(),
+            variables: VariablesConfig::default(),
         })
     }
 

@@ -71,7 +71,7 @@ fn stage_message(stage: &DiagnoseStage<'_>) -> String {
 }
 
 fn open_campaign(spec: &str) -> anyhow::Result<Campaign> {
-    let path = frfbayes::experiment::driver::resolve_data(spec)?;
+    let path = frfbayes::io::resolve_data(spec)?;
     let c = read_campaign(&path)?;
     for w in &c.warnings {
         eprintln!("warning: {w}");

@@ -50,7 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         pb.set_message(test.name.clone());
         let frf = estimate_test(test, &opts)?;
         let dir = staged.path().join(&test.name);
-        frfbayes::io::frf_csv::write_frf_csv(&dir.join("frf.csv"), &frf)?;
+        frfbayes::signal::frf_csv::write_frf_csv(&dir.join("frf.csv"), &frf)?;
         estimate_figures(&frf, &dir)?;
         let peaks: Vec<String> = frf
             .bands

@@ -1,6 +1,6 @@
 //! `frfbayes simulate`: writes a campaign with known truth from a simulation model file.
 
-use frfbayes::experiment::runinfo::RunInfo;
+use frfbayes::io::RunInfo;
 use frfbayes::simulate::{resolve_seed, SimModel, Simulator};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;

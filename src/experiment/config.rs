@@ -26,7 +26,7 @@
 //! ```
 
 use crate::error::{Error, Result};
-use crate::signal::{EstimateOptions, ExpWindow, HammerEstimator};
+use crate::signal::EstimateSection;
 use crate::update::{DampingModel, ResidualForm, VariablesConfig};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -58,65 +58,6 @@ pub struct ExperimentConfig {
 
 fn default_data() -> String {
     "bundled:four-story".into()
-}
-
-/// FRF estimation settings of an experiment.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct EstimateSection {
-    /// How hammer tests become spectra: `whole_record` (one transform from the first
-    /// impact, a force window around every impact; the default) or `impact_blocks` (one
-    /// block per impact, averaged).
-    pub hammer_estimator: HammerEstimator,
-    /// Time constant of the exponential window on hammer records, s; `None`: no window.
-    /// One common value keeps the added damping the same for every hammer test, so it can
-    /// be removed from the updated damping exactly (see [`crate::signal::windows`]).
-    pub exp_window_tau_s: Option<f64>,
-    /// Half-power band factor of the frequency-point selection (paper section 3.1).
-    pub band_factor: f64,
-    /// Upper frequency of the estimates, Hz.
-    pub freq_max_hz: Option<f64>,
-    /// Transducer filters to take out of the estimates (e.g. the low-pass `frfbayes
-    /// diagnose` identified in a campaign's accelerometers); none by default.
-    pub sensor_low_pass: Vec<SensorLowPass>,
-}
-
-/// A second-order low-pass `w^2 / (s^2 + 2 zeta w s + w^2)` in every channel of one
-/// quantity (the `sensor_dynamics` hypothesis of `diagnose`), divided out of the FRF
-/// estimates of those channels.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SensorLowPass {
-    pub quantity: crate::io::Quantity,
-    pub freq_hz: f64,
-    pub damping_ratio: f64,
-}
-
-impl Default for EstimateSection {
-    fn default() -> Self {
-        EstimateSection {
-            hammer_estimator: HammerEstimator::default(),
-            exp_window_tau_s: Some(20.0),
-            band_factor: 1.0,
-            freq_max_hz: Some(25.0),
-            sensor_low_pass: Vec::new(),
-        }
-    }
-}
-
-impl EstimateSection {
-    /// The estimator options these settings stand for.
-    pub fn options(&self) -> EstimateOptions {
-        let mut o = EstimateOptions::default();
-        o.hammer.estimator = self.hammer_estimator;
-        o.hammer.exp_window = match self.exp_window_tau_s {
-            Some(t) => ExpWindow::TauS(t),
-            None => ExpWindow::None,
-        };
-        o.bands.band_factor = self.band_factor;
-        o.freq_max_hz = self.freq_max_hz;
-        o
-    }
 }
 
 /// How measured points are weighted.
@@ -229,5 +170,26 @@ impl ExperimentConfig {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn json(v: impl Serialize) -> serde_json::Value {
+        serde_json::to_value(v).unwrap()
+    }
+
+    /// `SampleSettings::new` (in `crate::bayes`, below this module) uses the default FRF
+    /// estimation and bounds; they must stay those of the paper's experiment file.
+    #[test]
+    fn paper_repro_estimate_and_bounds_are_the_defaults() {
+        let paper = ExperimentConfig::paper_repro().unwrap();
+        assert_eq!(json(&paper.estimate), json(EstimateSection::default()));
+        assert_eq!(
+            json(&paper.update.variables),
+            json(VariablesConfig::default())
+        );
     }
 }

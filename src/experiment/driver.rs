@@ -6,24 +6,12 @@ use super::config::ExperimentConfig;
 use super::figures::{comparison_figure, estimate_figures};
 use super::pipeline::{run_variant, TableId, Variant, VariantRun};
 use super::report::comparison_markdown;
-use super::runinfo::RunInfo;
 use super::tables::{PaperTables, ParamTable};
 use crate::error::{Error, Result};
-use crate::io::{read_campaign, write_atomic, Campaign, StagedDir};
+use crate::io::{read_campaign, resolve_data, write_atomic, Campaign, RunInfo, StagedDir};
 use crate::signal::{estimate_campaign, TestFrf};
 use crate::update::DampingModel;
 use std::path::{Path, PathBuf};
-
-/// Where the data of an experiment come from: `bundled:four-story` or a folder.
-pub fn resolve_data(spec: &str) -> Result<PathBuf> {
-    match spec {
-        "bundled:four-story" => crate::io::bundled::bundled_four_story(),
-        s if s.starts_with("bundled:") => Err(Error::Usage(format!(
-            "unknown bundled dataset {s:?} (have: bundled:four-story)"
-        ))),
-        s => Ok(PathBuf::from(s)),
-    }
-}
 
 /// Progress of a run: `(stage, done, total)`.
 pub type Progress<'a> = &'a (dyn Fn(&str, usize, usize) + Sync);
@@ -112,7 +100,7 @@ fn figure_name(table: &str, damping: DampingModel) -> String {
 /// tests' accelerance is relative: `(H_rel + 1) / G - 1`.
 pub fn remove_sensor_low_pass(
     frfs: &mut [TestFrf],
-    filter: &super::config::SensorLowPass,
+    filter: &crate::signal::SensorLowPass,
 ) -> Result<()> {
     if !(filter.freq_hz > 0.0 && filter.damping_ratio > 0.0) {
         return Err(Error::Usage(format!(
@@ -225,7 +213,7 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         }
         for frf in &frfs {
             let d = dir.join("frf").join(&frf.test);
-            crate::io::frf_csv::write_frf_csv(&d.join("frf.csv"), frf)?;
+            crate::signal::frf_csv::write_frf_csv(&d.join("frf.csv"), frf)?;
             estimate_figures(frf, &d)?;
         }
         Ok(())

@@ -3,8 +3,9 @@
 //! from the pipeline.
 
 use super::config::FigureSpec;
-use super::pipeline::{model_curve, pair_label, TableId, VariantRun};
+use super::pipeline::{model_curve, TableId, VariantRun};
 use crate::error::{Error, Result};
+use crate::frf::labels::{pair_label, y_label};
 use crate::frf::{Excitation, FrfKind, FrfPair};
 use crate::plot::{
     self, ChannelFrf, ComparisonPanel, Curve, FreqBand, FrfComparisonSpec, FrfMagnitudesSpec,
@@ -24,18 +25,6 @@ fn bands(frf: &TestFrf) -> Vec<FreqBand> {
             hi_hz: b.hi_hz,
         })
         .collect()
-}
-
-/// Unit label of an FRF kind for ground or force input.
-pub fn y_label(kind: FrfKind, ground: bool) -> &'static str {
-    match (kind, ground) {
-        (FrfKind::Receptance, false) => "|H| (m/N)",
-        (FrfKind::Accelerance, false) => "|A| ((m/s^2)/N)",
-        (FrfKind::Mobility, false) => "|Y| ((m/s)/N)",
-        (FrfKind::Receptance, true) => "|H| (m/(m/s^2))",
-        (FrfKind::Accelerance, true) => "|A| (-)",
-        (FrfKind::Mobility, true) => "|Y| (s)",
-    }
 }
 
 /// Draws one comparison figure (receptance and accelerance panels) from the runs.

@@ -4,7 +4,6 @@
 
 pub mod config;
 pub mod pipeline;
-pub mod runinfo;
 pub mod tables;
 
 pub use config::ExperimentConfig;

@@ -6,7 +6,8 @@
 
 use super::config::{ExperimentConfig, Weighting};
 use crate::error::{Error, Result};
-use crate::frf::{Excitation, FrfBlock, FrfKind, FrfPair, ModalFrf};
+use crate::frf::labels::pair_label;
+use crate::frf::{FrfBlock, FrfKind, FrfPair, ModalFrf};
 use crate::modal::Modes;
 use crate::model::{Damping, StructuralModel};
 use crate::signal::TestFrf;
@@ -84,19 +85,6 @@ impl Variant {
             }
         }
         v
-    }
-}
-
-/// Label of an FRF pair in the paper's notation: `H4,1`, `A2,ground`.
-pub fn pair_label(pair: &FrfPair) -> String {
-    let letter = match pair.kind {
-        FrfKind::Receptance => "H",
-        FrfKind::Mobility => "Y",
-        FrfKind::Accelerance => "A",
-    };
-    match pair.excitation {
-        Excitation::Dof(e) => format!("{letter}{},{}", pair.response + 1, e + 1),
-        Excitation::Ground => format!("{letter}{},ground", pair.response + 1),
     }
 }
 

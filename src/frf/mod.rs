@@ -11,6 +11,7 @@
 //! non-proportional viscous damping.
 
 pub mod direct;
+pub mod labels;
 
 use crate::error::{Error, Result};
 use crate::modal::Modes;

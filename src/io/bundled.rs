@@ -32,6 +32,17 @@ use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
+/// Where the data of an experiment come from: `bundled:four-story` or a folder.
+pub fn resolve_data(spec: &str) -> Result<PathBuf> {
+    match spec {
+        "bundled:four-story" => bundled_four_story(),
+        s if s.starts_with("bundled:") => Err(Error::Usage(format!(
+            "unknown bundled dataset {s:?} (have: bundled:four-story)"
+        ))),
+        s => Ok(PathBuf::from(s)),
+    }
+}
+
 /// Folder of the bundled four-story campaign inside the repository.
 pub fn four_story_bundle_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("paper_repro/data/four-story")

@@ -1,14 +1,16 @@
 //! Reading and writing: recorded test campaigns (`../shared/spec/recording-format.md`),
-//! atomic output files, and result tables.
+//! atomic output files, `run.json` records, and result tables.
 
 pub mod atomic;
 pub mod bundled;
 mod campaign;
-pub mod frf_csv;
+pub mod runinfo;
 mod types;
 mod writer;
 
 pub use atomic::{write_atomic, write_atomic_with, StagedDir};
+pub use bundled::resolve_data;
 pub use campaign::{read_campaign, read_nominal};
+pub use runinfo::RunInfo;
 pub use types::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
 pub use writer::write_campaign;

@@ -41,7 +41,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::experiment::runinfo::RunInfo;
+use crate::io::RunInfo;
 use crate::io::StagedDir;
 use posterior::Sampling;
 

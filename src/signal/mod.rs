@@ -46,8 +46,10 @@
 pub mod bands;
 pub mod correlation;
 mod estimate;
+pub mod frf_csv;
 pub mod hammer;
 pub mod noise;
+mod settings;
 pub mod spectra;
 pub mod sweep;
 pub mod tail;
@@ -59,6 +61,7 @@ pub use estimate::{
 };
 pub use hammer::{windowed_force, HammerEstimator, HammerOptions};
 pub use noise::{bendat_piersol_rel_std, CoherenceMethod};
+pub use settings::{EstimateSection, SensorLowPass};
 pub use windows::{
     correct_exp_window_damping, exp_window_modal_parameters, unwindowed_pole, windowed_modal_frf,
     ExpWindow,

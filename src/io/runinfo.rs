@@ -1,8 +1,8 @@
 //! `run.json`: what produced a result folder (command line, configuration, seed, versions,
 //! timings), so any figure can be regenerated.
 
+use super::atomic::write_atomic;
 use crate::error::Result;
-use crate::io::write_atomic;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
