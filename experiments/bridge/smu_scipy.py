@@ -431,7 +431,8 @@ def markdown(report):
         f"- f at SMU's published optimum: **{c['objective_published']['smu']:.6f}** "
         f"(published {PUBLISHED_OBJECTIVE}); per-entry weighting: "
         f"{c['objective_published']['per_entry']:.6f}",
-        f"- f at alpha = 0: {c['objective_zero']['smu']:.4f}; per-entry: {c['objective_zero']['per_entry']:.4f}",
+        f"- f at alpha = 0: {c['objective_zero']['smu']:.4f}; "
+        f"per-entry: {c['objective_zero']['per_entry']:.4f}",
         f"- eigsh vs dense eigh(M, K): eigenvalues {c['dense_eig_rel']:.1e} relative, "
         f"measured shapes {c['dense_shape_abs']:.1e} absolute",
         f"- analytic Jacobian vs central differences: {c['jac_fd_rel']['smu']:.1e} (smu), "
@@ -453,7 +454,8 @@ def markdown(report):
             f"| FE eigenvalues at best (rad^2/s^2) | {fmt_alpha(v['eigenvalues_at_best'])} |",
             f"| wall time, all starts | {v['wall_s']:.1f} s |",
             f"| median wall time per start | {v['median_start_wall_s']:.2f} s |",
-            f"| median nfev per start; budget exhausted | {v['median_nfev']:.0f}; {v['n_budget_exhausted']} |",
+            f"| median nfev per start; budget exhausted | {v['median_nfev']:.0f}; "
+            f"{v['n_budget_exhausted']} |",
             "",
             "End points of the starts:",
             "",
