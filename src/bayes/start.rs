@@ -7,7 +7,9 @@ use super::forward::ForwardWorkspace;
 use super::posterior::FrfPosterior;
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
-use crate::update::lsq::{multistart, Bounds, LeastSquaresProblem, MultistartOptions};
+use crate::update::lsq::{
+    fd_jacobian, multistart, Bounds, FdScheme, LeastSquaresProblem, MultistartOptions,
+};
 use crate::update::ResidualForm;
 use nalgebra::DMatrix;
 use rand::{RngExt, SeedableRng};
@@ -42,17 +44,15 @@ pub struct StartPoint {
 }
 
 /// Standardised residuals of a posterior, noise scale 1, in the free structural
-/// coordinates; central finite-difference Jacobian.
+/// coordinates; central finite-difference Jacobian ([`fd_jacobian`]) inside the prior box.
 struct Residuals<'a> {
     post: &'a FrfPosterior,
+    bounds: &'a Bounds,
 }
 
 struct Scratch {
     fws: ForwardWorkspace,
     theta: Vec<f64>,
-    x: Vec<f64>,
-    plus: Vec<f64>,
-    minus: Vec<f64>,
 }
 
 impl LeastSquaresProblem for Residuals<'_> {
@@ -65,13 +65,9 @@ impl LeastSquaresProblem for Residuals<'_> {
         self.post.data().len()
     }
     fn workspace(&self) -> Scratch {
-        let n = self.post.data().len();
         Scratch {
             fws: self.post.forward().workspace(),
             theta: self.post.variables().initial(),
-            x: vec![0.0; self.post.n_free()],
-            plus: vec![0.0; n],
-            minus: vec![0.0; n],
         }
     }
     fn residuals(&self, x: &[f64], ws: &mut Scratch, r: &mut [f64]) -> Result<()> {
@@ -89,30 +85,8 @@ impl LeastSquaresProblem for Residuals<'_> {
         Ok(())
     }
     fn jacobian(&self, x: &[f64], ws: &mut Scratch, jac: &mut DMatrix<f64>) -> Result<()> {
-        let mut xs = std::mem::take(&mut ws.x);
-        let (mut plus, mut minus) = (std::mem::take(&mut ws.plus), std::mem::take(&mut ws.minus));
-        xs.copy_from_slice(x);
-        let mut result = Ok(());
-        for j in 0..x.len() {
-            // Central differences, step ~ eps^(1/3) relative: truncation and rounding
-            // errors both ~1e-10 relative.
-            let h = 6e-6 * x[j].abs().max(1.0);
-            xs[j] = x[j] + h;
-            result = self.residuals(&xs, ws, &mut plus);
-            if result.is_ok() {
-                xs[j] = x[j] - h;
-                result = self.residuals(&xs, ws, &mut minus);
-            }
-            xs[j] = x[j];
-            if result.is_err() {
-                break;
-            }
-            for (k, (p, m)) in plus.iter().zip(&minus).enumerate() {
-                jac[(k, j)] = (p - m) / (2.0 * h);
-            }
-        }
-        (ws.x, ws.plus, ws.minus) = (xs, plus, minus);
-        result
+        let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, ws, r);
+        fd_jacobian(FdScheme::Central, x, self.bounds, residuals, jac).map(|_| ())
     }
 }
 
@@ -120,7 +94,6 @@ impl LeastSquaresProblem for Residuals<'_> {
 /// the first start at the variables' start values, the others from a Latin hypercube
 /// over the box ([`multistart`]); deterministic for `options.seed`.
 pub fn find_start(post: &FrfPosterior, options: &MultistartOptions) -> Result<StartPoint> {
-    let problem = Residuals { post };
     let vars = post.variables();
     let z0 = vars.to_internal(&vars.initial());
     let n_free = post.n_free();
@@ -129,6 +102,10 @@ pub fn find_start(post: &FrfPosterior, options: &MultistartOptions) -> Result<St
         prior.lower()[..n_free].to_vec(),
         prior.upper()[..n_free].to_vec(),
     )?;
+    let problem = Residuals {
+        post,
+        bounds: &bounds,
+    };
     let ms = multistart(&problem, &bounds, Some(&z0), options)?;
     let n_evaluations = ms
         .starts

@@ -13,7 +13,9 @@
 
 use super::posterior::ModelPosterior;
 use crate::error::{Error, Result};
-use crate::update::lsq::{latin_hypercube, Bounds, LeastSquaresProblem, Trf, TrfOptions};
+use crate::update::lsq::{
+    fd_jacobian, latin_hypercube, Bounds, FdScheme, LeastSquaresProblem, Trf, TrfOptions,
+};
 use nalgebra::DMatrix;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -75,12 +77,14 @@ pub struct MapFit {
     pub elapsed_s: f64,
 }
 
+/// The whitened residuals at a fixed `eta` in the free coordinates; forward-difference
+/// Jacobian ([`fd_jacobian`]) inside their box.
 struct MapProblem<'a> {
     post: &'a ModelPosterior,
     eta: f64,
     free: Vec<usize>,
     template: Vec<f64>,
-    steps: Vec<f64>,
+    bounds: &'a Bounds,
     n_res: usize,
 }
 
@@ -95,7 +99,7 @@ impl MapProblem<'_> {
 }
 
 impl LeastSquaresProblem for MapProblem<'_> {
-    type Workspace = (Vec<f64>, Vec<f64>, Vec<f64>);
+    type Workspace = Vec<f64>;
 
     fn n_params(&self) -> usize {
         self.free.len()
@@ -106,32 +110,17 @@ impl LeastSquaresProblem for MapProblem<'_> {
     }
 
     fn workspace(&self) -> Self::Workspace {
-        (Vec::new(), vec![0.0; self.n_res], vec![0.0; self.n_res])
+        Vec::new()
     }
 
-    fn residuals(&self, x: &[f64], ws: &mut Self::Workspace, r: &mut [f64]) -> Result<()> {
-        self.z_of(x, &mut ws.0);
-        self.post.whitened_residuals(&ws.0, self.eta, r)
+    fn residuals(&self, x: &[f64], z: &mut Self::Workspace, r: &mut [f64]) -> Result<()> {
+        self.z_of(x, z);
+        self.post.whitened_residuals(z, self.eta, r)
     }
 
-    fn jacobian(&self, x: &[f64], ws: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()> {
-        let (lo, hi) = self.post.bounds();
-        self.z_of(x, &mut ws.0);
-        self.post.whitened_residuals(&ws.0, self.eta, &mut ws.1)?;
-        for (j, &i) in self.free.iter().enumerate() {
-            let h0 = self.steps[j];
-            let h = if ws.0[i] + h0 <= hi[i] { h0 } else { -h0 };
-            let keep = ws.0[i];
-            ws.0[i] = keep + h;
-            let res = self.post.whitened_residuals(&ws.0, self.eta, &mut ws.2);
-            ws.0[i] = keep;
-            res?;
-            let _ = lo;
-            for (k, (a, b)) in ws.2.iter().zip(&ws.1).enumerate() {
-                jac[(k, j)] = (a - b) / h;
-            }
-        }
-        Ok(())
+    fn jacobian(&self, x: &[f64], z: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()> {
+        let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, z, r);
+        fd_jacobian(FdScheme::Forward, x, self.bounds, residuals, jac).map(|_| ())
     }
 }
 
@@ -223,7 +212,6 @@ fn solve_start(
         free.iter().map(|&i| lo[i]).collect(),
         free.iter().map(|&i| hi[i]).collect(),
     )?;
-    let steps: Vec<f64> = free.iter().map(|&i| 1e-6 * (hi[i] - lo[i])).collect();
     let mut eta = if start[ie] >= lo[ie] && start[ie] <= hi[ie] {
         start[ie].exp()
     } else {
@@ -237,7 +225,7 @@ fn solve_start(
             eta,
             free: free.clone(),
             template: z.clone(),
-            steps: steps.clone(),
+            bounds: &bounds,
             n_res: post.n_whitened_residuals(),
         };
         let mut ws = problem.workspace();

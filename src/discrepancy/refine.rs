@@ -21,6 +21,7 @@ use super::fit::{fit_map, MapOptions};
 use super::time_domain::TimeDomainModel;
 use crate::error::{Error, Result};
 use crate::io::Campaign;
+use crate::update::lsq::{fd_jacobian, Bounds, FdScheme};
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -29,9 +30,6 @@ use std::sync::Arc;
 
 /// Draws summarising the Gauss-Newton posterior of the refit.
 const N_DRAWS: usize = 4000;
-/// Forward-difference step of the covariance's Jacobian, as a fraction of each
-/// coordinate's prior box.
-const JACOBIAN_STEP: f64 = 1e-5;
 
 /// Residual evaluations (steps) of the refit from the linearised MAP; each step also
 /// costs a forward-difference Jacobian (one replay per coordinate).
@@ -84,25 +82,20 @@ pub fn refit_in_time_domain(
     let (lo, hi) = post.bounds();
     let free: Vec<usize> = (0..post.dim()).filter(|&i| i != ie).collect();
     let n_res = post.n_whitened_residuals();
-    let mut r0 = vec![0.0; n_res];
-    post.whitened_residuals(&map.z, map.eta, &mut r0)?;
-    let mut jac = DMatrix::zeros(n_res, free.len());
-    let mut r1 = vec![0.0; n_res];
-    for (j, &i) in free.iter().enumerate() {
-        let step = JACOBIAN_STEP * (hi[i] - lo[i]);
-        let h = if map.z[i] + step <= hi[i] {
-            step
-        } else {
-            -step
-        };
-        let mut z = map.z.clone();
-        z[i] += h;
-        post.whitened_residuals(&z, map.eta, &mut r1)?;
-        for (k, (a, b)) in r1.iter().zip(&r0).enumerate() {
-            jac[(k, j)] = (a - b) / h;
+    let bounds = Bounds::new(
+        free.iter().map(|&i| lo[i]).collect(),
+        free.iter().map(|&i| hi[i]).collect(),
+    )?;
+    let x: Vec<f64> = free.iter().map(|&i| map.z[i]).collect();
+    let mut z = map.z.clone();
+    let residuals = |x: &[f64], r: &mut [f64]| {
+        for (&i, &v) in free.iter().zip(x) {
+            z[i] = v;
         }
-    }
-    n_evaluations += free.len() + 1;
+        post.whitened_residuals(&z, map.eta, r)
+    };
+    let mut jac = DMatrix::zeros(n_res, free.len());
+    n_evaluations += fd_jacobian(FdScheme::Forward, &x, &bounds, residuals, &mut jac)?;
     let chol = jac.tr_mul(&jac).cholesky().ok_or_else(|| {
         Error::Numerical(format!(
             "{}: the time-domain refit's Gauss-Newton matrix is singular",

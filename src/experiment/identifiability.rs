@@ -25,6 +25,7 @@ use crate::frf::{Excitation, FrfKind, FrfPair};
 use crate::modal::Modes;
 use crate::signal::bands::{half_power_band, HALF_POWER_DB};
 use crate::signal::{windowed_modal_frf, TestFrf};
+use crate::update::lsq::{fd_jacobian, Bounds, FdScheme};
 use crate::update::VariableKind;
 use nalgebra::DMatrix;
 
@@ -128,19 +129,29 @@ pub fn fisher_analysis(run: &VariantRun, frfs: &[TestFrf]) -> Result<FisherAnaly
         cov[(a, b)] / (cov[(a, a)] * cov[(b, b)]).sqrt().max(f64::MIN_POSITIVE)
     });
     // Frequencies and their CV by the delta method (central differences in log params).
+    // `ln omega_m` against `u_j`, `theta_i = theta_i,0 + u_j scale_j`, at `u = 0`.
     let w0 = omegas(run, theta)?;
-    let mut grads = vec![vec![0.0; p]; w0.len()];
-    for (j, &i) in free.iter().enumerate() {
-        let h = 1e-6;
-        let mut tp = theta.clone();
-        let mut tm = theta.clone();
-        tp[i] += h * scales[j];
-        tm[i] -= h * scales[j];
-        let (wp, wm) = (omegas(run, &tp)?, omegas(run, &tm)?);
-        for m in 0..w0.len() {
-            grads[m][j] = (wp[m].ln() - wm[m].ln()) / (2.0 * h);
+    let ln_omegas = |u: &[f64], out: &mut [f64]| {
+        let mut t = theta.clone();
+        for ((&i, s), du) in free.iter().zip(&scales).zip(u) {
+            t[i] += du * s;
         }
-    }
+        for (o, w) in out.iter_mut().zip(omegas(run, &t)?) {
+            *o = w.ln();
+        }
+        Ok(())
+    };
+    let mut dlnw = DMatrix::zeros(w0.len(), p);
+    fd_jacobian(
+        FdScheme::Central,
+        &vec![0.0; p],
+        &Bounds::unbounded(p),
+        ln_omegas,
+        &mut dlnw,
+    )?;
+    let grads: Vec<Vec<f64>> = (0..w0.len())
+        .map(|m| dlnw.row(m).iter().copied().collect())
+        .collect();
     let freq_cv_percent = grads
         .iter()
         .map(|g| {

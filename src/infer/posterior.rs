@@ -20,7 +20,7 @@ use super::prior::BoxPrior;
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
 use crate::predict::Predict;
-use crate::update::lsq::{fd_jacobian, Bounds, LeastSquaresProblem};
+use crate::update::lsq::{fd_jacobian, Bounds, FdScheme, LeastSquaresProblem};
 
 /// Scratch memory of one thread.
 pub struct Scratch<W> {
@@ -313,14 +313,13 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
         Ok(())
     }
     fn jacobian(&self, x: &[f64], ws: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()> {
-        let mut f0 = vec![0.0; self.n_residuals()];
-        self.residuals(x, ws, &mut f0)?;
         fd_jacobian(
-            |xp: &[f64], r: &mut [f64]| self.residuals(xp, ws, r),
+            FdScheme::Forward,
             x,
-            &f0,
             &self.bounds,
+            |xp: &[f64], r: &mut [f64]| self.residuals(xp, ws, r),
             jac,
-        )
+        )?;
+        Ok(())
     }
 }

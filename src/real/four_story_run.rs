@@ -18,7 +18,7 @@ use super::posterior::{
 use crate::error::Result;
 use crate::mcmc::{Ball, LogDensity, Start};
 use crate::modal::mac;
-use crate::update::lsq::{Bounds, LeastSquaresProblem, Trf, TrfOptions};
+use crate::update::lsq::{fd_jacobian, Bounds, FdScheme, LeastSquaresProblem, Trf, TrfOptions};
 
 /// Walkers per ensemble (>= 2 x 9 coordinates of the largest variant).
 pub const N_WALKERS: usize = 32;
@@ -343,20 +343,9 @@ impl LeastSquaresProblem for FrequencyFit<'_> {
         Ok(())
     }
     fn jacobian(&self, x: &[f64], ws: &mut (), j: &mut DMatrix<f64>) -> Result<()> {
-        // Central differences; the residuals are smooth in ln k.
-        let h = 1e-6;
-        let (mut rp, mut rm) = (vec![0.0; 4], vec![0.0; 4]);
-        for c in 0..4 {
-            let mut xp = x.to_vec();
-            xp[c] += h;
-            self.residuals(&xp, ws, &mut rp)?;
-            xp[c] -= 2.0 * h;
-            self.residuals(&xp, ws, &mut rm)?;
-            for r in 0..4 {
-                j[(r, c)] = (rp[r] - rm[r]) / (2.0 * h);
-            }
-        }
-        Ok(())
+        // Central differences, unbounded like the solve; the residuals are smooth in ln k.
+        let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, ws, r);
+        fd_jacobian(FdScheme::Central, x, &Bounds::unbounded(4), residuals, j).map(|_| ())
     }
 }
 

@@ -38,7 +38,7 @@ use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
 use crate::modal::Modes;
 use crate::model::StructuralModel;
-use crate::update::lsq::LeastSquaresProblem;
+use crate::update::lsq::{fd_jacobian, Bounds, FdScheme, LeastSquaresProblem};
 
 /// Stories (and measured floors).
 pub const N: usize = 5;
@@ -272,9 +272,11 @@ impl LogDensity for TowerLikelihood {
 }
 
 /// Least squares for the start: coordinates `ln k` (5), `ln xi` (5), signed gains (5);
-/// residuals are the real and imaginary parts of the standardised residuals.
+/// residuals are the real and imaginary parts of the standardised residuals; central
+/// finite-difference Jacobian ([`fd_jacobian`]) inside `bounds`, the box of the solve.
 pub struct TowerLsq<'a> {
     pub data: &'a TowerData,
+    pub bounds: &'a Bounds,
 }
 
 impl LeastSquaresProblem for TowerLsq<'_> {
@@ -302,20 +304,8 @@ impl LeastSquaresProblem for TowerLsq<'_> {
         Ok(())
     }
     fn jacobian(&self, x: &[f64], ws: &mut (), j: &mut DMatrix<f64>) -> Result<()> {
-        let m = self.n_residuals();
-        let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
-        for c in 0..x.len() {
-            let h = 1e-6 * x[c].abs().max(1.0);
-            let mut xp = x.to_vec();
-            xp[c] += h;
-            self.residuals(&xp, ws, &mut rp)?;
-            xp[c] -= 2.0 * h;
-            self.residuals(&xp, ws, &mut rm)?;
-            for i in 0..m {
-                j[(i, c)] = (rp[i] - rm[i]) / (2.0 * h);
-            }
-        }
-        Ok(())
+        let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, ws, r);
+        fd_jacobian(FdScheme::Central, x, self.bounds, residuals, j).map(|_| ())
     }
 }
 

@@ -132,9 +132,13 @@ pub fn fit_band(
     let mut x0 = vec![K_CENTRE_N_PER_M.ln(); N];
     x0.extend([0.02f64.ln(); N]);
     x0.extend([1.0; N]);
+    let lsq_bounds = Bounds::new(lo, hi)?;
     let ms = multistart(
-        &TowerLsq { data: &data },
-        &Bounds::new(lo, hi)?,
+        &TowerLsq {
+            data: &data,
+            bounds: &lsq_bounds,
+        },
+        &lsq_bounds,
         Some(&x0),
         &MultistartOptions {
             n_starts: 32,

@@ -35,7 +35,7 @@ use super::posterior::{
 use super::wheel::{BandLikelihood, BandSpec, WheelData, N_CHANNELS};
 use crate::error::{Error, Result};
 use crate::mcmc::{Ball, LogDensity, Start};
-use crate::update::lsq::{Bounds, LeastSquaresProblem, Trf, TrfOptions};
+use crate::update::lsq::{fd_jacobian, Bounds, FdScheme, LeastSquaresProblem, Trf, TrfOptions};
 use nalgebra::DMatrix;
 
 pub use super::wheel_scatter::{
@@ -97,9 +97,11 @@ pub fn bands() -> Vec<BandSpec> {
 }
 
 /// Whitened residuals (real and imaginary parts, all channels) at poles given as
-/// `(f_hz, ln xi)` pairs, for the variable-projection start.
+/// `(f_hz, ln xi)` pairs, for the variable-projection start; central finite-difference
+/// Jacobian ([`fd_jacobian`]) inside `bounds`, the box of the solve.
 struct VarPro<'a> {
     lik: &'a BandLikelihood,
+    bounds: &'a Bounds,
 }
 
 impl VarPro<'_> {
@@ -140,21 +142,8 @@ impl LeastSquaresProblem for VarPro<'_> {
         Ok(())
     }
     fn jacobian(&self, x: &[f64], ws: &mut (), j: &mut DMatrix<f64>) -> Result<()> {
-        let m = self.n_residuals();
-        let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
-        for c in 0..x.len() {
-            // Central differences: 1e-5 Hz (frequencies ~1e3 Hz) or 1e-5 in ln xi.
-            let h = 1e-5;
-            let mut xp = x.to_vec();
-            xp[c] += h;
-            self.residuals(&xp, ws, &mut rp)?;
-            xp[c] -= 2.0 * h;
-            self.residuals(&xp, ws, &mut rm)?;
-            for i in 0..m {
-                j[(i, c)] = (rp[i] - rm[i]) / (2.0 * h);
-            }
-        }
-        Ok(())
+        let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, ws, r);
+        fd_jacobian(FdScheme::Central, x, self.bounds, residuals, j).map(|_| ())
     }
 }
 
@@ -175,8 +164,12 @@ pub fn varpro_start(lik: &BandLikelihood) -> Result<Vec<f64>> {
         max_evaluations: Some(400),
         ..Default::default()
     };
-    let sol =
-        Trf::new(opts).minimize(&VarPro { lik }, &mut (), &x0, &Bounds::new(lower, upper)?)?;
+    let bounds = Bounds::new(lower, upper)?;
+    let problem = VarPro {
+        lik,
+        bounds: &bounds,
+    };
+    let sol = Trf::new(opts).minimize(&problem, &mut (), &x0, &bounds)?;
     let mut x = sol.x;
     // Keep the pair ordered (the start must lie in the support).
     let m = lik.n_modes();

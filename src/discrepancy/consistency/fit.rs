@@ -12,6 +12,7 @@
 //! [`crate::signal::noise`] reports mean `z^2` of 0.6-0.9).
 
 use crate::error::{Error, Result};
+use crate::update::lsq::{fd_jacobian, Bounds, FdScheme};
 use nalgebra::{DMatrix, DVector, Matrix2, Vector2};
 use num_complex::Complex64;
 
@@ -300,17 +301,20 @@ pub fn fit_pole(data: &[PoleData], omega_n0_rad_s: f64, xi0: f64) -> Result<Pole
     let cost = |r: &[f64]| r.iter().map(|v| v * v).sum::<f64>();
     let jac = |q: Vector2<f64>, r0: &[f64]| -> Option<DMatrix<f64>> {
         let mut j = DMatrix::zeros(r0.len(), 2);
-        for p in 0..2 {
-            let h = 1e-6;
-            let mut qp = q;
-            qp[p] += h;
-            let mut qm = q;
-            qm[p] -= h;
-            let (rp, rm) = (resid(qp)?, resid(qm)?);
-            for i in 0..r0.len() {
-                j[(i, p)] = (rp[i] - rm[i]) / (2.0 * h);
-            }
-        }
+        let f = |q: &[f64], r: &mut [f64]| {
+            let v = resid(Vector2::new(q[0], q[1]))
+                .ok_or_else(|| Error::Numerical("pole fit: non-finite residuals".into()))?;
+            r.copy_from_slice(&v);
+            Ok(())
+        };
+        fd_jacobian(
+            FdScheme::Central,
+            q.as_slice(),
+            &Bounds::unbounded(2),
+            f,
+            &mut j,
+        )
+        .ok()?;
         Some(j)
     };
     let mut q = Vector2::new(omega_n0_rad_s.ln(), xi0.clamp(1e-4, 0.3).ln());

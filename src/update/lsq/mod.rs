@@ -12,6 +12,9 @@
 //! termination tests (`ftol`, `xtol`, `gtol`, evaluation budget) and defaults it
 //! reproduces. The Jacobian is reduced by one Householder QR per iteration, so the
 //! subproblem work is `O(n^3)` and independent of the number of residuals.
+//!
+//! A problem without an analytic Jacobian takes the finite-difference one of
+//! [`fd_jacobian`] (scipy's step rule, every evaluation inside the bounds).
 
 mod fd;
 mod linalg;
@@ -20,7 +23,7 @@ mod qr;
 mod step;
 mod trf;
 
-pub use fd::fd_jacobian;
+pub use fd::{fd_jacobian, FdScheme};
 pub use multistart::{
     latin_hypercube, multistart, multistart_from, start_points, MultistartOptions,
     MultistartResult, StartOutcome,
