@@ -7,11 +7,17 @@
 //! stiffness, so story r has stiffness `k_r = k_r0 (1 + alpha_r)` and floor r has mass
 //! `m_r = m_r0 (1 + beta_r)`; the paper's tables report `k_r` and `m_r`.
 
+pub mod condense;
 mod damping;
+mod manifest;
+pub mod mat;
 mod mtx;
+pub mod sparse;
+mod validate;
 
 pub use damping::{caughey_coefficients, caughey_damping_matrix, rayleigh_damping_matrix, Damping};
-pub use mtx::{read_matrix_market, ModelManifest};
+pub use manifest::{shared_root, InfluenceEntry, MatrixSpec, ModelManifest, VectorSpec};
+pub use mtx::{read_matrix_market, read_matrix_market_triplets};
 
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
@@ -44,6 +50,8 @@ pub struct StructuralModel {
     beta: Vec<Parameter>,
     /// Rigid-body influence vector of ground motion (ones for a shear frame), paper Eq. (13).
     ground_influence: DVector<f64>,
+    /// 0-based DOFs where the model's sensors sit, when the model file names them.
+    measured_dofs: Vec<usize>,
 }
 
 impl StructuralModel {
@@ -117,6 +125,7 @@ impl StructuralModel {
             alpha,
             beta,
             ground_influence: DVector::from_element(n, 1.0),
+            measured_dofs: Vec::new(),
         })
     }
 
@@ -164,6 +173,7 @@ impl StructuralModel {
             alpha,
             beta,
             ground_influence,
+            measured_dofs: Vec::new(),
         };
         model.validate(&model.alpha_zero(), &model.beta_zero())?;
         Ok(model)
@@ -201,6 +211,23 @@ impl StructuralModel {
     pub fn ground_influence(&self) -> &DVector<f64> {
         &self.ground_influence
     }
+    /// 0-based DOFs where the model file places its sensors (`measured_dofs` of a
+    /// manifest); empty when it names none.
+    pub fn measured_dofs(&self) -> &[usize] {
+        &self.measured_dofs
+    }
+    /// The model with sensors at the 0-based `dofs`; errors when one is out of range.
+    pub fn with_measured_dofs(mut self, dofs: Vec<usize>) -> Result<Self> {
+        if let Some(&d) = dofs.iter().find(|&&d| d >= self.n_dof()) {
+            return Err(Error::Model(format!(
+                "measured DOF {} is outside 1..={}",
+                d + 1,
+                self.n_dof()
+            )));
+        }
+        self.measured_dofs = dofs;
+        Ok(self)
+    }
     /// All-zero alpha (the nominal stiffness).
     pub fn alpha_zero(&self) -> Vec<f64> {
         vec![0.0; self.n_alpha()]
@@ -228,13 +255,19 @@ impl StructuralModel {
         m
     }
 
-    /// Checks that `M(beta)` is positive definite and `K(alpha)` positive semi-definite.
+    /// Checks that `K(alpha)` is positive semi-definite and `M(beta)` positive definite
+    /// on its DOFs with mass, with `K` positive definite on the massless ones (zero rows
+    /// of `M`, see [`condense`]).
     pub fn validate(&self, alpha: &[f64], beta: &[f64]) -> Result<()> {
         let (k, m) = (self.stiffness(alpha), self.mass(beta));
         check_symmetric("K", &k)?;
         check_symmetric("M", &m)?;
-        if m.clone().cholesky().is_none() {
-            return Err(Error::Model("M is not positive definite".into()));
+        let c = condense::condense(&k, &m)?;
+        if c.m.cholesky().is_none() {
+            return Err(Error::Model(format!(
+                "M is not positive definite on its {} DOFs with mass",
+                c.kept.len()
+            )));
         }
         let eig = k.symmetric_eigenvalues();
         let max = eig.iter().fold(0.0_f64, |a, &b| a.max(b.abs()));
@@ -300,6 +333,19 @@ fn check_symmetric(what: &str, m: &DMatrix<f64>) -> Result<()> {
     Ok(())
 }
 
+/// For tests: `$FRFBAYES_SHARED_DIR/<rel>` or `<repo>/../shared/<rel>` when present, else
+/// `None` after printing a skip message.
+#[cfg(test)]
+pub(crate) fn shared_dir(rel: &str) -> Option<std::path::PathBuf> {
+    let mut roots = vec![std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")];
+    roots.extend(std::env::var_os("FRFBAYES_SHARED_DIR").map(std::path::PathBuf::from));
+    let found = roots.into_iter().map(|r| r.join(rel)).find(|p| p.exists());
+    if found.is_none() {
+        println!("skipped: {rel} not found (no ../shared beside the repository and no FRFBAYES_SHARED_DIR)");
+    }
+    found
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -335,8 +381,14 @@ mod tests {
         let e = StructuralModel::from_matrices(k, m, vec![], vec![], None).unwrap_err();
         assert!(e.to_string().contains("semi-definite"), "{e}");
         let k = DMatrix::identity(2, 2);
+        let m = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, -1.0]);
+        let e = StructuralModel::from_matrices(k.clone(), m, vec![], vec![], None).unwrap_err();
+        assert!(e.to_string().contains("M is not positive definite"), "{e}");
+        // A massless DOF is fine when K holds it, not when it is free.
         let m = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 0.0]);
+        assert!(StructuralModel::from_matrices(k, m.clone(), vec![], vec![], None).is_ok());
+        let k = DMatrix::from_row_slice(2, 2, &[1.0, 0.0, 0.0, 0.0]);
         let e = StructuralModel::from_matrices(k, m, vec![], vec![], None).unwrap_err();
-        assert!(e.to_string().contains("positive definite"), "{e}");
+        assert!(e.to_string().contains("massless DOFs"), "{e}");
     }
 }

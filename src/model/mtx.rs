@@ -1,90 +1,20 @@
-//! General models from files: Matrix Market (`.mtx`) matrices with a TOML manifest, so a
-//! model exported from any FE package can be updated.
-//!
-//! ```toml
-//! # model.toml
-//! k0 = "K0.mtx"
-//! m0 = "M0.mtx"
-//! ground_influence = [1.0, 1.0, 1.0]   # optional; ones by default
-//! [[alpha]]
-//! name = "k1"
-//! unit = "N/m"                          # optional
-//! matrix = "K1.mtx"
-//! [[beta]]
-//! name = "m1"
-//! matrix = "M1.mtx"
-//! ```
-//! Paths are relative to the manifest. Supported: `matrix coordinate real|integer
-//! general|symmetric` and `matrix array real|integer general|symmetric`.
+//! Matrix Market (`.mtx`) matrices, the exchange format most FE packages can export.
+//! Supported: `matrix coordinate real|integer general|symmetric` and
+//! `matrix array real|integer general|symmetric`. Errors name the file and line.
 
-use super::{Parameter, StructuralModel};
+use super::sparse::Triplets;
 use crate::error::{Error, Result};
-use nalgebra::{DMatrix, DVector};
-use serde::Deserialize;
-use std::path::{Path, PathBuf};
+use nalgebra::DMatrix;
+use std::path::Path;
 
-/// The TOML manifest of a general model.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ModelManifest {
-    pub k0: PathBuf,
-    pub m0: PathBuf,
-    #[serde(default)]
-    pub ground_influence: Option<Vec<f64>>,
-    #[serde(default)]
-    pub alpha: Vec<InfluenceEntry>,
-    #[serde(default)]
-    pub beta: Vec<InfluenceEntry>,
-}
-
-/// One influence matrix of the manifest.
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct InfluenceEntry {
-    pub name: String,
-    #[serde(default)]
-    pub unit: Option<String>,
-    pub matrix: PathBuf,
-}
-
-impl ModelManifest {
-    /// Reads a manifest and every matrix it names, and validates the model.
-    pub fn load(path: &Path) -> Result<StructuralModel> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let manifest: ModelManifest =
-            toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))?;
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let read = |p: &Path| read_matrix_market(&dir.join(p));
-        let k0 = read(&manifest.k0)?;
-        let m0 = read(&manifest.m0)?;
-        let load_list =
-            |list: &[InfluenceEntry], unit: &str| -> Result<Vec<(Parameter, DMatrix<f64>)>> {
-                list.iter()
-                    .map(|e| {
-                        let p = Parameter {
-                            name: e.name.clone(),
-                            unit: e.unit.clone().unwrap_or_else(|| unit.to_string()),
-                            nominal: None,
-                        };
-                        Ok((p, read(&e.matrix)?))
-                    })
-                    .collect()
-            };
-        let ka = load_list(&manifest.alpha, "-")?;
-        let mb = load_list(&manifest.beta, "-")?;
-        StructuralModel::from_matrices(
-            k0,
-            m0,
-            ka,
-            mb,
-            manifest.ground_influence.map(DVector::from_vec),
-        )
-        .map_err(|e| Error::invalid(path, e.to_string()))
-    }
-}
-
-/// Reads a real dense matrix from a Matrix Market file, naming file and line on error.
+/// Reads a real matrix from a Matrix Market file as a dense matrix.
 pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
+    Ok(read_matrix_market_triplets(path)?.to_dense())
+}
+
+/// Reads a real matrix from a Matrix Market file as its entries (a symmetric file
+/// gives both triangles), naming file and line on error.
+pub fn read_matrix_market_triplets(path: &Path) -> Result<Triplets> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let cell = |line: usize, what: String| Error::Cell {
         path: path.to_path_buf(),
@@ -160,7 +90,7 @@ pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
     }
     let rows = parse_usize(size_line, sizes[0])?;
     let cols = parse_usize(size_line, sizes[1])?;
-    let mut m = DMatrix::zeros(rows, cols);
+    let mut entries = Vec::new();
     if coordinate {
         let nnz = parse_usize(size_line, sizes[2])?;
         let mut count = 0;
@@ -177,9 +107,9 @@ pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
                 ));
             }
             let v = parse_f64(line, f[2])?;
-            m[(i - 1, j - 1)] += v;
+            entries.push((i - 1, j - 1, v));
             if symmetric && i != j {
-                m[(j - 1, i - 1)] += v;
+                entries.push((j - 1, i - 1, v));
             }
             count += 1;
         }
@@ -213,60 +143,31 @@ pub fn read_matrix_market(path: &Path) -> Result<DMatrix<f64>> {
             let start = if symmetric { j } else { 0 };
             for i in start..rows {
                 let v = it.next().unwrap_or(0.0);
-                m[(i, j)] = v;
-                if symmetric {
-                    m[(j, i)] = v;
+                if v != 0.0 {
+                    entries.push((i, j, v));
+                    if symmetric && i != j {
+                        entries.push((j, i, v));
+                    }
                 }
             }
         }
     }
-    Ok(m)
+    Ok(Triplets {
+        rows,
+        cols,
+        entries,
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
     fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
         let p = dir.join(name);
         std::fs::write(&p, text).unwrap();
         p
-    }
-
-    #[test]
-    fn manifest_model_equals_shear_frame() {
-        let dir = tempfile::tempdir().unwrap();
-        let d = dir.path();
-        write(
-            d,
-            "K0.mtx",
-            "%%MatrixMarket matrix coordinate real symmetric\n2 2 3\n1 1 30\n2 1 -20\n2 2 20\n",
-        );
-        write(
-            d,
-            "M0.mtx",
-            "%%MatrixMarket matrix array real general\n% comment\n2 2\n1\n0\n0\n2\n",
-        );
-        write(
-            d,
-            "K1.mtx",
-            "%%MatrixMarket matrix coordinate real general\n2 2 1\n1 1 10\n",
-        );
-        write(
-            d,
-            "K2.mtx",
-            "%%MatrixMarket matrix coordinate real symmetric\n2 2 3\n1 1 20\n2 1 -20\n2 2 20\n",
-        );
-        let man = write(
-            d,
-            "model.toml",
-            "k0 = \"K0.mtx\"\nm0 = \"M0.mtx\"\n[[alpha]]\nname = \"k1\"\nmatrix = \"K1.mtx\"\n[[alpha]]\nname = \"k2\"\nmatrix = \"K2.mtx\"\n",
-        );
-        let model = ModelManifest::load(&man).unwrap();
-        let sf = StructuralModel::shear_frame(&[1.0, 2.0], &[10.0, 20.0]).unwrap();
-        let a = [0.3, -0.2];
-        assert!((model.stiffness(&a) - sf.stiffness(&a)).amax() < 1e-12);
-        assert!((model.mass(&[]) - sf.mass(&[0.0, 0.0])).amax() < 1e-12);
     }
 
     #[test]

@@ -3,8 +3,8 @@
 //! The data live in `../shared/data/real/<dataset>` (provenance, variables and units in
 //! each folder's README); they are read in place and never copied into the repository.
 //!
-//! - [`mat`]: MATLAB v5 reader (through the `matfile` crate) with errors naming the file
-//!   and variable.
+//! - [`mat`]: MATLAB v5 reader (re-exported from [`crate::model::mat`]) with errors naming
+//!   the file and variable.
 //! - [`posterior`]: sampling to R-hat/ESS targets and the `posterior.json` schema.
 //! - [`four_story`], [`four_story_run`], [`four_story_report`], [`four_story_figures`]:
 //!   identified modes of the four-story frame against a shear-frame modal likelihood
@@ -24,7 +24,8 @@ pub mod four_story;
 pub mod four_story_figures;
 pub mod four_story_report;
 pub mod four_story_run;
-pub mod mat;
+/// The `.mat` reader lives in the model layer; re-exported so `crate::real::mat` keeps working.
+pub use crate::model::mat;
 pub mod posterior;
 pub mod report;
 pub mod tower;
