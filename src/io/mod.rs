@@ -10,5 +10,7 @@ mod writer;
 
 pub use atomic::{write_atomic, write_atomic_with, StagedDir};
 pub use campaign::{read_campaign, read_nominal};
-pub use types::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
+pub use types::{
+    Campaign, Channel, GeneralModel, NominalModel, Quantity, Test, TestKind, GENERAL, SHEAR_FRAME,
+};
 pub use writer::write_campaign;

@@ -223,11 +223,7 @@ impl SimModel {
                 },
             ) => (floor_mass_kg, story_stiffness_n_per_m),
         };
-        NominalModel {
-            structure: "shear_frame".into(),
-            floor_mass_kg: m.clone(),
-            story_stiffness_n_per_m: k.clone(),
-        }
+        NominalModel::shear_frame(m.clone(), k.clone())
     }
 
     /// Checks everything that can be checked without building matrices (those are checked
