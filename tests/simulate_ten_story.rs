@@ -118,10 +118,15 @@ fn noise_free_h1_matches_the_analytic_frf() {
     }
 }
 
+/// Largest relative error for which the first-order (Bendat & Piersol) error of `|H1|` is
+/// used: the linearisation behind it holds for small errors (their rule: below about 0.2).
+const EPS_MAX: f64 = 0.1;
+
 /// With the configured noise: the campaign written to disk reads back to the simulated
 /// one, and at the selected resonance bins `|H1|` departs from the analytic `|H|` by the
 /// estimator's stated error: `z = (|H1| - |H|) / (|H| eps)`, `eps` the Bendat & Piersol
-/// relative standard deviation the posterior uses, has an rms within a factor 2 of 1
+/// relative standard deviation the posterior uses (where it is at most [`EPS_MAX`]), has an
+/// rms within a factor 2 of 1
 /// (the bound allows the 1.2-1.5x under-statement reported in issue 13, item 7), and
 /// under 1 % of the points have |z| > 5 (a Gaussian gives 6e-7).
 #[test]
@@ -147,7 +152,7 @@ fn noisy_campaign_reads_back_and_h1_is_within_the_estimator_error() {
         freq_max_hz: Some(25.0),
         ..EstimateOptions::default()
     };
-    let (mut sum_z2, mut n, mut n_far) = (0.0, 0usize, 0usize);
+    let (mut sum_z2, mut n, mut n_far, mut n_skipped) = (0.0, 0usize, 0usize, 0usize);
     for e in estimate_campaign(&campaign, &opts).unwrap() {
         let eps = e.selected_rel_std();
         let mut i = 0;
@@ -157,6 +162,10 @@ fn noisy_campaign_reads_back_and_h1_is_within_the_estimator_error() {
                 let h = analytic(&e, &modes, &c, &pair, e.freq_hz[k]).norm();
                 let z = (r.h1[k].norm() - h) / (h * eps[i]);
                 i += 1;
+                if eps[i - 1] > EPS_MAX {
+                    n_skipped += 1;
+                    continue;
+                }
                 sum_z2 += z * z;
                 n += 1;
                 n_far += usize::from(z.abs() > 5.0);
@@ -164,7 +173,10 @@ fn noisy_campaign_reads_back_and_h1_is_within_the_estimator_error() {
         }
     }
     let rms = (sum_z2 / n as f64).sqrt();
-    println!("ten-story noisy H1: rms z = {rms:.3} over {n} points, {n_far} with |z| > 5");
+    println!(
+        "ten-story noisy H1: rms z = {rms:.3} over {n} points with eps <= {EPS_MAX} \
+         ({n_skipped} with larger eps skipped), {n_far} with |z| > 5"
+    );
     assert!(n >= 200, "{n} selected points");
     assert!((0.5..=2.0).contains(&rms), "rms z = {rms}");
     assert!(n_far * 100 <= n, "{n_far} of {n} points beyond 5 sd");

@@ -12,7 +12,7 @@ in the campaign format, docs/recording-format.md):
   story matrix), K0 = sum_s K_s, M_r = m_r e_r e_r^T, M0 = sum_r M_r, so that
   K(alpha) = sum_s (1 + alpha_s) K_s and M(beta) = sum_r (1 + beta_r) M_r.
 
-Natural frequencies of the nominal model: about 1.2 to 15 Hz (printed by the test
+Natural frequencies of the nominal model: 1.37 to 16.9 Hz (printed by the test
 tests/simulate_ten_story.rs). Deterministic: run `python3 make_model.py` in this folder to
 rewrite every file byte for byte.
 """
