@@ -101,7 +101,9 @@ fn every_case_matches_its_index_entry_and_the_benchmark_ranges() {
     let modes = plain.system().modes().unwrap();
     let f_hz = modes.freq_hz();
     let xi0 = plain.system().modal_damping_ratios().unwrap();
-    let StructureSpec::ShearFrame { floor_mass_kg, .. } = &reference.structure;
+    let StructureSpec::ShearFrame { floor_mass_kg, .. } = &reference.structure else {
+        panic!("shear frame expected");
+    };
     println!("plain frame: f {f_hz:.4?} Hz, xi {xi0:.4?}");
     for (i, case) in index.case.iter().enumerate() {
         let id = &case.id;
@@ -298,7 +300,9 @@ fn cubic_cases_move_mode_1_between_impact_levels() {
         let sim = Simulator::new(m.clone()).unwrap();
         let modes = sim.system().modes().unwrap();
         let t = sim.simulate_test(&m.tests[0], 1, &|_| {}).unwrap();
-        let StructureSpec::ShearFrame { floor_mass_kg, .. } = &m.structure;
+        let StructureSpec::ShearFrame { floor_mass_kg, .. } = &m.structure else {
+            panic!("shear frame expected");
+        };
         let eta: Vec<f64> = (0..t.n_samples())
             .map(|k| {
                 t.channels

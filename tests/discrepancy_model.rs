@@ -65,7 +65,10 @@ fn truth_z(post: &ModelPosterior, model: &SimModel, eta: f64) -> Vec<f64> {
     let StructureSpec::ShearFrame {
         floor_mass_kg,
         story_stiffness_n_per_m,
-    } = &model.structure;
+    } = &model.structure
+    else {
+        panic!("shear frame expected");
+    };
     let DampingSpec::Modal { xi } = &model.damping else {
         panic!("benchmark cases use modal damping")
     };

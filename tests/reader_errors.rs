@@ -296,11 +296,7 @@ fn in_memory_campaign(sample_rate_hz: f64, n_samples: usize) -> Campaign {
     Campaign {
         root: PathBuf::new(),
         title: "round trip \"quoted\"".into(),
-        nominal: NominalModel {
-            structure: "shear_frame".into(),
-            floor_mass_kg: vec![4.64, 4.64 / 3.0],
-            story_stiffness_n_per_m: vec![1019.0, 1217.5],
-        },
+        nominal: NominalModel::shear_frame(vec![4.64, 4.64 / 3.0], vec![1019.0, 1217.5]),
         tests: vec![Test {
             name: "hammer".into(),
             kind: TestKind::Hammer { excited_floor: 2 },

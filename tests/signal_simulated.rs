@@ -28,7 +28,10 @@ fn truth(model: &SimModel) -> (Modes, Vec<f64>) {
     let StructureSpec::ShearFrame {
         floor_mass_kg,
         story_stiffness_n_per_m,
-    } = &model.structure;
+    } = &model.structure
+    else {
+        panic!("shear frame expected");
+    };
     let s = StructuralModel::shear_frame(floor_mass_kg, story_stiffness_n_per_m).unwrap();
     let k = s.stiffness(&s.alpha_zero());
     let m = s.mass(&s.beta_zero());

@@ -30,6 +30,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.model.display().to_string(),
     );
     let sim = Simulator::new(model)?;
+    if let Some(basis) = sim.modal_basis_info() {
+        info.config["modal_basis"] = basis;
+    }
     let bar = ProgressBar::new(sim.total_work());
     bar.set_style(
         ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% {elapsed}/{eta}")?

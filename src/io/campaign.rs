@@ -1,5 +1,7 @@
-//! Campaign reader, exactly per the shared recording format
-//! (`../shared/spec/recording-format.md`):
+//! Campaign reader, per the shared recording format
+//! (`../shared/spec/recording-format.md`) and the project's backward-compatible extension
+//! to general models (`docs/recording-format.md`: `structure = "general"` with a model
+//! manifest, channels and impacts on DOFs, a sign per channel):
 //!
 //! ```text
 //! <campaign>/campaign.toml            title and [nominal] model
@@ -14,6 +16,8 @@
 //! in test-folder order is returned, whatever the thread count.
 
 mod data_csv;
+mod location;
+mod nominal;
 mod test_toml;
 
 use super::{Campaign, NominalModel};
@@ -38,6 +42,8 @@ struct RawNominal {
     structure: Option<String>,
     floor_mass_kg: Option<Vec<f64>>,
     story_stiffness_n_per_m: Option<Vec<f64>>,
+    /// Model manifest of a general model, relative to the campaign folder.
+    manifest: Option<String>,
     #[serde(flatten)]
     extra: toml::Table,
 }
@@ -136,87 +142,7 @@ fn read_campaign_toml(root: &Path, warnings: &mut Vec<String>) -> Result<(String
         )
     })?;
     warn_unknown(&nominal.extra, "campaign.toml [nominal]", warnings);
-    Ok((title, validate_nominal(&path, nominal)?))
-}
-
-/// Checks the `[nominal]` section: supported structure, one mass per floor and one
-/// stiffness per story, all positive and finite.
-fn validate_nominal(path: &Path, raw: RawNominal) -> Result<NominalModel> {
-    let structure = raw.structure.ok_or_else(|| {
-        Error::invalid(
-            path,
-            "[nominal] has no `structure`; add structure = \"shear_frame\"",
-        )
-    })?;
-    if structure != "shear_frame" {
-        return Err(Error::invalid(
-            path,
-            format!(
-                "[nominal] structure = \"{structure}\" is not supported; \
-                 the recording format defines only \"shear_frame\""
-            ),
-        ));
-    }
-    let floor_mass_kg = raw.floor_mass_kg.ok_or_else(|| {
-        Error::invalid(
-            path,
-            "[nominal] has no `floor_mass_kg`; add one mass in kg per floor, floor 1 first",
-        )
-    })?;
-    let story_stiffness_n_per_m = raw.story_stiffness_n_per_m.ok_or_else(|| {
-        Error::invalid(
-            path,
-            "[nominal] has no `story_stiffness_n_per_m`; add one stiffness in N/m per story, \
-             story 1 (ground to floor 1) first",
-        )
-    })?;
-    if floor_mass_kg.is_empty() {
-        return Err(Error::invalid(
-            path,
-            "[nominal] floor_mass_kg is empty; give one mass in kg per floor",
-        ));
-    }
-    if floor_mass_kg.len() != story_stiffness_n_per_m.len() {
-        return Err(Error::invalid(
-            path,
-            format!(
-                "[nominal] floor_mass_kg has {} values but story_stiffness_n_per_m has {}; \
-                 a shear frame needs one mass per floor and one stiffness per story \
-                 (story i joins floor i-1 and floor i)",
-                floor_mass_kg.len(),
-                story_stiffness_n_per_m.len()
-            ),
-        ));
-    }
-    check_positive(path, "floor_mass_kg", "floor", "kg", &floor_mass_kg)?;
-    check_positive(
-        path,
-        "story_stiffness_n_per_m",
-        "story",
-        "N/m",
-        &story_stiffness_n_per_m,
-    )?;
-    Ok(NominalModel {
-        structure,
-        floor_mass_kg,
-        story_stiffness_n_per_m,
-    })
-}
-
-fn check_positive(path: &Path, key: &str, item: &str, unit: &str, values: &[f64]) -> Result<()> {
-    for (i, &v) in values.iter().enumerate() {
-        if !(v.is_finite() && v > 0.0) {
-            return Err(Error::invalid(
-                path,
-                format!(
-                    "[nominal] {key}[{i}] ({item} {}) is {v}; it must be a positive, finite \
-                     value in {unit}",
-                    i + 1
-                ),
-            ));
-        }
-    }
-    Ok(())
+    Ok((title, nominal::validate(&path, root, nominal, warnings)?))
 }
 
 /// Names of the test folders under `root/tests`, sorted. Hidden entries are skipped;

@@ -12,5 +12,7 @@ pub use atomic::{write_atomic, write_atomic_with, StagedDir};
 pub use bundled::resolve_data;
 pub use campaign::{read_campaign, read_nominal};
 pub use runinfo::RunInfo;
-pub use types::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
+pub use types::{
+    Campaign, Channel, GeneralModel, NominalModel, Quantity, Test, TestKind, GENERAL, SHEAR_FRAME,
+};
 pub use writer::write_campaign;

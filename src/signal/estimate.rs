@@ -546,11 +546,7 @@ mod tests {
         let campaign = Campaign {
             root: PathBuf::from("/data/c"),
             title: "t".into(),
-            nominal: NominalModel {
-                structure: "shear_frame".into(),
-                floor_mass_kg: vec![1.0],
-                story_stiffness_n_per_m: vec![1.0],
-            },
+            nominal: NominalModel::shear_frame(vec![1.0], vec![1.0]),
             tests: vec![test.clone()],
             warnings: Vec::new(),
         };

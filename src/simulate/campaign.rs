@@ -6,6 +6,7 @@ use super::config::{SimModel, StructureSpec, TestSpec};
 use super::discrete::{Drive, Foh, Response, StateSpace};
 use super::effects::EffectSpec;
 use super::excitation::{Chirp, Excitation, HalfSinePulses};
+use super::modal_basis::ModalBasis;
 use super::nonlinear::{CubicSpring, NonlinearFoh};
 use super::sensor::{noise_stream, run_chain, Decimate, GaussianNoise, SensorStage, Signal};
 use super::system::LinearSystem;
@@ -30,6 +31,8 @@ pub struct Simulator {
     system: LinearSystem,
     springs: Vec<CubicSpring>,
     decimator: Arc<Decimator>,
+    /// The truncated modal basis a general structure is simulated in.
+    basis: Option<ModalBasis>,
 }
 
 impl Simulator {
@@ -40,21 +43,31 @@ impl Simulator {
         model.validate(Path::new("<model>"))?;
         let system = LinearSystem::from_spec(&model.structure, &model.damping)?
             .with_effects(&model.effects)?;
-        let StructureSpec::ShearFrame {
-            story_stiffness_n_per_m,
-            ..
-        } = &model.structure;
-        let springs = model
-            .effects
-            .iter()
-            .filter_map(|e| match e {
-                EffectSpec::StiffnessNonlinearity(s) => {
-                    Some(s.spring(&system, story_stiffness_n_per_m[s.story - 1]))
-                }
-                _ => None,
-            })
-            .collect::<Result<Vec<_>>>()?;
         let s = &model.sampling;
+        let (springs, basis) = match &model.structure {
+            StructureSpec::ShearFrame {
+                story_stiffness_n_per_m,
+                ..
+            } => {
+                let springs = model
+                    .effects
+                    .iter()
+                    .filter_map(|e| match e {
+                        EffectSpec::StiffnessNonlinearity(s) => {
+                            Some(s.spring(&system, story_stiffness_n_per_m[s.story - 1]))
+                        }
+                        _ => None,
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                (springs, None)
+            }
+            StructureSpec::General {
+                modal_cutoff_hz, ..
+            } => {
+                let cutoff_hz = modal_cutoff_hz.unwrap_or(0.5 * s.internal_rate_hz());
+                (Vec::new(), Some(ModalBasis::new(&system, cutoff_hz)?))
+            }
+        };
         let decimator = Decimator::kaiser(
             s.internal_rate_hz(),
             s.oversampling,
@@ -67,7 +80,14 @@ impl Simulator {
             system,
             springs,
             decimator: Arc::new(decimator),
+            basis,
         })
+    }
+
+    /// The truncated modal basis of a general structure (`None` for a shear frame, which
+    /// is simulated in physical coordinates).
+    pub fn modal_basis(&self) -> Option<&ModalBasis> {
+        self.basis.as_ref()
     }
 
     /// The model.
@@ -135,7 +155,7 @@ impl Simulator {
         Ok(Campaign {
             root: Default::default(),
             title: self.model.title.clone(),
-            nominal: self.model.nominal_model(),
+            nominal: self.model.nominal_model(self.system.n_dof())?,
             tests,
             warnings: Vec::new(),
         })
@@ -164,7 +184,8 @@ impl Simulator {
 
     /// The channels of `test`, as in the real campaign: the input (`force` at the
     /// excited floor, or `ground_acc`), then `acc1..n` (absolute) and `disp1..n`
-    /// (relative to the ground / table, base motion included when the base is flexible),
+    /// (relative to the ground / table, base motion included when the base is flexible);
+    /// on a general structure `acc<k>`, `disp<k>` at its sensor DOFs `k` (1-based);
     /// each with its sensor chain: the sensor effects that name
     /// it (in model order), anti-aliasing and decimation, then noise of its quantity's
     /// standard deviation (when positive).
@@ -187,14 +208,15 @@ impl Simulator {
                 Response::Input(0),
             )),
         }
-        for f in 1..=n {
+        let (acc, disp) = self.model.structure.sensors(n);
+        for f in acc {
             let dof = self.system.dof_of_floor(f)?;
             plan.push((
                 ch(format!("acc{f}"), Quantity::Acceleration, f),
                 Response::Acceleration { dof },
             ));
         }
-        for f in 1..=n {
+        for f in disp {
             let dof = self.system.dof_of_floor(f)?;
             plan.push((
                 ch(format!("disp{f}"), Quantity::Displacement, f),
@@ -252,7 +274,12 @@ impl Simulator {
         let internal_rate_hz = self.model.sampling.internal_rate_hz();
         let n_int = self.n_internal_samples(test);
         let input = excitation.sample(internal_rate_hz, n_int);
-        let raw = if self.springs.is_empty() {
+        let raw = if let Some(basis) = &self.basis {
+            let ss = basis.state_space(&[drive])?;
+            let outputs = basis.output_map(&ss, &responses)?;
+            let foh = Foh::new(&ss, 1.0 / internal_rate_hz)?;
+            foh.simulate(&outputs, &[input], None, progress)?
+        } else if self.springs.is_empty() {
             let ss = StateSpace::new(&self.system, &[drive])?;
             let outputs = ss.output_map(&responses)?;
             let foh = Foh::new(&ss, 1.0 / internal_rate_hz)?;
@@ -318,17 +345,19 @@ impl Simulator {
     /// `proportional_damping` is true), mass-normalised shapes at the floor DOFs; the
     /// DOF of the base when it is flexible; with cubic springs, all of this is the
     /// small-amplitude linearisation.
+    ///
+    /// On a general structure the shapes are given at the sensor DOFs only
+    /// (`mode_shapes_at_sensor_dofs`, `sensor_dofs` 1-based), and `modal_basis` records
+    /// the cutoff and the number of modes simulated.
     pub fn write_truth(&self, root: &Path, seed: u64) -> Result<()> {
         let modes = self.system.modes()?;
         let xi = self.system.modal_damping_ratios()?;
+        let shape_dofs: Vec<usize> = match &self.basis {
+            None => self.system.floor_dof.clone(),
+            Some(_) => self.sensor_dofs().iter().map(|k| k - 1).collect(),
+        };
         let shapes: Vec<Vec<f64>> = (0..modes.n_modes())
-            .map(|i| {
-                self.system
-                    .floor_dof
-                    .iter()
-                    .map(|&d| modes.phi[(d, i)])
-                    .collect()
-            })
+            .map(|i| shape_dofs.iter().map(|&d| modes.phi[(d, i)]).collect())
             .collect();
         let cm = modes.phi.transpose() * &self.system.damping_n_s_per_m * &modes.phi;
         let off_diagonal = (0..cm.nrows())
@@ -338,7 +367,7 @@ impl Simulator {
                     .map(move |j| (i, j))
             })
             .fold(0.0_f64, |a, (i, j)| a.max(cm[(i, j)].abs()));
-        let truth = serde_json::json!({
+        let mut truth = serde_json::json!({
             "generator": format!("frfbayes {} simulate", env!("CARGO_PKG_VERSION")),
             "seed": seed,
             "n_dof": self.system.n_dof(),
@@ -351,9 +380,43 @@ impl Simulator {
             "mode_shapes_at_floors": shapes,
             "model": self.model,
         });
+        if let Some(basis) = self.modal_basis_info() {
+            let t = &mut truth;
+            t.as_object_mut().map(|o| o.remove("floor_dof"));
+            t.as_object_mut().map(|o| o.remove("mode_shapes_at_floors"));
+            t["sensor_dofs"] = serde_json::json!(self.sensor_dofs());
+            t["mode_shapes_at_sensor_dofs"] = serde_json::json!(shapes);
+            t["modal_basis"] = basis;
+        }
         let text = serde_json::to_string_pretty(&truth)
             .map_err(|e| Error::Numerical(format!("truth.json: {e}")))?;
         write_atomic(&root.join("truth.json"), text.as_bytes())
+    }
+}
+
+impl Simulator {
+    /// Sensor locations of a general structure (1-based DOFs, ascending, each once).
+    pub fn sensor_dofs(&self) -> Vec<usize> {
+        let (acc, disp) = self.model.structure.sensors(self.system.n_floors());
+        let mut dofs: Vec<usize> = acc.into_iter().chain(disp).collect();
+        dofs.sort_unstable();
+        dofs.dedup();
+        dofs
+    }
+
+    /// The modal basis of a general structure as recorded in `truth.json` and `run.json`:
+    /// cutoff, modes kept of all, and the highest kept natural frequency.
+    pub fn modal_basis_info(&self) -> Option<serde_json::Value> {
+        self.basis.as_ref().map(|b| {
+            serde_json::json!({
+                "cutoff_hz": b.cutoff_hz,
+                "n_modes": b.n_modes(),
+                "n_dof": self.system.n_dof(),
+                "highest_kept_hz": b.omega_rad_s.last().map(|w| w / (2.0 * std::f64::consts::PI)),
+                "rule": "every undamped mode up to cutoff_hz (default: the internal Nyquist \
+                         frequency, oversampling * output_rate_hz / 2)",
+            })
+        })
     }
 }
 

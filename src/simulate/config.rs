@@ -54,13 +54,52 @@ pub enum StructureSpec {
         floor_mass_kg: Vec<f64>,
         story_stiffness_n_per_m: Vec<f64>,
     },
+    /// A general linear model from a manifest at the true `alpha`, `beta`, with sensors
+    /// on DOFs (1-based); see [`super::general`].
+    General {
+        /// The model manifest (relative paths are resolved against the simulation model
+        /// file's folder when it is read).
+        manifest: PathBuf,
+        /// True stiffness parameters (Eq. 20); zeros when empty.
+        #[serde(default)]
+        alpha: Vec<f64>,
+        /// True mass parameters (Eq. 21); zeros when empty.
+        #[serde(default)]
+        beta: Vec<f64>,
+        /// DOFs (1-based) with an accelerometer (channels `acc<k>`).
+        #[serde(default)]
+        acceleration_dofs: Vec<usize>,
+        /// DOFs (1-based) with a displacement sensor (channels `disp<k>`).
+        #[serde(default)]
+        displacement_dofs: Vec<usize>,
+        /// Highest natural frequency of the modal basis; the internal Nyquist frequency
+        /// when absent.
+        #[serde(default)]
+        modal_cutoff_hz: Option<f64>,
+    },
 }
 
 impl StructureSpec {
-    /// Number of floors.
-    pub fn n_floors(&self) -> usize {
+    /// Number of floors of a shear frame; `None` for a general model (its size is in
+    /// its manifest).
+    pub fn n_floors(&self) -> Option<usize> {
         match self {
-            StructureSpec::ShearFrame { floor_mass_kg, .. } => floor_mass_kg.len(),
+            StructureSpec::ShearFrame { floor_mass_kg, .. } => Some(floor_mass_kg.len()),
+            StructureSpec::General { .. } => None,
+        }
+    }
+
+    /// Locations (1-based floors or DOFs) of the accelerometers and of the displacement
+    /// sensors on a structure of `n` floors / DOFs: every floor of a shear frame, the
+    /// listed DOFs of a general model.
+    pub fn sensors(&self, n: usize) -> (Vec<usize>, Vec<usize>) {
+        match self {
+            StructureSpec::ShearFrame { .. } => ((1..=n).collect(), (1..=n).collect()),
+            StructureSpec::General {
+                acceleration_dofs,
+                displacement_dofs,
+                ..
+            } => (acceleration_dofs.clone(), displacement_dofs.clone()),
         }
     }
 }
@@ -135,9 +174,11 @@ pub struct NoiseSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum TestSpec {
-    /// Impacts at one floor, base fixed.
+    /// Impacts at one floor (or DOF of a general model), base fixed.
     Hammer {
         name: String,
+        /// The impacted floor, or the DOF (1-based) of a general model (`excited_dof`).
+        #[serde(alias = "excited_dof")]
         excited_floor: usize,
         /// Record length.
         duration_s: f64,
@@ -205,15 +246,24 @@ impl SimModel {
 
     /// Parses and validates model text; `path` names the file in errors.
     pub fn from_toml(text: &str, path: &Path) -> Result<Self> {
-        let model: SimModel =
+        let mut model: SimModel =
             toml::from_str(text).map_err(|e| Error::invalid(path, e.to_string()))?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        super::general::resolve_manifest(&mut model.structure, dir);
         model.validate(path)?;
         Ok(model)
     }
 
-    /// The nominal model for `campaign.toml` (the true structure when none is given).
-    pub fn nominal_model(&self) -> NominalModel {
+    /// The nominal model for `campaign.toml`: the given one, else the true shear frame;
+    /// for a general structure, its manifest (a model of `n_dof` DOFs).
+    pub fn nominal_model(&self, n_dof: usize) -> Result<NominalModel> {
         let (m, k) = match (&self.nominal, &self.structure) {
+            (_, StructureSpec::General { manifest, .. }) => {
+                let manifest = manifest
+                    .canonicalize()
+                    .map_err(|e| Error::io(manifest, e))?;
+                return Ok(NominalModel::general(manifest, n_dof));
+            }
             (Some(n), _) => (&n.floor_mass_kg, &n.story_stiffness_n_per_m),
             (
                 None,
@@ -223,22 +273,35 @@ impl SimModel {
                 },
             ) => (floor_mass_kg, story_stiffness_n_per_m),
         };
-        NominalModel {
-            structure: "shear_frame".into(),
-            floor_mass_kg: m.clone(),
-            story_stiffness_n_per_m: k.clone(),
-        }
+        Ok(NominalModel::shear_frame(m.clone(), k.clone()))
     }
 
-    /// Checks everything that can be checked without building matrices (those are checked
-    /// when the system is built). Errors name `path` and the offending key.
-    pub fn validate(&self, path: &Path) -> Result<()> {
+    /// Number of floors (shear frame) or DOFs (general model, loading its manifest),
+    /// after checking the structure and the nominal model.
+    fn check_structure(&self, path: &Path) -> Result<usize> {
         let bad = |what: String| Err(Error::invalid(path, what));
-        let n = self.structure.n_floors();
         let StructureSpec::ShearFrame {
             floor_mass_kg,
             story_stiffness_n_per_m,
-        } = &self.structure;
+        } = &self.structure
+        else {
+            if self.nominal.is_some() {
+                return bad(
+                    "nominal: a general structure's nominal model is its manifest (at \
+                     alpha = beta = 0); remove [nominal]"
+                        .into(),
+                );
+            }
+            if !self.effects.is_empty() {
+                return bad(
+                    "effect: the effects are defined on shear frames; remove [[effect]] \
+                     for a general structure"
+                        .into(),
+                );
+            }
+            return Ok(super::general::load(&self.structure, path)?.0.n_dof());
+        };
+        let n = floor_mass_kg.len();
         check_shear_frame("structure", floor_mass_kg, story_stiffness_n_per_m, path)?;
         if let Some(nom) = &self.nominal {
             check_shear_frame(
@@ -254,6 +317,15 @@ impl SimModel {
                 ));
             }
         }
+        Ok(n)
+    }
+
+    /// Checks everything that can be checked without building matrices (those are checked
+    /// when the system is built). Errors name `path` and the offending key.
+    pub fn validate(&self, path: &Path) -> Result<()> {
+        let bad = |what: String| Err(Error::invalid(path, what));
+        let n = self.check_structure(path)?;
+        let (acc, disp) = self.structure.sensors(n);
         match &self.damping {
             DampingSpec::Rayleigh { a0_per_s, a1_s } => {
                 if !(*a0_per_s >= 0.0 && *a1_s >= 0.0 && a0_per_s.is_finite() && a1_s.is_finite()) {
@@ -467,7 +539,8 @@ impl SimModel {
                 }
             }
             for c in e.channels() {
-                let known = in_scope().any(|t| channel_names(t, n).iter().any(|k| k == c));
+                let known =
+                    in_scope().any(|t| channel_names(t, &acc, &disp).iter().any(|k| k == c));
                 if !known {
                     return bad(format!(
                         "sensor_effect {}: no channel {c:?} in its tests (channels are force or ground_acc, acc1..{n}, disp1..{n})",
@@ -480,15 +553,16 @@ impl SimModel {
     }
 }
 
-/// Names of the channels a test records on a structure of `n_floors` floors: the input
-/// (`force` or `ground_acc`), then `acc1..n`, then `disp1..n`.
-pub fn channel_names(test: &TestSpec, n_floors: usize) -> Vec<String> {
+/// Names of the channels a test records with accelerometers at `acc` and displacement
+/// sensors at `disp` (floors or DOFs, 1-based; see [`StructureSpec::sensors`]): the
+/// input (`force` or `ground_acc`), then `acc<k>`, then `disp<k>`.
+pub fn channel_names(test: &TestSpec, acc: &[usize], disp: &[usize]) -> Vec<String> {
     let mut names = vec![match test {
         TestSpec::Hammer { .. } => "force".to_string(),
         TestSpec::ShakeTable { .. } => "ground_acc".to_string(),
     }];
-    names.extend((1..=n_floors).map(|f| format!("acc{f}")));
-    names.extend((1..=n_floors).map(|f| format!("disp{f}")));
+    names.extend(acc.iter().map(|f| format!("acc{f}")));
+    names.extend(disp.iter().map(|f| format!("disp{f}")));
     names
 }
 

@@ -152,6 +152,8 @@ pub mod config;
 pub mod discrete;
 pub mod effects;
 pub mod excitation;
+pub mod general;
+pub mod modal_basis;
 pub mod nonlinear;
 pub mod sensor;
 pub mod sensor_effects;
@@ -164,6 +166,7 @@ pub use config::{
 };
 pub use discrete::{polynomial_hold, Drive, Foh, OutputMap, Response, StateSpace};
 pub use effects::{BaseFlexibility, Dashpot, EffectSpec, Oscillator, StiffnessNonlinearity};
+pub use modal_basis::ModalBasis;
 pub use nonlinear::{CubicSpring, NonlinearFoh};
 pub use sensor::{Decimate, GaussianNoise, SensorStage, Signal};
 pub use sensor_effects::{LowPass, SensorEffect, TimeOffset};

@@ -37,15 +37,26 @@ pub trait SystemEffect: std::fmt::Debug + Send + Sync {
 
 impl LinearSystem {
     /// Builds the structure with its damping.
+    /// A general structure's floors are its DOFs (`floor_dof[k - 1] = k - 1`).
     pub fn from_spec(structure: &StructureSpec, damping: &DampingSpec) -> Result<Self> {
-        let StructureSpec::ShearFrame {
-            floor_mass_kg,
-            story_stiffness_n_per_m,
-        } = structure;
-        let model =
-            crate::model::StructuralModel::shear_frame(floor_mass_kg, story_stiffness_n_per_m)?;
-        let m = model.mass(&model.beta_zero());
-        let k = model.stiffness(&model.alpha_zero());
+        let (model, alpha, beta) = match structure {
+            StructureSpec::ShearFrame {
+                floor_mass_kg,
+                story_stiffness_n_per_m,
+            } => {
+                let model = crate::model::StructuralModel::shear_frame(
+                    floor_mass_kg,
+                    story_stiffness_n_per_m,
+                )?;
+                let (a, b) = (model.alpha_zero(), model.beta_zero());
+                (model, a, b)
+            }
+            StructureSpec::General { .. } => {
+                super::general::load(structure, std::path::Path::new("<model>"))?
+            }
+        };
+        let m = model.mass(&beta);
+        let k = model.stiffness(&alpha);
         let iota = model.ground_influence().clone();
         let c = damping_matrix(&m, &k, &iota, damping)?;
         let n = m.nrows();

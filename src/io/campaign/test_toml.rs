@@ -1,5 +1,6 @@
 //! `tests/<name>/test.toml`: how a test was run and what each channel measures.
 
+use super::location::{channel_location, excited_location, parse_sign};
 use super::{parse_toml, read_text, warn_unknown};
 use crate::error::{Error, Result};
 use crate::io::{Channel, NominalModel, Quantity, Test, TestKind};
@@ -14,6 +15,8 @@ struct RawTest {
     kind: Option<String>,
     sample_rate_hz: Option<f64>,
     excited_floor: Option<i64>,
+    /// The impacted DOF of a general model (1-based; `docs/recording-format.md`).
+    excited_dof: Option<toml::Value>,
     #[serde(default)]
     channel: Vec<RawChannel>,
     #[serde(flatten)]
@@ -26,6 +29,10 @@ struct RawChannel {
     name: Option<String>,
     quantity: Option<String>,
     floor: Option<i64>,
+    /// The model DOF (1-based; `docs/recording-format.md`).
+    dof: Option<toml::Value>,
+    /// +1 or -1 (`docs/recording-format.md`).
+    sign: Option<toml::Value>,
     unit: Option<String>,
     #[serde(flatten)]
     extra: toml::Table,
@@ -38,10 +45,19 @@ pub(super) struct TestSpec {
     pub kind: TestKind,
     pub sample_rate_hz: f64,
     pub channels: Vec<Channel>,
+    /// Sign of each channel's axis (+1 or -1), in channel order.
+    pub signs: Vec<f64>,
 }
 
 impl TestSpec {
-    pub fn into_test(self, data: Vec<Vec<f64>>) -> Test {
+    /// The test with its samples, each channel's turned to the model's positive direction
+    /// (multiplied by its sign).
+    pub fn into_test(self, mut data: Vec<Vec<f64>>) -> Test {
+        for (series, &sign) in data.iter_mut().zip(&self.signs) {
+            if sign < 0.0 {
+                series.iter_mut().for_each(|v| *v = -*v);
+            }
+        }
         Test {
             name: self.name,
             kind: self.kind,
@@ -78,7 +94,6 @@ pub(super) fn read_test_toml(
     let raw: RawTest = parse_toml(&path, &text)?;
     warn_unknown(&raw.extra, &place, warnings);
     let bad = |what: String| Error::invalid(&path, what);
-    let n_floors = nominal.n_floors();
 
     let sample_rate_hz = raw.sample_rate_hz.ok_or_else(|| {
         bad("no `sample_rate_hz`; add sample_rate_hz = <samples per second>".into())
@@ -89,12 +104,14 @@ pub(super) fn read_test_toml(
         )));
     }
 
-    let channels = raw
+    let (channels, signs): (Vec<Channel>, Vec<f64>) = raw
         .channel
         .into_iter()
         .enumerate()
-        .map(|(i, c)| validate_channel(&path, &place, i, c, n_floors, warnings))
-        .collect::<Result<Vec<_>>>()?;
+        .map(|(i, c)| validate_channel(&path, &place, i, c, nominal, warnings))
+        .collect::<Result<Vec<_>>>()?
+        .into_iter()
+        .unzip();
     if channels.is_empty() {
         return Err(bad(
             "no [[channel]] tables; describe each data.csv column with a [[channel]] table \
@@ -117,27 +134,17 @@ pub(super) fn read_test_toml(
         .ok_or_else(|| bad("no `kind`; add kind = \"hammer\" or kind = \"shake_table\"".into()))?;
     let kind = match kind_name.as_str() {
         "hammer" => {
-            let floor = raw.excited_floor.ok_or_else(|| {
-                bad(format!(
-                    "a hammer test needs `excited_floor` (the impacted floor, 1..={n_floors})"
-                ))
-            })?;
-            if floor < 0 || floor as u64 > n_floors as u64 {
-                return Err(bad(format!(
-                    "excited_floor = {floor} is outside 0..={n_floors} (the nominal model in \
-                     campaign.toml has {n_floors} floors)"
-                )));
-            }
-            if floor == 0 {
-                return Err(bad(format!(
-                    "excited_floor = 0 is the ground; a hammer test impacts a floor 1..={n_floors}"
-                )));
-            }
-            let excited_floor = floor as usize;
+            let excited_floor =
+                excited_location(raw.excited_floor, raw.excited_dof.as_ref(), nominal)
+                    .map_err(bad)?;
             let force = only_one(&path, &channels, Quantity::Force, "a hammer test")?;
             if force.floor != excited_floor {
+                let (what, key) = match nominal.model {
+                    Some(_) => ("DOF", "excited_dof"),
+                    None => ("floor", "excited_floor"),
+                };
                 return Err(bad(format!(
-                    "force channel `{}` is at floor {} but excited_floor = {excited_floor}; \
+                    "force channel `{}` is at {what} {} but {key} = {excited_floor}; \
                      the hammer force is measured where it is applied",
                     force.name, force.floor
                 )));
@@ -145,10 +152,15 @@ pub(super) fn read_test_toml(
             TestKind::Hammer { excited_floor }
         }
         "shake_table" => {
-            if raw.excited_floor.is_some() {
-                warnings.push(format!(
-                    "{place}: `excited_floor` is ignored for a shake_table test"
-                ));
+            for (key, given) in [
+                ("excited_floor", raw.excited_floor.is_some()),
+                ("excited_dof", raw.excited_dof.is_some()),
+            ] {
+                if given {
+                    warnings.push(format!(
+                        "{place}: `{key}` is ignored for a shake_table test"
+                    ));
+                }
             }
             let ground = only_one(
                 &path,
@@ -176,6 +188,7 @@ pub(super) fn read_test_toml(
         kind,
         sample_rate_hz,
         channels,
+        signs,
     })
 }
 
@@ -217,15 +230,15 @@ fn quantity_key(q: Quantity) -> &'static str {
     }
 }
 
-/// Checks one `[[channel]]` (the `index`-th, 0-based).
+/// Checks one `[[channel]]` (the `index`-th, 0-based); returns it with its sign.
 fn validate_channel(
     path: &Path,
     place: &str,
     index: usize,
     raw: RawChannel,
-    n_floors: usize,
+    nominal: &NominalModel,
     warnings: &mut Vec<String>,
-) -> Result<Channel> {
+) -> Result<(Channel, f64)> {
     let number = index + 1;
     let bad = |what: String| Error::invalid(path, format!("[[channel]] #{number}: {what}"));
     let name = raw
@@ -260,17 +273,8 @@ fn validate_channel(
              acceleration or displacement"
         ))
     })?;
-    let floor = raw.floor.ok_or_else(|| {
-        bad(format!(
-            "no `floor`; add floor = <0..={n_floors}> (0 = ground)"
-        ))
-    })?;
-    if floor < 0 || floor as u64 > n_floors as u64 {
-        return Err(bad(format!(
-            "floor = {floor} is outside 0..={n_floors} (0 = ground; the nominal model in \
-             campaign.toml has {n_floors} floors)"
-        )));
-    }
+    let floor = channel_location(raw.floor, raw.dof.as_ref(), quantity, nominal).map_err(bad)?;
+    let sign = parse_sign(raw.sign.as_ref()).map_err(bad)?;
     let unit = raw
         .unit
         .ok_or_else(|| bad(format!("no `unit`; add unit = \"{}\"", quantity.unit())))?;
@@ -281,10 +285,13 @@ fn validate_channel(
             quantity.unit()
         )));
     }
-    Ok(Channel {
-        name: name_trimmed.to_string(),
-        quantity,
-        floor: floor as usize,
-        unit,
-    })
+    Ok((
+        Channel {
+            name: name_trimmed.to_string(),
+            quantity,
+            floor,
+            unit,
+        },
+        sign,
+    ))
 }

@@ -1,0 +1,207 @@
+//! Simulated campaigns on a general (non-shear-frame) model given by a Matrix Market
+//! manifest: simulate -> write -> read -> estimate H1, against the analytic FRF of the
+//! true model at the sensor DOFs (`docs/recording-format.md`, `frfbayes::simulate::general`).
+
+use frfbayes::frf::{modal_frf, FrfPair};
+use frfbayes::io::{read_campaign, write_campaign, Campaign, TestKind};
+use frfbayes::modal::Modes;
+use frfbayes::signal::{
+    estimate_campaign, windowed_modal_frf, EstimateOptions, InputKind, TestFrf,
+};
+use frfbayes::simulate::{SimModel, Simulator};
+use num_complex::Complex64;
+use std::f64::consts::PI;
+use std::path::Path;
+
+/// A 6-DOF model that is not a shear frame: springs between non-adjacent DOFs and to the
+/// ground at DOFs 1 and 4, a mass coupling between DOFs 1 and 2, a non-uniform ground
+/// influence; two stiffness parameters (the springs at DOF 1 and between 3 and 6).
+const K0: &str = "%%MatrixMarket matrix coordinate real symmetric\n6 6 14\n\
+    1 1 8800\n2 1 -3000\n5 1 -1800\n2 2 5700\n3 2 -2000\n4 2 -700\n3 3 3500\n6 3 -1500\n\
+    4 4 5400\n5 4 -2200\n5 5 4900\n6 5 -900\n6 6 2400\n4 3 0\n";
+const K_BASE: &str = "%%MatrixMarket matrix coordinate real symmetric\n6 6 1\n1 1 4000\n";
+const K_BRACE: &str =
+    "%%MatrixMarket matrix coordinate real symmetric\n6 6 3\n3 3 1500\n6 3 -1500\n6 6 1500\n";
+const M0: &str = "%%MatrixMarket matrix coordinate real symmetric\n6 6 7\n\
+    1 1 2.0\n2 1 0.2\n2 2 1.5\n3 3 1.2\n4 4 1.8\n5 5 1.0\n6 6 0.8\n";
+const MANIFEST: &str = "k0 = \"K0.mtx\"\nm0 = \"M0.mtx\"\n\
+    ground_influence = [1.0, 1.0, 0.5, 1.0, 0.8, 1.0]\n\
+    [[alpha]]\nname = \"k_base\"\nmatrix = \"K_base.mtx\"\n\
+    [[alpha]]\nname = \"k_brace\"\nmatrix = \"K_brace.mtx\"\n";
+
+/// Noise-free hammer (impact at DOF 2, twice) and shake-table tests, sensors at DOFs 1,
+/// 3, 6 (acceleration) and 6 (displacement).
+const SIM: &str = r#"
+title = "six-DOF general model (simulated)"
+seed = 7
+[structure]
+kind = "general"
+manifest = "model/model.toml"
+alpha = [0.1, -0.05]
+acceleration_dofs = [1, 3, 6]
+displacement_dofs = [6]
+[damping]
+model = "modal"
+xi = [0.02, 0.015, 0.012, 0.01, 0.01, 0.01]
+[sampling]
+output_rate_hz = 200.0
+oversampling = 10
+[[test]]
+name = "hammer-dof2"
+kind = "hammer"
+excited_dof = 2
+duration_s = 120.0
+pulse_duration_s = 0.003
+impacts = [{ time_s = 2.0003, peak_force_n = 50.0 }, { time_s = 62.0003, peak_force_n = 45.0 }]
+[[test]]
+name = "shake"
+kind = "shake_table"
+ring_down_s = 40.0
+[test.chirp]
+f0_hz = 0.5
+f1_hz = 30.0
+start_s = 0.5
+sweep_duration_s = 60.0
+taper_s = 1.0
+amplitude_m_per_s2 = 0.1
+"#;
+
+fn write_model(dir: &Path) {
+    let m = dir.join("model");
+    std::fs::create_dir_all(&m).unwrap();
+    for (name, text) in [
+        ("K0.mtx", K0),
+        ("K_base.mtx", K_BASE),
+        ("K_brace.mtx", K_BRACE),
+        ("M0.mtx", M0),
+        ("model.toml", MANIFEST),
+    ] {
+        std::fs::write(m.join(name), text).unwrap();
+    }
+    std::fs::write(dir.join("sim.toml"), SIM).unwrap();
+}
+
+/// The analytic FRF an estimate stands for (hammer: at `s = j omega + 1/tau` when an
+/// exponential window was applied, its exact effect).
+fn analytic(est: &TestFrf, modes: &Modes, c: &[f64], pair: &FrfPair, f_hz: f64) -> Complex64 {
+    let w = 2.0 * PI * f_hz;
+    match (&est.input, est.exp_window_tau_s) {
+        (InputKind::Force { .. }, Some(tau)) => windowed_modal_frf(modes, c, pair, w, tau),
+        _ => modal_frf(modes, c, pair, w),
+    }
+}
+
+fn assert_same_campaign(a: &Campaign, b: &Campaign) {
+    assert_eq!(a.nominal, b.nominal);
+    assert_eq!(a.tests.len(), b.tests.len());
+    for (x, y) in a.tests.iter().zip(&b.tests) {
+        assert_eq!(
+            (&x.name, &x.kind, &x.channels),
+            (&y.name, &y.kind, &y.channels)
+        );
+        assert_eq!(x.data, y.data, "{}", x.name);
+    }
+}
+
+/// The oracle: H1 of the noise-free campaign, read back from disk, equals the analytic
+/// FRF of the true model (modes of `K(alpha)`, `M`, modal damping) at the sensor DOFs
+/// within 0.5 % wherever the coherence exceeds 0.99 over 0.5-25 Hz (the acceptance of the
+/// estimator on the four-story frame, `tests/signal_simulated.rs`; all six modes, up to
+/// 16 Hz, are in the band).
+#[test]
+fn noise_free_general_campaign_h1_matches_the_analytic_frf() {
+    let dir = tempfile::tempdir().unwrap();
+    write_model(dir.path());
+    let model = SimModel::from_path(&dir.path().join("sim.toml")).unwrap();
+    let sim = Simulator::new(model).unwrap();
+    // Default cutoff: the internal Nyquist frequency, 1000 Hz: every mode is kept.
+    let basis = sim.modal_basis().unwrap();
+    assert_eq!((basis.n_modes(), basis.cutoff_hz), (6, 1000.0));
+    let simulated = sim.run(7, &|_| {}).unwrap();
+    let root = dir.path().join("campaign");
+    write_campaign(&simulated, &root).unwrap();
+    sim.write_truth(&root, 7).unwrap();
+    let campaign = read_campaign(&root).unwrap();
+    assert!(campaign.warnings.is_empty(), "{:?}", campaign.warnings);
+    assert_same_campaign(&campaign, &simulated);
+    let test_toml = std::fs::read_to_string(root.join("tests/hammer-dof2/test.toml")).unwrap();
+    assert!(test_toml.contains("excited_dof = 2") && test_toml.contains("dof = 6"));
+    assert_eq!(
+        campaign.tests[0].kind,
+        TestKind::Hammer { excited_floor: 2 }
+    );
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("truth.json")).unwrap()).unwrap();
+    assert_eq!(truth["sensor_dofs"], serde_json::json!([1, 3, 6]));
+    assert_eq!(truth["modal_basis"]["n_modes"], 6);
+
+    let modes = sim.system().modes().unwrap();
+    let c: Vec<f64> = modes
+        .omega_rad_s
+        .iter()
+        .zip(sim.system().modal_damping_ratios().unwrap())
+        .map(|(w, x)| 2.0 * x * w)
+        .collect();
+    assert!(modes.freq_hz()[5] < 25.0, "{:?}", modes.freq_hz());
+    let opts = EstimateOptions {
+        freq_max_hz: Some(30.0),
+        ..EstimateOptions::default()
+    };
+    for e in estimate_campaign(&campaign, &opts).unwrap() {
+        for r in &e.responses {
+            let pair = r.pair(&e.input).unwrap();
+            let (mut worst, mut n) = (0.0f64, 0);
+            for (k, &f) in e.freq_hz.iter().enumerate() {
+                if !(0.5..=25.0).contains(&f) || r.coherence[k] <= 0.99 {
+                    continue;
+                }
+                let h = analytic(&e, &modes, &c, &pair, f);
+                worst = worst.max((r.h1[k] - h).norm() / h.norm());
+                n += 1;
+            }
+            println!(
+                "{} {}: worst {:.3} % over {n} bins",
+                e.test,
+                r.channel.name,
+                100.0 * worst
+            );
+            assert!(n > 500, "{} {}: only {n} bins", e.test, r.channel.name);
+            assert!(
+                worst < 5e-3,
+                "{} {}: {:.3} %",
+                e.test,
+                r.channel.name,
+                100.0 * worst
+            );
+        }
+    }
+}
+
+#[test]
+fn general_simulation_model_errors_name_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    write_model(dir.path());
+    let path = dir.path().join("sim.toml");
+    let err = |from: &str, to: &str| -> String {
+        assert!(SIM.contains(from), "{from}");
+        SimModel::from_toml(&SIM.replacen(from, to, 1), &path)
+            .unwrap_err()
+            .to_string()
+    };
+    let cases = [
+        ("model/model.toml", "model/none.toml", "none.toml not found"),
+        ("alpha = [0.1, -0.05]", "alpha = [0.1]", "alpha has 1 values but the manifest defines 2"),
+        ("acceleration_dofs = [1, 3, 6]", "acceleration_dofs = [1, 7]", "DOF 7, outside 1..=6"),
+        ("acceleration_dofs = [1, 3, 6]", "acceleration_dofs = [0]", "DOF 0, outside 1..=6"),
+        ("excited_dof = 2", "excited_dof = 9", "excited_floor must be in 1..=6"),
+        ("[damping]", "[nominal]\nfloor_mass_kg = [1.0]\nstory_stiffness_n_per_m = [1.0]\n[damping]", "remove [nominal]"),
+        ("[damping]", "[[effect]]\nkind = \"dashpot\"\nfloors = [1, 2]\ncoefficient_n_s_per_m = 1.0\n[damping]", "remove [[effect]]"),
+    ];
+    for (from, to, needle) in cases {
+        let e = err(from, to);
+        assert!(
+            e.contains(needle) && e.contains("sim.toml"),
+            "`{needle}` not in: {e}"
+        );
+    }
+}
