@@ -21,6 +21,39 @@ use serde::{Deserialize, Serialize};
 /// of the shake-table points (0.34 % and up).
 pub const DEFAULT_REL_SIGMA_FLOOR: f64 = 1e-3;
 
+/// How the noise of the force channel of hammer tests enters the likelihood.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InputNoiseModel {
+    /// Inside each point's Bendat & Piersol error, points independent: the force noise,
+    /// one error common to all points of a test, is then counted once per point and the
+    /// posterior is too narrow (`results/coverage/`).
+    #[default]
+    PerPoint,
+    /// As a low-rank error shared by all points of a test
+    /// ([`crate::signal::InputNoise`], [`CorrelatedNoise`]); each point's own error is
+    /// the Bendat & Piersol error of the output noise alone.
+    Shared,
+}
+
+/// Relative eigenvalue below which components of the shared force noise are dropped
+/// (their variance is added to each point's own).
+pub const SHARED_NOISE_REL_TOL: f64 = 1e-3;
+
+/// Noise shared by a run of consecutive points (one test's): `cov = L L^T` in the
+/// residual's units at noise scale 1, on top of the independent `sigma_k^2`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CorrelatedNoise {
+    /// First point (long-vector index).
+    pub start: usize,
+    /// Number of points.
+    pub len: usize,
+    /// Columns of `L`.
+    pub rank: usize,
+    /// `L`, `len x rank`, row-major.
+    pub loadings: Vec<f64>,
+}
+
 /// Measured magnitudes and their noise model at noise scale 1.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FrfData {
@@ -41,6 +74,9 @@ pub struct FrfData {
     pub sigma: Vec<f64>,
     /// Points whose relative standard deviation was raised to the floor.
     pub n_floored: usize,
+    /// Noise shared between points, on top of `sigma` (empty: independent points).
+    #[serde(default)]
+    pub correlated: Vec<CorrelatedNoise>,
 }
 
 impl FrfData {
@@ -53,6 +89,29 @@ impl FrfData {
         kind: FrfKind,
         residual: ResidualForm,
         rel_sigma_floor: f64,
+    ) -> Result<Self> {
+        Self::with_input_noise(
+            frfs,
+            kind,
+            residual,
+            rel_sigma_floor,
+            InputNoiseModel::PerPoint,
+        )
+    }
+
+    /// [`Self::from_test_frfs`] with the force noise of hammer tests modelled as
+    /// `input_noise` says. [`InputNoiseModel::Shared`]: `sigma_k` from the output noise
+    /// alone (floored as before) plus the dropped components of the force noise, and one
+    /// [`CorrelatedNoise`] per test with force noise, its loadings `|H^E_k| a_k`
+    /// (magnitude residuals) or `a_k` (log residuals), `a` the low-rank relative loadings
+    /// of [`crate::signal::InputNoise::low_rank`] at the test's selected bins (the same
+    /// for every response).
+    pub fn with_input_noise(
+        frfs: &[&TestFrf],
+        kind: FrfKind,
+        residual: ResidualForm,
+        rel_sigma_floor: f64,
+        input_noise: InputNoiseModel,
     ) -> Result<Self> {
         if !(rel_sigma_floor.is_finite() && rel_sigma_floor > 0.0) {
             return Err(Error::Usage(format!(
@@ -67,21 +126,34 @@ impl FrfData {
             residual,
             sigma: Vec::new(),
             n_floored: 0,
+            correlated: Vec::new(),
         };
         for frf in frfs {
             let full = frf.frf_block()?;
             let mags = frf.selected_magnitudes();
-            let rel = frf.selected_rel_std();
+            let shared = match (&frf.input_noise, input_noise) {
+                (Some(n), InputNoiseModel::Shared) => {
+                    Some(n.low_rank(&frf.selected, SHARED_NOISE_REL_TOL)?)
+                }
+                _ => None,
+            };
+            let rel = match shared {
+                Some(_) => frf.selected_output_rel_std(),
+                None => frf.selected_rel_std(),
+            };
             let nw = full.omega_rad_s.len();
+            let start = data.magnitude.len();
             let mut pairs = Vec::new();
+            let mut loadings = Vec::new();
             for (j, p) in full.pairs.iter().enumerate() {
                 if p.kind != kind || nw == 0 {
                     continue;
                 }
                 pairs.push(*p);
-                for (&m, &r) in mags[j * nw..(j + 1) * nw]
+                for (i, (&m, &r)) in mags[j * nw..(j + 1) * nw]
                     .iter()
                     .zip(&rel[j * nw..(j + 1) * nw])
+                    .enumerate()
                 {
                     if !(m.is_finite() && m > 0.0) {
                         return Err(Error::Usage(format!(
@@ -94,13 +166,30 @@ impl FrfData {
                     if r < rel_sigma_floor {
                         data.n_floored += 1;
                     }
-                    let r = r.max(rel_sigma_floor);
+                    let mut r = r.max(rel_sigma_floor);
+                    if let Some(lr) = &shared {
+                        r = (r * r + lr.dropped_var[i]).sqrt();
+                        let unit = match residual {
+                            ResidualForm::Magnitude => m,
+                            ResidualForm::LogMagnitude => 1.0,
+                        };
+                        let row = &lr.loadings[i * lr.rank..(i + 1) * lr.rank];
+                        loadings.extend(row.iter().map(|a| a * unit));
+                    }
                     data.magnitude.push(m);
                     data.sigma.push(match residual {
                         ResidualForm::Magnitude => m * r,
                         ResidualForm::LogMagnitude => r,
                     });
                 }
+            }
+            if let Some(lr) = shared.filter(|lr| lr.rank > 0 && !pairs.is_empty()) {
+                data.correlated.push(CorrelatedNoise {
+                    start,
+                    len: data.magnitude.len() - start,
+                    rank: lr.rank,
+                    loadings,
+                });
             }
             if !pairs.is_empty() {
                 data.blocks.push(FrfBlock {
@@ -170,6 +259,24 @@ impl FrfData {
                     ">= 0"
                 }
             )));
+        }
+        let mut end = 0;
+        for c in &self.correlated {
+            if c.start < end
+                || c.start + c.len > n
+                || c.loadings.len() != c.len * c.rank
+                || c.loadings.iter().any(|v| !v.is_finite())
+            {
+                return Err(Error::Usage(format!(
+                    "correlated noise over points {}..{} (rank {}, {} loadings) does not fit \
+                     {n} points in order, or has non-finite loadings",
+                    c.start,
+                    c.start + c.len,
+                    c.rank,
+                    c.loadings.len()
+                )));
+            }
+            end = c.start + c.len;
         }
         if let Some(k) = self.sigma.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
             return Err(Error::Usage(format!(

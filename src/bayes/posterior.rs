@@ -1,13 +1,14 @@
 //! The posterior of the updating variables and the noise scale given measured FRF
 //! magnitudes.
 
-use super::data::FrfData;
+use super::data::{CorrelatedNoise, FrfData};
 use super::forward::{ForwardModel, ForwardWorkspace};
 use super::prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
 use crate::model::StructuralModel;
 use crate::update::{DampingModel, ResidualForm, VariableKind, Variables, VariablesConfig};
+use nalgebra::DMatrix;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -56,7 +57,68 @@ pub struct FrfPosterior {
     /// pointwise term is a log density of `y_k` itself, comparable across residual forms).
     ln_norm: Vec<f64>,
     ln_norm_sum: f64,
+    /// Per block of [`FrfData::correlated`]: the Woodbury factors of its shared noise.
+    shared: Vec<SharedFactor>,
     workspaces: ThreadLocal<RefCell<ForwardWorkspace>>,
+}
+
+/// Woodbury form of one block of shared noise: with standardised residuals
+/// `e_k = r_k / (s sigma_k)` and standardised loadings `V = D^(-1/2) L`
+/// (`D = diag(sigma^2)`), `r^T (s^2 (D + L L^T))^(-1) r = e^T e - |G e|^2` with
+/// `G = C^(-1) V^T`, `C C^T = I + V^T V` (Cholesky), and
+/// `ln det (D + L L^T) = ln det D + 2 sum ln diag(C)`.
+#[derive(Debug, Clone)]
+struct SharedFactor {
+    start: usize,
+    len: usize,
+    /// `G`, `rank x len`, row-major.
+    g: Vec<f64>,
+    /// `ln det (I + V^T V)`.
+    ln_det: f64,
+}
+
+impl SharedFactor {
+    fn new(c: &CorrelatedNoise, sigma: &[f64]) -> Result<Self> {
+        let (len, rank) = (c.len, c.rank);
+        let v = DMatrix::from_fn(len, rank, |k, r| {
+            c.loadings[k * rank + r] / sigma[c.start + k]
+        });
+        let m = DMatrix::identity(rank, rank) + v.transpose() * &v;
+        let chol = m.cholesky().ok_or_else(|| {
+            Error::Numerical("shared noise: I + V^T V is not positive definite".into())
+        })?;
+        let l = chol.l();
+        let g = l
+            .solve_lower_triangular(&v.transpose())
+            .ok_or_else(|| Error::Numerical("shared noise: singular Cholesky factor".into()))?;
+        Ok(SharedFactor {
+            start: c.start,
+            len,
+            g: g.transpose().as_slice().to_vec(),
+            ln_det: 2.0 * l.diagonal().iter().map(|d| d.ln()).sum::<f64>(),
+        })
+    }
+
+    /// `|G e|^2` of the block's standardised residuals `e` (each dot product in four
+    /// partial sums, so that it vectorises).
+    fn correction(&self, e: &[f64]) -> f64 {
+        const L: usize = 4;
+        let n = self.len / L * L;
+        self.g
+            .chunks_exact(self.len)
+            .map(|row| {
+                let mut part = [0.0; L];
+                for (a, b) in row[..n].chunks_exact(L).zip(e[..n].chunks_exact(L)) {
+                    for l in 0..L {
+                        part[l] += a[l] * b[l];
+                    }
+                }
+                let rest: f64 = row[n..].iter().zip(&e[n..]).map(|(a, b)| a * b).sum();
+                let u = (part[0] + part[1]) + (part[2] + part[3]) + rest;
+                u * u
+            })
+            .sum()
+    }
 }
 
 impl Clone for FrfPosterior {
@@ -70,6 +132,7 @@ impl Clone for FrfPosterior {
             inv_sigma: self.inv_sigma.clone(),
             ln_norm: self.ln_norm.clone(),
             ln_norm_sum: self.ln_norm_sum,
+            shared: self.shared.clone(),
             workspaces: ThreadLocal::new(),
         }
     }
@@ -118,13 +181,26 @@ impl FrfPosterior {
             .map(|&y| if log { y.ln() } else { y })
             .collect();
         let inv_sigma = data.sigma.iter().map(|s| 1.0 / s).collect();
-        let ln_norm: Vec<f64> = data
+        let mut ln_norm: Vec<f64> = data
             .sigma
             .iter()
             .zip(&data.magnitude)
             .map(|(s, y)| -s.ln() - half_ln_2pi - if log { y.ln() } else { 0.0 })
             .collect();
+        let shared = data
+            .correlated
+            .iter()
+            .map(|c| SharedFactor::new(c, &data.sigma))
+            .collect::<Result<Vec<_>>>()?;
+        // the log determinant of a shared block, spread evenly over its points
+        for f in &shared {
+            let each = -0.5 * f.ln_det / f.len as f64;
+            ln_norm[f.start..f.start + f.len]
+                .iter_mut()
+                .for_each(|v| *v += each);
+        }
         Ok(FrfPosterior {
+            shared,
             forward,
             ln_norm_sum: ln_norm.iter().sum(),
             data,
@@ -140,10 +216,14 @@ impl FrfPosterior {
     /// The same posterior with other measured magnitudes (same points, same sigmas), e.g.
     /// data simulated by [`Self::simulate`].
     pub fn with_magnitude(&self, magnitude: Vec<f64>) -> Result<Self> {
-        let data = FrfData {
+        self.with_data(FrfData {
             magnitude,
             ..self.data.clone()
-        };
+        })
+    }
+
+    /// The same model, variables and options with other data on the same blocks.
+    pub fn with_data(&self, data: FrfData) -> Result<Self> {
         FrfPosterior::new(
             self.forward.model().clone(),
             data,
@@ -317,10 +397,35 @@ impl FrfPosterior {
                 }
             }
             ss += (part[0] + part[1]) + (part[2] + part[3]);
+            ss -= self.shared_correction(&mut mag, inv_s, pointwise);
             -0.5 * ss - self.data.len() as f64 * ln_s + self.ln_norm_sum
         });
         ws.magnitude = mag;
         result
+    }
+
+    /// `sum |G e|^2` over the shared-noise blocks ([`SharedFactor`]); overwrites their
+    /// model magnitudes in `mag` with the standardised residuals, and adds each block's
+    /// correction, spread evenly, to its pointwise terms.
+    fn shared_correction(&self, mag: &mut [f64], inv_s: f64, pointwise: &mut [f64]) -> f64 {
+        let mut total = 0.0;
+        for f in &self.shared {
+            let range = f.start..f.start + f.len;
+            let e = &mut mag[range.clone()];
+            for ((a, t), w) in e
+                .iter_mut()
+                .zip(&self.target[range.clone()])
+                .zip(&self.inv_sigma[range.clone()])
+            {
+                *a = (*a - t) * w * inv_s;
+            }
+            let c = f.correction(e);
+            if let Some(p) = pointwise.get_mut(range) {
+                p.iter_mut().for_each(|v| *v += 0.5 * c / f.len as f64);
+            }
+            total += c;
+        }
+        total
     }
 
     /// One draw of the sampled vector from the prior.
@@ -328,22 +433,33 @@ impl FrfPosterior {
         self.prior.sample(rng)
     }
 
-    /// Magnitudes simulated from the likelihood at `z`: `|H^A_k| + s sigma_k e_k`
-    /// (magnitude residuals) or `|H^A_k| exp(s sigma_k e_k)` (log residuals), `e_k`
-    /// standard normal. Magnitude-residual draws below zero are kept (the Gaussian
+    /// Magnitudes simulated from the likelihood at `z`: `|H^A_k| + s (sigma_k e_k + c_k)`
+    /// (magnitude residuals) or `|H^A_k| exp(s (sigma_k e_k + c_k))` (log residuals), `e_k`
+    /// standard normal, `c = L eta` the shared noise of [`FrfData::correlated`] (`eta`
+    /// standard normal, drawn after the `e`). Magnitude-residual draws below zero are kept (the Gaussian
     /// model allows them).
     pub fn simulate(&self, z: &[f64], rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
         let h = self.magnitudes(z)?;
         let s = self.noise_scale(z);
         let log = self.data.residual == ResidualForm::LogMagnitude;
+        let e: Vec<f64> = (0..h.len()).map(|_| rng.sample(StandardNormal)).collect();
+        // the shared noise after every point's own (without it, the draws of before)
+        let mut shared = vec![0.0; h.len()];
+        for c in &self.data.correlated {
+            let eta: Vec<f64> = (0..c.rank).map(|_| rng.sample(StandardNormal)).collect();
+            for (k, row) in c.loadings.chunks_exact(c.rank.max(1)).enumerate() {
+                shared[c.start + k] = row.iter().zip(&eta).map(|(a, b)| a * b).sum::<f64>();
+            }
+        }
         Ok(h.iter()
             .zip(&self.data.sigma)
-            .map(|(&h, &sigma)| {
-                let e: f64 = rng.sample(StandardNormal);
+            .zip(e.iter().zip(&shared))
+            .map(|((&h, &sigma), (&e, &c))| {
+                let n = s * sigma * e + s * c;
                 if log {
-                    h * (s * sigma * e).exp()
+                    h * n.exp()
                 } else {
-                    h + s * sigma * e
+                    h + n
                 }
             })
             .collect())

@@ -15,7 +15,7 @@
 //! Every file is written atomically. Chains are walkers (chain = ensemble x walkers +
 //! walker), as ArviZ reads emcee output.
 
-use super::data::{FrfData, DEFAULT_REL_SIGMA_FLOOR};
+use super::data::{FrfData, InputNoiseModel, DEFAULT_REL_SIGMA_FLOOR};
 use super::figures::write_figures;
 use super::posterior::{FrfPosterior, PosteriorOptions};
 use super::start::{ball_positions, find_start, StartPoint};
@@ -24,7 +24,7 @@ use super::summary::{
 };
 use crate::error::{Error, Result};
 use crate::frf::FrfKind;
-use crate::io::{read_campaign, resolve_data, write_atomic, RunInfo};
+use crate::io::{read_campaign, resolve_data, write_atomic, Campaign, RunInfo};
 use crate::mcmc::{
     Burn, CheckpointConfig, Draws, LogDensity, MoveSpec, Moves, ProgressFn, RunSummary, Sampler,
     SamplerConfig, Start, StopReason, WeightedMove,
@@ -73,6 +73,11 @@ pub struct SampleSettings {
     pub residual: ResidualForm,
     /// Floor on the relative standard deviation of a magnitude.
     pub rel_sigma_floor: f64,
+    /// How the force noise of hammer tests enters the likelihood ([`SampleSettings::new`]:
+    /// shared by the points of a test; a settings file without the key: per point, as
+    /// runs before it was added did, so they resume unchanged).
+    #[serde(default)]
+    pub input_noise: InputNoiseModel,
     /// Multistart local solves for the start point.
     pub n_starts: usize,
     /// Initial ball: this many Gauss-Newton standard deviations.
@@ -115,6 +120,7 @@ impl SampleSettings {
             seed,
             residual: ResidualForm::Magnitude,
             rel_sigma_floor: DEFAULT_REL_SIGMA_FLOOR,
+            input_noise: InputNoiseModel::Shared,
             n_starts: 32,
             ball_factor: 1.0,
             walkers_per_dim: 12,
@@ -206,21 +212,28 @@ pub struct Prepared {
 pub fn prepare(settings: &SampleSettings) -> Result<Prepared> {
     let root = resolve_data(&settings.campaign)?;
     let campaign = read_campaign(&root)?;
+    prepare_campaign(&campaign, settings)
+}
+
+/// [`prepare`] for a campaign already in memory (e.g. simulated): estimates its FRFs
+/// with the settings' estimator and builds the posterior (`settings.campaign` unused).
+pub fn prepare_campaign(campaign: &Campaign, settings: &SampleSettings) -> Result<Prepared> {
     let model = campaign.nominal.structural_model()?;
-    let frfs = estimate_campaign(&campaign, &settings.estimate.options())?;
+    let frfs = estimate_campaign(campaign, &settings.estimate.options())?;
     let chosen: Vec<&TestFrf> = frfs.iter().filter(|f| settings.tests.includes(f)).collect();
     if chosen.is_empty() {
         return Err(Error::Usage(format!(
             "the campaign at {} has no {:?} tests",
-            root.display(),
+            campaign.root.display(),
             settings.tests
         )));
     }
-    let data = FrfData::from_test_frfs(
+    let data = FrfData::with_input_noise(
         &chosen,
         settings.frf,
         settings.residual,
         settings.rel_sigma_floor,
+        settings.input_noise,
     )?;
     let posterior = FrfPosterior::new(
         model,

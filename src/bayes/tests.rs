@@ -68,6 +68,126 @@ fn log_density_is_the_stated_gaussian() {
     }
 }
 
+/// Oracle for the shared noise (Woodbury form): the dense Gaussian log density with
+/// covariance `s^2 (diag(sigma^2) + L L^T)` over all points, by Cholesky.
+#[test]
+fn shared_noise_is_the_dense_gaussian() {
+    use nalgebra::{DMatrix, DVector};
+    for residual in [ResidualForm::Magnitude, ResidualForm::LogMagnitude] {
+        let base = small_problem(residual, PriorKind::Uniform).unwrap();
+        let mut data = base.data().clone();
+        let n = data.len();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut block = |start: usize, len: usize, rank: usize| {
+            use rand::RngExt;
+            let loadings = (0..len * rank)
+                .map(|i| {
+                    let s = data.sigma[start + i / rank];
+                    s * (2.0 * rng.random::<f64>() - 1.0) * 3.0
+                })
+                .collect();
+            CorrelatedNoise {
+                start,
+                len,
+                rank,
+                loadings,
+            }
+        };
+        data.correlated = vec![block(2, n / 3, 2), block(n / 2, n / 2 - 1, 3)];
+        let post = base.with_data(data.clone()).unwrap();
+        let z = inside(&post);
+        let s = post.noise_scale(&z);
+        let h = post.magnitudes(&z).unwrap();
+        let log = residual == ResidualForm::LogMagnitude;
+        let mut cov =
+            DMatrix::from_diagonal(&DVector::from_iterator(n, data.sigma.iter().map(|v| v * v)));
+        for c in &data.correlated {
+            let l = DMatrix::from_row_slice(c.len, c.rank, &c.loadings);
+            let mut sub = cov.view_mut((c.start, c.start), (c.len, c.len));
+            sub += &l * l.transpose();
+        }
+        cov *= s * s;
+        let r = DVector::from_iterator(
+            n,
+            h.iter()
+                .zip(&data.magnitude)
+                .map(|(&h, &y)| if log { h.ln() - y.ln() } else { h - y }),
+        );
+        let chol = cov.cholesky().unwrap();
+        let quad = r.dot(&chol.solve(&r));
+        let ln_det: f64 = 2.0 * chol.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
+        let jac: f64 = if log {
+            -data.magnitude.iter().map(|y| y.ln()).sum::<f64>()
+        } else {
+            0.0
+        };
+        let expect =
+            -0.5 * quad - 0.5 * ln_det - 0.5 * n as f64 * (2.0 * std::f64::consts::PI).ln() + jac;
+        let mut pw = vec![0.0; n];
+        let ll = post.ln_likelihood(&z, &mut pw).unwrap();
+        assert!(
+            (ll - expect).abs() < 1e-9 * expect.abs(),
+            "{residual:?}: {ll} vs {expect}"
+        );
+        let sum: f64 = pw.iter().sum();
+        assert!(
+            (sum - ll).abs() < 1e-9 * ll.abs(),
+            "pointwise {sum} vs {ll}"
+        );
+        assert_eq!(post.ln_likelihood(&z, &mut []).unwrap(), ll);
+        // without shared noise, the same bits as the independent posterior
+        data.correlated.clear();
+        let plain = base.with_data(data).unwrap();
+        assert_eq!(
+            plain.ln_likelihood(&z, &mut []).unwrap(),
+            base.ln_likelihood(&z, &mut []).unwrap()
+        );
+    }
+}
+
+/// Draws of `simulate` with shared noise: per-point variances and one covariance as
+/// stated (2000 draws; tolerances 5 sampling sd).
+#[test]
+fn simulated_shared_noise_has_the_stated_covariance() {
+    let base = small_problem(ResidualForm::Magnitude, PriorKind::Uniform).unwrap();
+    let mut data = base.data().clone();
+    let n = data.len();
+    let loadings: Vec<f64> = (0..n)
+        .map(|k| data.sigma[k] * (1.0 + k as f64 / n as f64))
+        .collect();
+    data.correlated = vec![CorrelatedNoise {
+        start: 0,
+        len: n,
+        rank: 1,
+        loadings: loadings.clone(),
+    }];
+    let post = base.with_data(data.clone()).unwrap();
+    let z = inside(&post);
+    let s = post.noise_scale(&z);
+    let h = post.magnitudes(&z).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let draws = 2000;
+    let (mut v0, mut c01) = (0.0, 0.0);
+    for _ in 0..draws {
+        let y = post.simulate(&z, &mut rng).unwrap();
+        let (e0, e1) = (y[0] - h[0], y[1] - h[1]);
+        v0 += e0 * e0 / draws as f64;
+        c01 += e0 * e1 / draws as f64;
+    }
+    let var0 = s * s * (data.sigma[0].powi(2) + loadings[0].powi(2));
+    let var1 = s * s * (data.sigma[1].powi(2) + loadings[1].powi(2));
+    let cov01 = s * s * loadings[0] * loadings[1];
+    let tol = 5.0 / (draws as f64).sqrt();
+    assert!(
+        (v0 / var0 - 1.0).abs() < tol * 2f64.sqrt(),
+        "{v0} vs {var0}"
+    );
+    assert!(
+        (c01 - cov01).abs() < tol * (var0 * var1).sqrt() * 1.5,
+        "{c01} vs {cov01}"
+    );
+}
+
 #[test]
 fn support_and_dimension() {
     let post = small_problem(ResidualForm::Magnitude, PriorKind::Uniform).unwrap();

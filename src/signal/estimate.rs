@@ -3,6 +3,7 @@
 use super::bands::{select_bands, Band, BandOptions};
 use super::correlation::{NoiseWindow, WindowDof};
 use super::hammer::{hammer_spectra, HammerOptions, Impact};
+use super::input_noise::InputNoise;
 use super::noise::{
     add_smooth_input_noise, bendat_piersol_rel_std, local_rational_noise, CoherenceMethod,
 };
@@ -80,6 +81,9 @@ pub struct ResponseFrf {
     pub h2: Vec<Complex64>,
     /// Coherence gamma^2 at every bin (see [`CoherenceMethod`]).
     pub coherence: Vec<f64>,
+    /// The coherence of the output noise alone, without the smooth force noise that
+    /// [`TestFrf::input_noise`] describes (equal to `coherence` when there is none).
+    pub output_coherence: Vec<f64>,
 }
 
 impl ResponseFrf {
@@ -130,6 +134,10 @@ pub struct TestFrf {
     pub bands: Vec<Band>,
     /// Selected bins (indices into `freq_hz`, ascending).
     pub selected: Vec<usize>,
+    /// The force noise inside the force windows (hammer tests with force window): an
+    /// error of `|H1|` smooth in frequency and common to all responses ([`InputNoise`]);
+    /// it is part of `coherence`, not of `output_coherence`.
+    pub input_noise: Option<InputNoise>,
 }
 
 impl TestFrf {
@@ -168,6 +176,12 @@ impl TestFrf {
         self.selected_map(|r, k| bendat_piersol_rel_std(r.coherence[k], n))
     }
 
+    /// [`Self::selected_rel_std`] of the output noise alone (from `output_coherence`).
+    pub fn selected_output_rel_std(&self) -> Vec<f64> {
+        let n = self.n_averages;
+        self.selected_map(|r, k| bendat_piersol_rel_std(r.output_coherence[k], n))
+    }
+
     fn selected_map(&self, f: impl Fn(&ResponseFrf, usize) -> f64) -> Vec<f64> {
         self.responses
             .iter()
@@ -184,6 +198,8 @@ struct Blocks {
     f_blocks: Vec<Vec<Complex64>>,
     /// Per block, input noise power per bin that the local model cannot see.
     input_noise: Vec<f64>,
+    /// Per block, the force noise sample by sample ([`InputNoise::weights`]).
+    input_noise_weights: Vec<Vec<(usize, f64)>>,
     /// Per response, spectra per block.
     y_blocks: Vec<Vec<Vec<Complex64>>>,
     tau: Option<f64>,
@@ -239,6 +255,7 @@ fn test_blocks(test: &Test, opts: &EstimateOptions) -> Result<(Blocks, Vec<usize
                 input,
                 f_blocks: s.force,
                 input_noise: s.force_noise_power,
+                input_noise_weights: s.force_noise_weights,
                 y_blocks: s.responses,
                 tau: s.tau_s,
                 block_len: s.len,
@@ -275,6 +292,7 @@ fn test_blocks(test: &Test, opts: &EstimateOptions) -> Result<(Blocks, Vec<usize
                 input,
                 f_blocks: vec![s.input],
                 input_noise: vec![0.0],
+                input_noise_weights: vec![Vec::new()],
                 y_blocks: y,
                 tau: None,
                 block_len: test.n_samples(),
@@ -314,6 +332,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             input,
             f_blocks,
             input_noise,
+            input_noise_weights,
             y_blocks,
             tau,
             block_len,
@@ -361,8 +380,11 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             })?;
             let spectra = CrossSpectra::from_blocks(&f_blocks, yb)?;
             let h1 = spectra.h1();
-            let mut coherence = match &local {
-                None => spectra.ordinary_coherence(),
+            let (mut coherence, mut output_coherence) = match &local {
+                None => {
+                    let c = spectra.ordinary_coherence();
+                    (c.clone(), c)
+                }
                 Some((half_width, step, corr, _, n_local)) => {
                     let cut = |b: &[Vec<Complex64>]| -> Vec<Vec<Complex64>> {
                         b.iter().map(|v| v[..*n_local].to_vec()).collect()
@@ -376,14 +398,16 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
                         *step,
                         Some(corr),
                     )?;
+                    let mut out = noise.coherence.clone();
                     add_smooth_input_noise(&mut noise, &h1, &fb, &input_noise)?;
                     let mut c = noise.coherence;
-                    for (v, null) in c.iter_mut().zip(spectra.null_input()) {
+                    for ((v, o), null) in c.iter_mut().zip(&mut out).zip(spectra.null_input()) {
                         if null {
                             *v = 0.0;
+                            *o = 0.0;
                         }
                     }
-                    c
+                    (c, out)
                 }
             };
             let mut h1 = h1;
@@ -391,12 +415,14 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             h1.truncate(n_keep);
             h2.truncate(n_keep);
             coherence.truncate(n_keep);
+            output_coherence.truncate(n_keep);
             Ok(ResponseFrf {
                 channel,
                 kind,
                 h1,
                 h2,
                 coherence,
+                output_coherence,
             })
         })
         .collect::<Result<Vec<_>>>()
@@ -407,6 +433,13 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
             *p += f.norm_sqr();
         }
     }
+    let input_noise = (local.is_some() && input_noise_weights.iter().any(|w| !w.is_empty()))
+        .then(|| {
+            let force = f_blocks.iter().map(|f| f[..n_keep].to_vec()).collect();
+            InputNoise::new(n_fft, input_noise_weights, force)
+        })
+        .transpose()
+        .map_err(|e| Error::invalid(&path, e.to_string()))?;
     let n_peaks = opts
         .bands
         .n_peaks
@@ -436,6 +469,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         input_power,
         bands,
         selected,
+        input_noise,
     })
 }
 

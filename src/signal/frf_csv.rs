@@ -166,6 +166,7 @@ mod tests {
                 .collect(),
             h2: vec![Complex64::new(0.0, 0.0); 5],
             coherence: (0..5).map(|k| 1.0 - 0.1 * k as f64 / 3.0).collect(),
+            output_coherence: (0..5).map(|k| 1.0 - 0.1 * k as f64 / 3.0).collect(),
         };
         TestFrf {
             test: "t".into(),
@@ -185,6 +186,7 @@ mod tests {
             input_power: vec![1.0; 5],
             bands: vec![],
             selected: vec![],
+            input_noise: None,
         }
     }
 

@@ -347,6 +347,10 @@ pub struct HammerSpectra {
     /// the block and the local model sees it). See
     /// [`super::noise::add_smooth_input_noise`].
     pub force_noise_power: Vec<f64>,
+    /// Per transform, the force noise inside the force window sample by sample:
+    /// `(n, sigma_f w_n)` for every sample `n` of the transform with `w_n != 0` (empty
+    /// without force window). See [`super::input_noise`].
+    pub force_noise_weights: Vec<Vec<(usize, f64)>>,
     /// Response spectra per response (in the order given), then per transform.
     pub responses: Vec<Vec<Vec<Complex64>>>,
     /// Exponential window time constant used, s.
@@ -435,6 +439,7 @@ pub fn hammer_spectra(
     let mut fft = Fft::new();
     let mut force_w = Vec::with_capacity(starts.len());
     let mut force_noise_power = Vec::with_capacity(starts.len());
+    let mut force_noise_weights = Vec::with_capacity(starts.len());
     let noise_var = force_noise_std(force).powi(2);
     let mut force_spectra = Vec::with_capacity(starts.len());
     for (pulses, &s) in windowed.iter().zip(&starts) {
@@ -455,6 +460,16 @@ pub fn hammer_spectra(
             noise_var * w.iter().map(|v| v * v).sum::<f64>()
         } else {
             0.0
+        });
+        let sigma_f = noise_var.sqrt();
+        force_noise_weights.push(if opts.force_window && sigma_f > 0.0 {
+            w.iter()
+                .enumerate()
+                .filter(|(_, &v)| v != 0.0)
+                .map(|(n, &v)| (n, sigma_f * v))
+                .collect()
+        } else {
+            Vec::new()
         });
         force_spectra.push(fft.forward(&fw, None, n_fft)?);
         force_w.push(fw);
@@ -497,6 +512,7 @@ pub fn hammer_spectra(
         len,
         force: force_spectra,
         force_noise_power,
+        force_noise_weights,
         responses: response_spectra,
         tau_s,
         n_fft,

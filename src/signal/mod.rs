@@ -48,6 +48,7 @@ pub mod correlation;
 mod estimate;
 pub mod frf_csv;
 pub mod hammer;
+pub mod input_noise;
 pub mod noise;
 mod settings;
 pub mod spectra;
@@ -60,6 +61,7 @@ pub use estimate::{
     estimate_campaign, estimate_h1, estimate_test, EstimateOptions, InputKind, ResponseFrf, TestFrf,
 };
 pub use hammer::{windowed_force, HammerEstimator, HammerOptions};
+pub use input_noise::{InputNoise, LowRank};
 pub use noise::{bendat_piersol_rel_std, CoherenceMethod};
 pub use settings::{EstimateSection, SensorLowPass};
 pub use windows::{
