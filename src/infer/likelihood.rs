@@ -25,6 +25,7 @@
 use std::ops::Range;
 
 use crate::error::{Error, Result};
+use nalgebra::DMatrix;
 
 const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
 
@@ -280,6 +281,71 @@ impl Block {
                 for j in (0..p.len()).filter(|j| j != reference) {
                     out[k] = weight[j] * (p[j] / pref - observed[j]);
                     k += 1;
+                }
+            }
+        }
+    }
+
+    /// Rows `row0..row0 + n_residuals` of the residual Jacobian, `scale * d r / d theta`,
+    /// from the predictions `pred` and their Jacobian `dpred` (`d pred / d theta`, one
+    /// row per prediction), by the chain rule through [`Self::residuals`].
+    pub fn residual_jacobian(
+        &self,
+        pred: &[f64],
+        dpred: &DMatrix<f64>,
+        scale: f64,
+        row0: usize,
+        jac: &mut DMatrix<f64>,
+    ) {
+        let (p, off) = (&pred[self.predictions.clone()], self.predictions.start);
+        let n_par = dpred.ncols();
+        match &self.kind {
+            BlockKind::Values {
+                inv_sd, transform, ..
+            } => {
+                for i in 0..p.len() {
+                    let dt = match transform {
+                        Transform::Identity => 1.0,
+                        Transform::Ln => 1.0 / p[i],
+                        Transform::EigenvalueOfHz => {
+                            8.0 * std::f64::consts::PI.powi(2) * p[i]
+                        }
+                    };
+                    for t in 0..n_par {
+                        jac[(row0 + i, t)] = scale * inv_sd[i] * dt * dpred[(off + i, t)];
+                    }
+                }
+            }
+            BlockKind::ShapeMac { observed_unit: u } => {
+                // r = u - c p with c = (p.u) / (p.p).
+                let pp: f64 = p.iter().map(|v| v * v).sum();
+                let pu: f64 = p.iter().zip(u).map(|(a, b)| a * b).sum();
+                let c = if pp > 0.0 { pu / pp } else { 0.0 };
+                for t in 0..n_par {
+                    let dp = |i: usize| dpred[(off + i, t)];
+                    let (mut u_dp, mut p_dp) = (0.0, 0.0);
+                    for i in 0..p.len() {
+                        u_dp += u[i] * dp(i);
+                        p_dp += p[i] * dp(i);
+                    }
+                    let dc = if pp > 0.0 { u_dp / pp - 2.0 * pu * p_dp / (pp * pp) } else { 0.0 };
+                    for i in 0..p.len() {
+                        jac[(row0 + i, t)] = -scale * (dc * p[i] + c * dp(i));
+                    }
+                }
+            }
+            BlockKind::ShapeDifference {
+                reference, weight, ..
+            } => {
+                let pref = p[*reference];
+                for t in 0..n_par {
+                    let dref = dpred[(off + reference, t)];
+                    let mut k = 0;
+                    for j in (0..p.len()).filter(|j| j != reference) {
+                        let d = dpred[(off + j, t)] / pref - p[j] * dref / (pref * pref);
+                        jac[(row0 + k, t)] = scale * weight[j] * d;
+                        k += 1;
+                    }
                 }
             }
         }

@@ -27,6 +27,8 @@ pub struct Scratch<W> {
     ws: W,
     pred: Vec<f64>,
     res: Vec<f64>,
+    /// `d pred / d theta`, when the predictor has an analytic Jacobian.
+    dpred: DMatrix<f64>,
 }
 
 /// See the module docs.
@@ -152,6 +154,7 @@ impl<P: Predict> Posterior<P> {
             ws: self.predictor.workspace(),
             pred: vec![0.0; self.predictor.n_outputs()],
             res: vec![0.0; self.n_residuals],
+            dpred: DMatrix::zeros(0, 0),
         }
     }
 
@@ -312,7 +315,20 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
         }
         Ok(())
     }
+    /// The predictor's analytic Jacobian through each block's
+    /// [`Block::residual_jacobian`] when it has one, else the one finite-difference
+    /// fallback ([`fd_jacobian`]).
     fn jacobian(&self, x: &[f64], ws: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()> {
+        let p = &self.post.predictor;
+        ws.dpred.resize_mut(p.n_outputs(), p.n_params(), 0.0);
+        if p.jacobian(x, &mut ws.ws, &mut ws.dpred)? {
+            p.predict(x, &mut ws.ws, &mut ws.pred)?;
+            for (b, block) in self.post.blocks.iter().enumerate() {
+                let row0 = self.post.offsets[b];
+                block.residual_jacobian(&ws.pred, &ws.dpred, self.inv_sigma[b], row0, jac);
+            }
+            return Ok(());
+        }
         fd_jacobian(
             FdScheme::Forward,
             x,

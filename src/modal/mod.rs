@@ -2,6 +2,8 @@
 //! (paper Eq. 22b), mass-normalised modes (`Phi^T M Phi = I`), ascending order, and the
 //! modal assurance criterion.
 
+pub mod condensed;
+pub mod dense;
 mod tridiagonal;
 
 use crate::error::{Error, Result};

@@ -172,10 +172,17 @@ impl ModelManifest {
     /// the manifest and, where one is at fault, the matrix file or variable.
     pub fn load(path: &Path) -> Result<StructuralModel> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::load_text(&text, path, path.parent().unwrap_or(Path::new(".")))
+    }
+
+    /// A manifest given as text: `label` names it in messages and relative paths are
+    /// relative to `dir` (a study's built-in manifest, its `{shared}` already replaced).
+    pub fn load_text(text: &str, label: &Path, dir: &Path) -> Result<StructuralModel> {
+        let path = label;
         let manifest: ModelManifest =
-            toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))?;
+            toml::from_str(text).map_err(|e| Error::invalid(path, e.to_string()))?;
         manifest
-            .build(path.parent().unwrap_or(Path::new(".")))
+            .build(dir)
             .map_err(|e| match e {
                 Error::Model(what) | Error::Usage(what) => Error::invalid(path, what),
                 other => other,

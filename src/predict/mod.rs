@@ -11,6 +11,7 @@
 //! (stiffness, paper Eq. 20) and `beta` (mass, Eq. 21), on a linear or a log scale.
 
 pub mod modal;
+pub mod reduced;
 
 pub use modal::{DenseModes, ModalPredictor, ModeSolver};
 
@@ -145,6 +146,27 @@ impl Parametrisation {
     }
     pub fn names(&self) -> Vec<String> {
         self.coordinates.iter().map(|c| c.name.clone()).collect()
+    }
+
+    /// For each coordinate, the index of its variable in `v = [alpha, beta]` and
+    /// `d v / d theta` at `theta` (1 on a linear scale, `exp(theta - ln_offset)` on a
+    /// log scale).
+    pub fn chain(&self, theta: &[f64]) -> Vec<(usize, f64)> {
+        self.coordinates
+            .iter()
+            .zip(theta)
+            .map(|(c, &t)| {
+                let v = match c.variable {
+                    Variable::Alpha(r) => r,
+                    Variable::Beta(r) => self.n_alpha + r,
+                };
+                let d = match c.scale {
+                    Scale::Linear => 1.0,
+                    Scale::Log { ln_offset } => (t - ln_offset).exp(),
+                };
+                (v, d)
+            })
+            .collect()
     }
 
     /// `alpha` and `beta` at `theta` (resized to the model's counts).

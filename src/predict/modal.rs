@@ -38,6 +38,29 @@ pub trait ModeSolver: Sync {
         eigenvalues: &mut [f64],
         shapes: &mut [f64],
     ) -> Result<()>;
+
+    /// [`Self::lowest_modes`] plus their derivatives with respect to the model's
+    /// variables `v = [alpha, beta]` (`n_var = n_alpha + n_beta`):
+    /// `d_eigenvalues[i * n_var + j] = d lambda_i / d v_j` and
+    /// `d_shapes[(i * dofs.len() + k) * n_var + j] = d phi_i[dofs[k]] / d v_j` (the
+    /// mass-normalised shapes, with the signs `lowest_modes` gives). Returns `Ok(false)`
+    /// (the default) when the solver has no analytic derivatives; callers then
+    /// difference [`Self::lowest_modes`].
+    #[allow(clippy::too_many_arguments)]
+    fn lowest_modes_with_derivatives(
+        &self,
+        alpha: &[f64],
+        beta: &[f64],
+        dofs: &[usize],
+        ws: &mut Self::Workspace,
+        eigenvalues: &mut [f64],
+        shapes: &mut [f64],
+        d_eigenvalues: &mut [f64],
+        d_shapes: &mut [f64],
+    ) -> Result<bool> {
+        let _ = (alpha, beta, dofs, ws, eigenvalues, shapes, d_eigenvalues, d_shapes);
+        Ok(false)
+    }
 }
 
 /// Every mode by the dense solver of [`Modes`] (a tridiagonal solver for shear frames).
@@ -116,6 +139,8 @@ pub struct ModalWorkspace<W> {
     beta: Vec<f64>,
     eigenvalues: Vec<f64>,
     shapes: Vec<f64>,
+    d_eigenvalues: Vec<f64>,
+    d_shapes: Vec<f64>,
 }
 
 impl<S: ModeSolver> ModalPredictor<S> {
@@ -199,6 +224,8 @@ impl<S: ModeSolver> Predict for ModalPredictor<S> {
             beta: Vec::new(),
             eigenvalues: vec![0.0; self.n_solve],
             shapes: vec![0.0; self.n_solve * self.dofs.len()],
+            d_eigenvalues: Vec::new(),
+            d_shapes: Vec::new(),
         }
     }
 
@@ -225,6 +252,55 @@ impl<S: ModeSolver> Predict for ModalPredictor<S> {
             out[self.shape_range(i)].copy_from_slice(&ws.shapes[m * nd..(m + 1) * nd]);
         }
         Ok(())
+    }
+
+    /// `d out / d theta` from the solver's eigen-derivatives when it has them:
+    /// `f_i = sqrt(lambda_i) / (2 pi)` gives `df_i = dlambda_i / (8 pi^2 f_i)`, and the
+    /// parametrisation's chain factor `d v / d theta` ([`Parametrisation::chain`]).
+    fn jacobian(
+        &self,
+        theta: &[f64],
+        ws: &mut Self::Workspace,
+        jac: &mut DMatrix<f64>,
+    ) -> Result<bool> {
+        self.params.apply(theta, &mut ws.alpha, &mut ws.beta);
+        let n_var = ws.alpha.len() + ws.beta.len();
+        let nd = self.dofs.len();
+        ws.d_eigenvalues.resize(self.n_solve * n_var, 0.0);
+        ws.d_shapes.resize(self.n_solve * nd * n_var, 0.0);
+        if !self.solver.lowest_modes_with_derivatives(
+            &ws.alpha,
+            &ws.beta,
+            &self.dofs,
+            &mut ws.solver,
+            &mut ws.eigenvalues,
+            &mut ws.shapes,
+            &mut ws.d_eigenvalues,
+            &mut ws.d_shapes,
+        )? {
+            return Ok(false);
+        }
+        let chain = self.params.chain(theta);
+        jac.fill(0.0);
+        for (i, &m) in self.modes.iter().enumerate() {
+            let lambda = ws.eigenvalues[m];
+            if !(lambda > 0.0) {
+                return Err(Error::Model(format!(
+                    "model mode {} has eigenvalue {lambda} (not positive)",
+                    m + 1
+                )));
+            }
+            let f_hz = lambda.sqrt() / (2.0 * std::f64::consts::PI);
+            let df = 1.0 / (8.0 * std::f64::consts::PI.powi(2) * f_hz);
+            let rows = self.shape_range(i);
+            for (t, &(v, factor)) in chain.iter().enumerate() {
+                jac[(i, t)] = df * factor * ws.d_eigenvalues[m * n_var + v];
+                for k in 0..nd {
+                    jac[(rows.start + k, t)] = factor * ws.d_shapes[(m * nd + k) * n_var + v];
+                }
+            }
+        }
+        Ok(true)
     }
 }
 

@@ -12,6 +12,8 @@
 //! - [`wheel`], [`wheel_run`], [`wheel_scatter`], [`wheel_report`]: Bayesian modal
 //!   parameters from the measured accelerance of a wheel, damping against frequency
 //!   uncertainty (`wheel-frf`).
+//! - [`bridge`], [`bridge_run`], [`bridge_report`]: the 946-DOF steel pedestrian bridge
+//!   and its 5 identified modes, updated as SMU does and sampled (`bridge-fe`).
 //! - [`tower`], [`tower_model`], [`tower_run`], [`tower_residuals`], [`tower_report`]:
 //!   FRFs from a building's mass-damper force, a 5-story shear model with uncertain
 //!   channel gains, and where its fit fails, per mode and per floor
@@ -20,6 +22,9 @@
 //! Each study writes `report.md`, `posterior.json`, `run.json` and figures (PNG + SVG)
 //! into its output folder.
 
+pub mod bridge;
+pub mod bridge_report;
+pub mod bridge_run;
 pub mod four_story;
 pub mod four_story_figures;
 pub mod four_story_report;
@@ -52,6 +57,7 @@ pub enum Dataset {
     FourStoryModal,
     WheelFrf,
     TowerHmd,
+    BridgeFe,
 }
 
 impl Dataset {
@@ -61,6 +67,7 @@ impl Dataset {
             Dataset::FourStoryModal => "four-story-modal",
             Dataset::WheelFrf => "wheel-frf",
             Dataset::TowerHmd => "tower-hmd",
+            Dataset::BridgeFe => "bridge-fe",
         }
     }
 }
@@ -134,6 +141,20 @@ pub fn run(
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
                 wheel_report::write(&study, &data, &out, &timings)
+            })?;
+        }
+        Dataset::BridgeFe => {
+            let data = info.time("read model and modes", || bridge::load(data_dir))?;
+            let settings = bridge_run::BridgeSettings {
+                seed,
+                ..Default::default()
+            };
+            let study = info.time("reduced basis, SMU multistarts, posterior", || {
+                bridge_run::run(&data, &settings, sampling)
+            })?;
+            let timings = info.timings_s.clone();
+            info.time("write report and figures", || {
+                bridge_report::write(&study, &out, &timings)
             })?;
         }
         Dataset::TowerHmd => {

@@ -1,0 +1,520 @@
+//! The bridge study's computations: a reduced basis checked against the exact solve,
+//! SMU's multistart with both weightings, the pull of the bounds at the optimum, and the
+//! posterior with its predictive checks. Everything the report shows is computed here.
+
+use std::time::Instant;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal, Uniform};
+
+use super::bridge::{
+    bayes_posterior, smu_bounds, smu_posterior, BridgeData, Weighting, SMU_PUBLISHED_ALPHA,
+};
+use super::posterior::{near_bound, row_from_chains, Sampled, Sampling, Targets};
+use crate::bayes::summary::ParameterSummary;
+use crate::error::{Error, Result};
+use crate::infer::{fit_multistart, FitOptions, Posterior};
+use crate::mcmc::Start;
+use crate::predict::modal::ModalPredictor;
+use crate::predict::reduced::{
+    compare_with_full, BasisOptions, CondensedModes, PointError, ReducedModes,
+};
+use crate::update::lsq::TrfOptions;
+
+/// Study settings (defaults are what `frfbayes real bridge-fe` runs).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct BridgeSettings {
+    pub seed: u64,
+    /// Random snapshot points of the reduced basis (beside the nominal model, the
+    /// published optimum and every alpha at each of its bounds).
+    pub n_random_snapshots: usize,
+    pub basis: BasisOptionsJson,
+    /// Random points of the box where the basis is checked against the exact solve.
+    pub n_check_points: usize,
+    /// Starts of each multistart (SMU: 100).
+    pub n_starts: usize,
+    /// Residual evaluations per start (SMU's fmincon: 3000).
+    pub max_evaluations: usize,
+    /// Walkers per ensemble (4 ensembles).
+    pub n_walkers: usize,
+    /// Posterior draws pushed through the exact-free predictive check.
+    pub n_predictive: usize,
+}
+
+/// [`BasisOptions`] as written to `run.json`.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct BasisOptionsJson {
+    pub modes_per_snapshot: usize,
+    pub rel_tol: f64,
+    pub max_size: usize,
+}
+
+impl Default for BridgeSettings {
+    fn default() -> Self {
+        BridgeSettings {
+            seed: 1,
+            n_random_snapshots: 24,
+            basis: BasisOptionsJson {
+                modes_per_snapshot: 8,
+                rel_tol: 1e-12,
+                max_size: 48,
+            },
+            n_check_points: 40,
+            n_starts: 100,
+            max_evaluations: 3000,
+            n_walkers: 48,
+            n_predictive: 400,
+        }
+    }
+}
+
+/// The reduced basis and its measured error.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct BasisCheck {
+    pub size: usize,
+    pub n_snapshots: usize,
+    pub build_s: f64,
+    /// Per check point, lowest 5 modes.
+    pub points: Vec<PointError>,
+    pub max_eigenvalue_rel: f64,
+    pub median_eigenvalue_rel: f64,
+    pub max_one_minus_mac: f64,
+    /// Seconds per evaluation of the 5 lowest modes: reduced, exact.
+    pub reduced_eval_s: f64,
+    pub exact_eval_s: f64,
+}
+
+/// One weighting's multistart and polish.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SmuFit {
+    pub weighting: Weighting,
+    /// Polished with the exact solver, SMU's order.
+    pub alpha: Vec<f64>,
+    /// SMU's `f = sum r^2` at `alpha`, exact solver.
+    pub objective: f64,
+    /// `f` at the multistart's best, reduced basis.
+    pub objective_reduced: f64,
+    pub n_starts: usize,
+    /// Starts within 1e-6 (relative) of the best `f` (reduced basis).
+    pub n_reached: usize,
+    /// `f` at every start's end point (reduced basis), in start order.
+    pub start_objectives: Vec<f64>,
+    /// Wall-clock seconds of the multistart (all starts, all threads) and the polish.
+    pub wall_s: f64,
+    pub polish_s: f64,
+    pub threads: usize,
+    /// Residual evaluations of all starts.
+    pub n_evaluations: usize,
+    /// Per alpha: -1 at the lower bound, +1 at the upper, 0 inside (1e-6 of the width).
+    pub on_bound: Vec<i8>,
+    /// `d f / d alpha_j` at `alpha` (exact solver, central differences).
+    pub gradient: Vec<f64>,
+}
+
+/// The posterior and its checks.
+#[derive(Debug, Clone)]
+pub struct BridgePosterior {
+    pub sampled: Sampled,
+    pub rows: Vec<ParameterSummary>,
+    /// Prior standard deviation of each alpha (`width / sqrt 12`).
+    pub prior_sd: Vec<f64>,
+    /// Predicted frequencies (Hz) and MACs against the measured shapes, per draw
+    /// (`n_predictive` x 5 each).
+    pub freq_hz: Vec<Vec<f64>>,
+    pub mac: Vec<Vec<f64>>,
+    /// What the data say of each alpha.
+    pub verdicts: Vec<Identified>,
+}
+
+/// What the 5 modes say of one alpha, from its posterior against its prior.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Identified {
+    /// Posterior sd below a quarter of the prior's, away from the bounds.
+    ByData,
+    /// Between a quarter and three quarters of the prior sd.
+    Partly,
+    /// Posterior sd above three quarters of the prior's: the box, not the data.
+    PriorOnly,
+    /// The 95 % interval reaches a bound (within 1 % of the width): the data push
+    /// beyond the box there.
+    AtLowerBound,
+    AtUpperBound,
+}
+
+impl Identified {
+    /// The rule of the variants' docs.
+    pub fn judge(row: &ParameterSummary, prior_sd: f64) -> Self {
+        use crate::bayes::summary::AtBound;
+        match row.at_bound {
+            Some(AtBound::Lower) => Identified::AtLowerBound,
+            Some(AtBound::Upper) => Identified::AtUpperBound,
+            None if row.sd < 0.25 * prior_sd => Identified::ByData,
+            None if row.sd > 0.75 * prior_sd => Identified::PriorOnly,
+            None => Identified::Partly,
+        }
+    }
+    pub fn label(self) -> &'static str {
+        match self {
+            Identified::ByData => "identified by the data",
+            Identified::Partly => "partly identified",
+            Identified::PriorOnly => "prior only",
+            Identified::AtLowerBound => "pushed against the lower bound",
+            Identified::AtUpperBound => "pushed against the upper bound",
+        }
+    }
+}
+
+/// Everything the report renders.
+#[derive(Debug, Clone)]
+pub struct BridgeStudy {
+    pub settings: BridgeSettings,
+    pub basis: BasisCheck,
+    pub smu: SmuFit,
+    pub per_entry: SmuFit,
+    /// SMU's objective at the published alphas (exact solver), both weightings.
+    pub published_objective: f64,
+    pub posterior: BridgePosterior,
+    pub freq_exp_hz: Vec<f64>,
+    pub std_freq_hz: Vec<f64>,
+    pub names: Vec<String>,
+}
+
+/// Uniform points of the SMU box.
+fn box_points(n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
+    let b = smu_bounds();
+    (0..n)
+        .map(|_| {
+            b.iter()
+                .map(|&(lo, hi)| Uniform::new(lo, hi).map_or(lo, |u| u.sample(rng)))
+                .collect()
+        })
+        .collect()
+}
+
+/// The basis from the nominal model, the published optimum, each alpha at each bound
+/// (the others nominal) and random points; checked at fresh random points.
+pub fn build_basis(
+    data: &BridgeData,
+    settings: &BridgeSettings,
+) -> Result<(ReducedModes, BasisCheck)> {
+    let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
+    let bounds = smu_bounds();
+    let mut snaps = vec![vec![0.0; 17], SMU_PUBLISHED_ALPHA.to_vec()];
+    for (j, &(lo, hi)) in bounds.iter().enumerate() {
+        for v in [lo, hi] {
+            let mut a = vec![0.0; 17];
+            a[j] = v;
+            snaps.push(a);
+        }
+    }
+    snaps.extend(box_points(settings.n_random_snapshots, &mut rng));
+    let pairs: Vec<_> = snaps.iter().map(|a| (a.clone(), Vec::new())).collect();
+    let opts = BasisOptions {
+        modes_per_snapshot: settings.basis.modes_per_snapshot,
+        rel_tol: settings.basis.rel_tol,
+        max_size: settings.basis.max_size,
+    };
+    let t0 = Instant::now();
+    let reduced = ReducedModes::from_snapshots(&data.model, &pairs, &opts)?;
+    let build_s = t0.elapsed().as_secs_f64();
+    let checks = box_points(settings.n_check_points, &mut rng);
+    let n_modes = data.n_modes();
+    let points = compare_with_full(&data.model, &reduced, &checks, n_modes, &data.meas_dofs)?;
+    let mut rel: Vec<f64> = points.iter().flat_map(|p| p.eigenvalue_rel.clone()).collect();
+    rel.sort_by(f64::total_cmp);
+    let max_one_minus_mac = points
+        .iter()
+        .flat_map(|p| p.one_minus_mac.iter().copied())
+        .fold(0.0, f64::max);
+    let (reduced_eval_s, exact_eval_s) = time_evaluations(data, &reduced)?;
+    Ok((
+        reduced.clone(),
+        BasisCheck {
+            size: reduced.size(),
+            n_snapshots: snaps.len(),
+            build_s,
+            max_eigenvalue_rel: rel.iter().fold(0.0, |a, b| a.max(b.abs())),
+            median_eigenvalue_rel: rel[rel.len() / 2],
+            max_one_minus_mac,
+            points,
+            reduced_eval_s,
+            exact_eval_s,
+        },
+    ))
+}
+
+/// Seconds per evaluation of the 5 lowest modes at the nominal model: reduced basis
+/// (mean of 200) and exact (mean of 3), on this thread.
+fn time_evaluations(data: &BridgeData, reduced: &ReducedModes) -> Result<(f64, f64)> {
+    use crate::predict::modal::ModeSolver;
+    let (a, b) = (vec![0.0; 17], Vec::new());
+    let n = data.n_modes();
+    let (mut ev, mut sh) = (vec![0.0; n], vec![0.0; n * data.meas_dofs.len()]);
+    let mut ws = reduced.workspace();
+    let t0 = Instant::now();
+    for _ in 0..200 {
+        reduced.lowest_modes(&a, &b, &data.meas_dofs, &mut ws, &mut ev, &mut sh)?;
+    }
+    let r = t0.elapsed().as_secs_f64() / 200.0;
+    let exact = CondensedModes::new(data.model.clone());
+    let t0 = Instant::now();
+    for _ in 0..3 {
+        exact.lowest_modes(&a, &b, &data.meas_dofs, &mut (), &mut ev, &mut sh)?;
+    }
+    Ok((r, t0.elapsed().as_secs_f64() / 3.0))
+}
+
+fn trf_options(max_evaluations: usize) -> TrfOptions {
+    TrfOptions {
+        ftol: 1e-10,
+        xtol: 1e-10,
+        gtol: 1e-10,
+        max_evaluations: Some(max_evaluations),
+        ..TrfOptions::default()
+    }
+}
+
+/// SMU's `f = 2 * cost` at `alpha`.
+fn objective<P: crate::predict::Predict>(post: &Posterior<P>, alpha: &[f64]) -> Result<f64> {
+    Ok(post.residuals(alpha)?.iter().map(|r| r * r).sum())
+}
+
+/// Multistart on the reduced basis, then the best polished with the exact solver.
+pub fn smu_fit(
+    data: &BridgeData,
+    reduced: &ReducedModes,
+    weighting: Weighting,
+    settings: &BridgeSettings,
+) -> Result<SmuFit> {
+    let post = smu_posterior(data, reduced.clone(), weighting)?;
+    let opts = FitOptions {
+        n_starts: settings.n_starts,
+        seed: settings.seed,
+        trf: trf_options(settings.max_evaluations),
+        ..FitOptions::default()
+    };
+    let t0 = Instant::now();
+    let res = fit_multistart(&post, &[], None, &opts)?;
+    let wall_s = t0.elapsed().as_secs_f64();
+    let exact = smu_posterior(data, CondensedModes::new(data.model.clone()), weighting)?;
+    let t0 = Instant::now();
+    let polish = FitOptions {
+        n_starts: 1,
+        trf: trf_options(200),
+        ..FitOptions::default()
+    };
+    let polished = fit_multistart(&exact, &[], Some(&res.best.x), &polish)?;
+    let polish_s = t0.elapsed().as_secs_f64();
+    let alpha = polished.best.x.clone();
+    let bounds = smu_bounds();
+    let on_bound = alpha
+        .iter()
+        .zip(&bounds)
+        .map(|(&a, &(lo, hi))| {
+            let tol = 1e-6 * (hi - lo);
+            if a - lo < tol {
+                -1
+            } else if hi - a < tol {
+                1
+            } else {
+                0
+            }
+        })
+        .collect();
+    Ok(SmuFit {
+        weighting,
+        objective: objective(&exact, &alpha)?,
+        objective_reduced: 2.0 * res.best.cost,
+        n_starts: settings.n_starts,
+        n_reached: res.n_at_best,
+        start_objectives: res
+            .starts
+            .iter()
+            .map(|s| s.solution.as_ref().map_or(f64::NAN, |s| 2.0 * s.cost))
+            .collect(),
+        wall_s,
+        polish_s,
+        threads: rayon::current_num_threads(),
+        n_evaluations: res
+            .starts
+            .iter()
+            .filter_map(|s| s.solution.as_ref().ok())
+            .map(|s| s.n_evaluations)
+            .sum(),
+        on_bound,
+        gradient: gradient(&exact, &alpha)?,
+        alpha,
+    })
+}
+
+/// `d f / d alpha_j` by central differences of 1e-4 of the box width (one-sided at a
+/// bound, stepping inside the box).
+fn gradient<P: crate::predict::Predict>(post: &Posterior<P>, alpha: &[f64]) -> Result<Vec<f64>> {
+    let f0 = objective(post, alpha)?;
+    smu_bounds()
+        .iter()
+        .enumerate()
+        .map(|(j, &(lo, hi))| {
+            let h = 1e-4 * (hi - lo);
+            let at = |v: f64| {
+                let mut a = alpha.to_vec();
+                a[j] = v;
+                objective(post, &a)
+            };
+            if alpha[j] - h < lo {
+                Ok((at(alpha[j] + h)? - f0) / h)
+            } else if alpha[j] + h > hi {
+                Ok((f0 - at(alpha[j] - h)?) / h)
+            } else {
+                Ok((at(alpha[j] + h)? - at(alpha[j] - h)?) / (2.0 * h))
+            }
+        })
+        .collect()
+}
+
+/// Walker positions: `center` plus Gaussian jitter of 1 % of each coordinate's box
+/// width, folded back into the box; 4 ensembles of `n_walkers`.
+fn start_positions(
+    center: &[f64],
+    bounds: &[(f64, f64)],
+    n: usize,
+    rng: &mut ChaCha8Rng,
+) -> Start {
+    let unit = Normal::new(0.0, 1.0).expect("unit normal");
+    let positions = (0..n)
+        .map(|_| {
+            center
+                .iter()
+                .zip(bounds)
+                .map(|(&c, &(lo, hi))| {
+                    let w = hi - lo;
+                    let v = c + 0.01 * w * unit.sample(rng);
+                    let v = if v < lo { 2.0 * lo - v } else { v };
+                    let v = if v > hi { 2.0 * hi - v } else { v };
+                    v.clamp(lo + 1e-9 * w, hi - 1e-9 * w)
+                })
+                .collect()
+        })
+        .collect();
+    Start::Positions(positions)
+}
+
+/// Samples the Bayesian posterior (reduced basis) from around the per-entry optimum,
+/// and pushes `n_predictive` draws through the predictor.
+pub fn sample_posterior(
+    data: &BridgeData,
+    reduced: &ReducedModes,
+    map_alpha: &[f64],
+    settings: &BridgeSettings,
+    sampling: &mut Sampling<'_>,
+) -> Result<BridgePosterior> {
+    let post = bayes_posterior(data, reduced.clone())?;
+    let res = post.residuals(map_alpha)?;
+    let rms = |r: std::ops::Range<usize>| {
+        (res[r.clone()].iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt()
+    };
+    let n_shape = post.n_residuals() - data.n_modes();
+    let mut center = map_alpha.to_vec();
+    center.push(rms(post.residual_range(0)).ln());
+    center.push(rms(data.n_modes()..data.n_modes() + n_shape).ln());
+    let bounds = post.prior().bounds_of_first(post.dim())?;
+    let bounds: Vec<(f64, f64)> = bounds.lower().iter().copied().zip(bounds.upper().iter().copied()).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0xb41d);
+    let start = start_positions(&center, &bounds, 4 * settings.n_walkers, &mut rng);
+    let sampled = super::posterior::sample_to_targets(
+        &post,
+        start,
+        settings.n_walkers,
+        settings.seed,
+        &Targets::default(),
+        "bridge-fe posterior",
+        sampling,
+    )?;
+    let names = post.names().to_vec();
+    let rows: Vec<ParameterSummary> = (0..post.dim())
+        .map(|p| {
+            let chains = sampled.chains(p, |v| v);
+            let at = near_bound(&chains, bounds[p]);
+            row_from_chains(&names[p], "-", &chains, settings.n_walkers, sampled.tau_steps[p], at)
+        })
+        .collect();
+    let (freq_hz, mac) = predictive(data, &post, &sampled, settings.n_predictive)?;
+    let prior_sd: Vec<f64> = bounds.iter().map(|(lo, hi)| (hi - lo) / 12f64.sqrt()).collect();
+    let verdicts = rows
+        .iter()
+        .zip(&prior_sd)
+        .map(|(r, &p)| Identified::judge(r, p))
+        .collect();
+    Ok(BridgePosterior {
+        prior_sd,
+        verdicts,
+        sampled,
+        rows,
+        freq_hz,
+        mac,
+    })
+}
+
+/// Frequencies and MACs (against the measured shapes) of `n` draws spread evenly over
+/// the kept draws.
+fn predictive(
+    data: &BridgeData,
+    post: &Posterior<ModalPredictor<ReducedModes>>,
+    sampled: &Sampled,
+    n: usize,
+) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+    let d = &sampled.draws;
+    let total = d.n_chains * d.n_draws;
+    if total == 0 {
+        return Err(Error::Numerical("no posterior draws".into()));
+    }
+    let n = n.clamp(1, total);
+    let p = post.predictor();
+    let (mut freqs, mut macs) = (Vec::new(), Vec::new());
+    for k in 0..n {
+        let idx = k * total / n;
+        let z = d.draw(idx % d.n_chains, idx / d.n_chains);
+        let pred = post.predict(&z[..post.n_model()])?;
+        freqs.push(pred[p.freq_range()].to_vec());
+        macs.push(
+            (0..data.n_modes())
+                .map(|i| crate::modal::mac(&pred[p.shape_range(i)], data.psi_exp.column(i).as_slice()))
+                .collect(),
+        );
+    }
+    Ok((freqs, macs))
+}
+
+/// The whole study.
+pub fn run(
+    data: &BridgeData,
+    settings: &BridgeSettings,
+    sampling: &mut Sampling<'_>,
+) -> Result<BridgeStudy> {
+    let (reduced, basis) = build_basis(data, settings)?;
+    let smu = smu_fit(data, &reduced, Weighting::SmuLinearIndex, settings)?;
+    let per_entry = smu_fit(data, &reduced, Weighting::PerEntry, settings)?;
+    let exact = smu_posterior(data, CondensedModes::new(data.model.clone()), Weighting::SmuLinearIndex)?;
+    let published_objective = objective(&exact, &SMU_PUBLISHED_ALPHA)?;
+    let posterior = sample_posterior(data, &reduced, &per_entry.alpha, settings, sampling)?;
+    let freq_exp_hz = data.freq_exp_hz();
+    let std_freq_hz = data
+        .std_lambda
+        .iter()
+        .zip(&freq_exp_hz)
+        .map(|(s, f)| s / (8.0 * std::f64::consts::PI.powi(2) * f))
+        .collect();
+    Ok(BridgeStudy {
+        settings: settings.clone(),
+        basis,
+        smu,
+        per_entry,
+        published_objective,
+        posterior,
+        freq_exp_hz,
+        std_freq_hz,
+        names: data.model.alpha_parameters().iter().map(|p| p.name.clone()).collect(),
+    })
+}
