@@ -128,12 +128,7 @@ impl FrfPosterior {
             .zip(&data.magnitude)
             .map(|(s, y)| -s.ln() - half_ln_2pi - if log { y.ln() } else { 0.0 })
             .collect();
-        let shapes: Vec<(usize, usize)> = data
-            .blocks
-            .iter()
-            .map(|b| (b.pairs.len(), b.omega_rad_s.len()))
-            .collect();
-        let layout = ResidualLayout::new(data.len(), &data.correlated, &data.sigma, &shapes)?;
+        let layout = ResidualLayout::new(data.len(), &data.correlated, &data.sigma)?;
         Ok(FrfPosterior {
             layout,
             forward,
