@@ -25,8 +25,11 @@
 //! channel's noise inside the force windows gives `|H1|` an error smooth in frequency
 //! and common to every response of the test ([`crate::signal::InputNoise`]); it is
 //! taken out of `r_k` (the output noise's coherence) and enters as
-//! `cov = s^2 (diag(sigma_k^2) + L L^T)` per test, `L` its low-rank loadings
-//! ([`CorrelatedNoise`]), evaluated in Woodbury form. Counted per point instead
+//! `cov = s^2 diag(sigma_k^2) + L L^T` per test, `L` its low-rank loadings
+//! ([`CorrelatedNoise`]), evaluated in Woodbury form. The sampled scale `s` acts on
+//! the per-point part only: the shared part's size is known from the force channel
+//! (scaling it too made the mass-stiffness scale's intervals `1/s` ~ 1.4x too narrow,
+//! `results/coverage/`). Counted per point instead
 //! (`PerPoint`, the former model), the posterior's 90 % intervals covered the true masses
 //! and stiffnesses of simulated campaigns in 6-9 of 20 ([`coverage`],
 //! `results/coverage/`). `s` carries what the coherence does
@@ -56,6 +59,7 @@ pub mod coverage;
 mod data;
 pub mod figures;
 mod forward;
+mod likelihood;
 mod posterior;
 pub mod predictive;
 pub mod prior;

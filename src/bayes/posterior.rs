@@ -1,14 +1,14 @@
 //! The posterior of the updating variables and the noise scale given measured FRF
 //! magnitudes.
 
-use super::data::{CorrelatedNoise, FrfData};
+use super::data::FrfData;
 use super::forward::{ForwardModel, ForwardWorkspace};
+use super::likelihood::ResidualLayout;
 use super::prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
 use crate::model::StructuralModel;
 use crate::update::{DampingModel, ResidualForm, VariableKind, Variables, VariablesConfig};
-use nalgebra::DMatrix;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -57,68 +57,9 @@ pub struct FrfPosterior {
     /// pointwise term is a log density of `y_k` itself, comparable across residual forms).
     ln_norm: Vec<f64>,
     ln_norm_sum: f64,
-    /// Per block of [`FrfData::correlated`]: the Woodbury factors of its shared noise.
-    shared: Vec<SharedFactor>,
+    /// Runs of points, with the Woodbury factors of [`FrfData::correlated`].
+    layout: ResidualLayout,
     workspaces: ThreadLocal<RefCell<ForwardWorkspace>>,
-}
-
-/// Woodbury form of one block of shared noise: with standardised residuals
-/// `e_k = r_k / (s sigma_k)` and standardised loadings `V = D^(-1/2) L`
-/// (`D = diag(sigma^2)`), `r^T (s^2 (D + L L^T))^(-1) r = e^T e - |G e|^2` with
-/// `G = C^(-1) V^T`, `C C^T = I + V^T V` (Cholesky), and
-/// `ln det (D + L L^T) = ln det D + 2 sum ln diag(C)`.
-#[derive(Debug, Clone)]
-struct SharedFactor {
-    start: usize,
-    len: usize,
-    /// `G`, `rank x len`, row-major.
-    g: Vec<f64>,
-    /// `ln det (I + V^T V)`.
-    ln_det: f64,
-}
-
-impl SharedFactor {
-    fn new(c: &CorrelatedNoise, sigma: &[f64]) -> Result<Self> {
-        let (len, rank) = (c.len, c.rank);
-        let v = DMatrix::from_fn(len, rank, |k, r| {
-            c.loadings[k * rank + r] / sigma[c.start + k]
-        });
-        let m = DMatrix::identity(rank, rank) + v.transpose() * &v;
-        let chol = m.cholesky().ok_or_else(|| {
-            Error::Numerical("shared noise: I + V^T V is not positive definite".into())
-        })?;
-        let l = chol.l();
-        let g = l
-            .solve_lower_triangular(&v.transpose())
-            .ok_or_else(|| Error::Numerical("shared noise: singular Cholesky factor".into()))?;
-        Ok(SharedFactor {
-            start: c.start,
-            len,
-            g: g.transpose().as_slice().to_vec(),
-            ln_det: 2.0 * l.diagonal().iter().map(|d| d.ln()).sum::<f64>(),
-        })
-    }
-
-    /// `|G e|^2` of the block's standardised residuals `e` (each dot product in four
-    /// partial sums, so that it vectorises).
-    fn correction(&self, e: &[f64]) -> f64 {
-        const L: usize = 4;
-        let n = self.len / L * L;
-        self.g
-            .chunks_exact(self.len)
-            .map(|row| {
-                let mut part = [0.0; L];
-                for (a, b) in row[..n].chunks_exact(L).zip(e[..n].chunks_exact(L)) {
-                    for l in 0..L {
-                        part[l] += a[l] * b[l];
-                    }
-                }
-                let rest: f64 = row[n..].iter().zip(&e[n..]).map(|(a, b)| a * b).sum();
-                let u = (part[0] + part[1]) + (part[2] + part[3]) + rest;
-                u * u
-            })
-            .sum()
-    }
 }
 
 impl Clone for FrfPosterior {
@@ -132,7 +73,7 @@ impl Clone for FrfPosterior {
             inv_sigma: self.inv_sigma.clone(),
             ln_norm: self.ln_norm.clone(),
             ln_norm_sum: self.ln_norm_sum,
-            shared: self.shared.clone(),
+            layout: self.layout.clone(),
             workspaces: ThreadLocal::new(),
         }
     }
@@ -181,26 +122,15 @@ impl FrfPosterior {
             .map(|&y| if log { y.ln() } else { y })
             .collect();
         let inv_sigma = data.sigma.iter().map(|s| 1.0 / s).collect();
-        let mut ln_norm: Vec<f64> = data
+        let ln_norm: Vec<f64> = data
             .sigma
             .iter()
             .zip(&data.magnitude)
             .map(|(s, y)| -s.ln() - half_ln_2pi - if log { y.ln() } else { 0.0 })
             .collect();
-        let shared = data
-            .correlated
-            .iter()
-            .map(|c| SharedFactor::new(c, &data.sigma))
-            .collect::<Result<Vec<_>>>()?;
-        // the log determinant of a shared block, spread evenly over its points
-        for f in &shared {
-            let each = -0.5 * f.ln_det / f.len as f64;
-            ln_norm[f.start..f.start + f.len]
-                .iter_mut()
-                .for_each(|v| *v += each);
-        }
+        let layout = ResidualLayout::new(data.len(), &data.correlated, &data.sigma)?;
         Ok(FrfPosterior {
-            shared,
+            layout,
             forward,
             ln_norm_sum: ln_norm.iter().sum(),
             data,
@@ -352,80 +282,34 @@ impl FrfPosterior {
         ws.theta = theta;
         let result = r.map(|()| {
             let ln_s = z[n_free];
-            let inv_s = (-ln_s).exp();
+            let s2 = (2.0 * ln_s).exp();
             if self.data.residual == ResidualForm::LogMagnitude {
                 for h in mag.iter_mut() {
                     *h = h.ln();
                 }
             }
-            // Four partial sums over chunks of four points (so the additions do not wait
-            // on each other and vectorise), the remainder after them; with or without
-            // the pointwise terms, the same grouping and so the same bits.
-            const L: usize = 4;
-            let n = mag.len() / L * L;
-            let mut part = [0.0; L];
-            let chunks = mag[..n]
-                .chunks_exact(L)
-                .zip(self.target[..n].chunks_exact(L))
-                .zip(self.inv_sigma[..n].chunks_exact(L));
-            if pointwise.is_empty() {
-                for ((a, t), w) in chunks {
-                    for l in 0..L {
-                        let e = (a[l] - t[l]) * w[l] * inv_s;
-                        part[l] += e * e;
-                    }
-                }
-            } else {
-                let terms = pointwise[..n]
-                    .chunks_exact_mut(L)
-                    .zip(self.ln_norm[..n].chunks_exact(L));
-                for (((a, t), w), (p, ln_norm)) in chunks.zip(terms) {
-                    for l in 0..L {
-                        let e = (a[l] - t[l]) * w[l] * inv_s;
-                        part[l] += e * e;
-                        p[l] = -0.5 * e * e - ln_s + ln_norm[l];
-                    }
-                }
+            // one pass over the points, the same with or without the pointwise terms
+            let sums = self.layout.sums(&mag, &self.target, &self.inv_sigma, s2);
+            if !pointwise.is_empty() {
+                self.fill_pointwise(&mag, ln_s, s2, pointwise);
             }
-            let mut ss = 0.0;
-            let rest = mag.iter().zip(&self.target).zip(&self.inv_sigma);
-            for (k, ((&a, &t), &w)) in rest.enumerate().skip(n) {
-                let e = (a - t) * w * inv_s;
-                ss += e * e;
-                if let Some(p) = pointwise.get_mut(k) {
-                    *p = -0.5 * e * e - ln_s + self.ln_norm[k];
-                }
-            }
-            ss += (part[0] + part[1]) + (part[2] + part[3]);
-            ss -= self.shared_correction(&mut mag, inv_s, pointwise);
-            -0.5 * ss - self.data.len() as f64 * ln_s + self.ln_norm_sum
+            let quad = (sums.ss - sums.correction) / s2;
+            -0.5 * quad - self.data.len() as f64 * ln_s - 0.5 * sums.ln_det + self.ln_norm_sum
         });
         ws.magnitude = mag;
         result
     }
 
-    /// `sum |G e|^2` over the shared-noise blocks ([`SharedFactor`]); overwrites their
-    /// model magnitudes in `mag` with the standardised residuals, and adds each block's
-    /// correction, spread evenly, to its pointwise terms.
-    fn shared_correction(&self, mag: &mut [f64], inv_s: f64, pointwise: &mut [f64]) -> f64 {
-        let mut total = 0.0;
-        for f in &self.shared {
-            let range = f.start..f.start + f.len;
-            let e = &mut mag[range.clone()];
-            for ((a, t), w) in e
-                .iter_mut()
-                .zip(&self.target[range.clone()])
-                .zip(&self.inv_sigma[range.clone()])
-            {
-                *a = (*a - t) * w * inv_s;
-            }
-            let c = f.correction(e);
-            if let Some(p) = pointwise.get_mut(range) {
-                p.iter_mut().for_each(|v| *v += 0.5 * c / f.len as f64);
-            }
-            total += c;
+    /// Pointwise terms: `-d_k^2 / (2 s^2) - ln s` plus the point's constant, and each
+    /// shared run's Woodbury correction and log determinant spread evenly over its points
+    /// (they sum to the log-likelihood).
+    fn fill_pointwise(&self, mag: &[f64], ln_s: f64, s2: f64, pointwise: &mut [f64]) {
+        for (k, p) in pointwise.iter_mut().enumerate() {
+            let d = (mag[k] - self.target[k]) * self.inv_sigma[k];
+            *p = -0.5 * d * d / s2 - ln_s + self.ln_norm[k];
         }
-        total
+        self.layout
+            .spread_shared(mag, &self.target, &self.inv_sigma, s2, pointwise);
     }
 
     /// One draw of the sampled vector from the prior.
@@ -433,11 +317,11 @@ impl FrfPosterior {
         self.prior.sample(rng)
     }
 
-    /// Magnitudes simulated from the likelihood at `z`: `|H^A_k| + s (sigma_k e_k + c_k)`
-    /// (magnitude residuals) or `|H^A_k| exp(s (sigma_k e_k + c_k))` (log residuals), `e_k`
-    /// standard normal, `c = L eta` the shared noise of [`FrfData::correlated`] (`eta`
-    /// standard normal, drawn after the `e`). Magnitude-residual draws below zero are kept (the Gaussian
-    /// model allows them).
+    /// Magnitudes simulated from the likelihood at `z`: `|H^A_k| + s sigma_k e_k + c_k`
+    /// (magnitude residuals) or `|H^A_k| exp(s sigma_k e_k + c_k)` (log residuals), `e_k`
+    /// standard normal, `c = L eta` the shared noise of [`FrfData::correlated`] at its
+    /// known size, not scaled by `s` (`eta` standard normal, drawn after the `e`).
+    /// Magnitude-residual draws below zero are kept (the Gaussian model allows them).
     pub fn simulate(&self, z: &[f64], rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
         let h = self.magnitudes(z)?;
         let s = self.noise_scale(z);
@@ -455,7 +339,7 @@ impl FrfPosterior {
             .zip(&self.data.sigma)
             .zip(e.iter().zip(&shared))
             .map(|((&h, &sigma), (&e, &c))| {
-                let n = s * sigma * e + s * c;
+                let n = s * sigma * e + c;
                 if log {
                     h * n.exp()
                 } else {
