@@ -68,3 +68,45 @@ fn tower_hmd_runs_end_to_end() {
         &["frf_fit", "residual_map", "residual_map_low", "traces"],
     );
 }
+
+/// The bridge study with few starts, a small check set and 100 sampler steps: the chain
+/// runs and writes `smu.json` with SMU's keys, the report and every figure.
+#[test]
+fn bridge_fe_runs_end_to_end() {
+    use super::{bridge, bridge_report, bridge_run};
+    let Some(data_dir) = shared_dataset(Dataset::BridgeFe) else {
+        return;
+    };
+    let data = bridge::load(&data_dir).unwrap();
+    let settings = bridge_run::BridgeSettings {
+        n_random_snapshots: 4,
+        n_check_points: 2,
+        n_starts: 4,
+        max_evaluations: 200,
+        n_predictive: 20,
+        ..Default::default()
+    };
+    let study = bridge_run::run(&data, &settings, &mut Sampling::capped(100)).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    bridge_report::write(&study, dir.path(), &[("all".into(), 1.0)]).unwrap();
+    let smu: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("smu.json")).unwrap()).unwrap();
+    assert_eq!(smu["alpha"].as_array().unwrap().len(), 17);
+    for key in ["objective", "n_starts", "n_reached", "wall_s"] {
+        assert!(smu.get(key).is_some(), "smu.json misses {key}");
+    }
+    assert_eq!(smu["n_starts"], serde_json::json!(4));
+    let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    assert!(report.starts_with("# ") && !report.contains("NaN"), "{report}");
+    for stem in [
+        "fig_contraction",
+        "fig_box_positions",
+        "fig_predictive_frequencies",
+        "fig_basis_error",
+        "fig_multistart",
+        "fig_traces",
+    ] {
+        assert!(dir.path().join(format!("{stem}.png")).is_file(), "{stem}");
+        assert!(dir.path().join(format!("{stem}.svg")).is_file(), "{stem}");
+    }
+}
