@@ -2,7 +2,10 @@
 //! (paper Eq. 22b), mass-normalised modes (`Phi^T M Phi = I`), ascending order, and the
 //! modal assurance criterion.
 
+pub mod partial;
 mod tridiagonal;
+
+pub use partial::{PartialEigen, PartialOptions, PartialSolver, PartialWorkspace};
 
 use crate::error::{Error, Result};
 use nalgebra::allocator::Allocator;

@@ -12,7 +12,7 @@
 
 pub mod modal;
 
-pub use modal::{DenseModes, ModalPredictor, ModeSolver};
+pub use modal::{DenseModes, ModalPredictor, ModeSolver, PartialModes};
 
 use crate::error::{Error, Result};
 use crate::model::StructuralModel;
