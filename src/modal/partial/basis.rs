@@ -3,6 +3,8 @@
 //! `V^T M Op V` (Rayleigh-Ritz).
 
 use crate::model::sparse::SparsePencil;
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
 use nalgebra::DMatrix;
 
 /// A column is dropped when orthogonalisation leaves less than this fraction of its
@@ -48,6 +50,18 @@ fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
     y.iter_mut().zip(x).for_each(|(y, x)| *y += a * x);
 }
 
+/// A column-major `rows x cols` slice as a faer view.
+fn view(s: &[f64], rows: usize, cols: usize) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(&s[..rows * cols], rows, cols)
+}
+
+/// `dst = a^T b` (`a`: `n x p`, `b`: `n x q`, `dst`: `p x q`, column-major).
+fn tr_mul(dst: &mut [f64], a: MatRef<'_, f64>, b: MatRef<'_, f64>) {
+    let (p, q) = (a.ncols(), b.ncols());
+    let dst = MatMut::from_column_major_slice_mut(&mut dst[..p * q], p, q);
+    matmul(dst, Accum::Replace, a.transpose(), b, 1.0, Par::Seq);
+}
+
 impl Basis {
     /// Empties the basis for vectors of length `n` and room for `cap` columns.
     pub fn reset(&mut self, n: usize, cap: usize) {
@@ -77,44 +91,76 @@ impl Basis {
         &buf[j * n..(j + 1) * n]
     }
 
-    /// `M`-orthogonalises `w` against the basis, pending columns included (classical
-    /// Gram-Schmidt, twice), normalises it and appends it as a pending column; `false`
-    /// (nothing appended) when it is dependent.
-    pub fn push(&mut self, w: &mut [f64], pencil: &Pencil) -> bool {
+    /// `M`-orthogonalises the `b` columns of `w` (column-major) against the basis
+    /// (block classical Gram-Schmidt, twice) and against each other (modified
+    /// Gram-Schmidt, twice), normalises them and appends the independent ones as pending
+    /// columns; returns how many. A column is dependent when less than `DROP_RTOL` of
+    /// its `M`-norm survives.
+    pub fn push_block(&mut self, w: &mut [f64], b: usize, pencil: &Pencil) -> usize {
         let n = self.n;
-        pencil.m_mul(w, &mut self.scratch);
-        let norm0 = dot(w, &self.scratch).max(0.0).sqrt();
-        if !(norm0 > 0.0 && norm0.is_finite()) {
-            return false;
-        }
-        let cols = self.v.len() / n;
-        for _ in 0..2 {
-            for j in 0..cols {
-                let c = dot(Self::col(&self.mv, n, j), w);
-                axpy(-c, Self::col(&self.v, n, j), w);
+        let d = self.dim;
+        let norm0: Vec<f64> = (0..b)
+            .map(|j| {
+                pencil.m_mul(&w[j * n..(j + 1) * n], &mut self.scratch);
+                dot(&w[j * n..(j + 1) * n], &self.scratch).max(0.0).sqrt()
+            })
+            .collect();
+        if d > 0 {
+            let mut c = vec![0.0; d * b];
+            for _ in 0..2 {
+                tr_mul(&mut c, view(&self.mv, n, d), view(w, n, b));
+                let wm = MatMut::from_column_major_slice_mut(&mut w[..n * b], n, b);
+                matmul(
+                    wm,
+                    Accum::Add,
+                    view(&self.v, n, d),
+                    view(&c, d, b),
+                    -1.0,
+                    Par::Seq,
+                );
             }
         }
-        pencil.m_mul(w, &mut self.scratch);
-        let norm = dot(w, &self.scratch).max(0.0).sqrt();
-        if !(norm > DROP_RTOL * norm0) {
-            return false;
+        let mut added = 0;
+        for j in 0..b {
+            let col = &mut w[j * n..(j + 1) * n];
+            for _ in 0..2 {
+                for k in d..d + added {
+                    let c = dot(Self::col(&self.mv, n, k), col);
+                    axpy(-c, Self::col(&self.v, n, k), col);
+                }
+            }
+            pencil.m_mul(col, &mut self.scratch);
+            let norm = dot(col, &self.scratch).max(0.0).sqrt();
+            if !(norm0[j] > 0.0 && norm0[j].is_finite() && norm > DROP_RTOL * norm0[j]) {
+                continue;
+            }
+            col.iter_mut().for_each(|x| *x /= norm);
+            self.v.extend_from_slice(col);
+            self.mv.extend(self.scratch.iter().map(|x| x / norm));
+            added += 1;
         }
-        w.iter_mut().for_each(|x| *x /= norm);
-        self.v.extend_from_slice(w);
-        self.mv.extend(self.scratch.iter().map(|x| x / norm));
-        true
+        added
     }
 
     /// Attaches `Op v` (column-major, one column per pending column) to the pending
-    /// columns and extends `H`.
+    /// columns and extends `H = V^T M Op V`.
     pub fn attach_op(&mut self, op: &[f64]) {
         let n = self.n;
         let new = op.len() / n;
         self.opv.extend_from_slice(op);
         let d = self.dim + new;
-        for j in self.dim..d {
-            for i in 0..=j {
-                let x = dot(Self::col(&self.mv, n, i), Self::col(&self.opv, n, j));
+        let mut c = vec![0.0; d * new];
+        tr_mul(
+            &mut c,
+            view(&self.mv, n, d),
+            view(&self.opv[self.dim * n..], n, new),
+        );
+        for (k, j) in (self.dim..d).enumerate() {
+            for i in 0..d {
+                let x = c[k * d + i];
+                if i >= self.dim && i > j {
+                    continue;
+                }
                 self.h[(i, j)] = x;
                 self.h[(j, i)] = x;
             }
@@ -139,16 +185,21 @@ impl Basis {
     /// `V y`, `Op V y` and `M V y` for the first `p` columns `y` of `coords`, each
     /// column-major (`n x p`) into the given buffers.
     pub fn combine(&self, coords: &DMatrix<f64>, p: usize, out: [&mut Vec<f64>; 3]) {
-        let n = self.n;
+        let (n, d) = (self.n, self.dim);
+        let y = coords.view((0, 0), (d, p));
+        let y = MatRef::from_column_major_slice(y.clone_owned().as_slice(), d, p).to_owned();
         for (src, dst) in [&self.v, &self.opv, &self.mv].into_iter().zip(out) {
             dst.clear();
             dst.resize(n * p, 0.0);
-            for c in 0..p {
-                let col = &mut dst[c * n..(c + 1) * n];
-                for j in 0..self.dim {
-                    axpy(coords[(j, c)], Self::col(src, n, j), col);
-                }
-            }
+            let dm = MatMut::from_column_major_slice_mut(&mut dst[..], n, p);
+            matmul(
+                dm,
+                Accum::Replace,
+                view(src, n, d),
+                y.as_ref(),
+                1.0,
+                Par::Seq,
+            );
         }
     }
 

@@ -90,10 +90,11 @@ impl PartialSolver {
             k: &ws.k,
             m: &ws.m,
         };
-        let added = cols
-            .iter()
-            .filter(|&&c| ws.basis.push(&mut ws.block[c * n..(c + 1) * n], &pencil))
-            .count();
+        let mut w = Vec::with_capacity(n * cols.len());
+        for &c in cols {
+            w.extend_from_slice(&ws.block[c * n..(c + 1) * n]);
+        }
+        let added = ws.basis.push_block(&mut w, cols.len(), &pencil);
         ws.block.clear();
         ws.block.extend_from_slice(ws.basis.pending());
         self.apply_op(added, ws);
