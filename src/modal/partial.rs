@@ -8,26 +8,31 @@
 //! pairs become the dominant ones, and the infinite eigenvalues of a singular `M` go to
 //! 0. `K - sigma M` is factorised by faer's sparse Cholesky (the symbolic analysis, with
 //! its fill-reducing ordering, once per pattern in [`PartialSolver::new`]; the numeric
-//! factorisation once per evaluation). The search space grows by blocks `Op X`, where
-//! `X` are the not yet converged Ritz vectors (a block Davidson method whose correction
-//! equation is solved exactly by the factorisation, equivalent to a block shift-invert
-//! Lanczos method), kept `M`-orthonormal by classical Gram-Schmidt done twice; the Ritz
-//! pairs come from Rayleigh-Ritz with the projected `K` and `M` (`V^T M V = I`). When
-//! the space reaches its cap it restarts from the current Ritz vectors (thick restart).
+//! factorisation once per evaluation). The search space `V` (`V^T M V = I`) starts from
+//! `Op R` (R random, seeded) and grows by the residuals `Op x - theta x` of the Ritz
+//! pairs not yet converged (a block shift-invert Lanczos / Davidson method; the
+//! residuals are already `M`-orthogonal to `V`, so nothing is lost to cancellation),
+//! kept `M`-orthonormal by block classical Gram-Schmidt done twice. Rayleigh-Ritz uses
+//! the projected operator `H = V^T M Op V` (symmetric; `Op V` is stored, so residuals
+//! cost no extra solve) and `lambda = sigma + 1 / theta`: projecting `K` instead
+//! (`V^T K V`) loses about `eps ||K|| / lambda` to rounding (1e-9 on stiff models).
+//! When the space reaches its cap it restarts from the current Ritz vectors (thick
+//! restart).
 //!
 //! Every vector of the space lies in the range of `Op`, where `M` is definite and the
 //! massless rows of `K x = lambda M x` hold (`K_s x = 0`): Rayleigh-Ritz there is
 //! Rayleigh-Ritz on the statically condensed pencil, so no spurious (infinite)
 //! eigenvalue can appear.
 //!
-//! Convergence: a Ritz pair `(lambda, x)`, `||x||_M = 1`, is converged when the residual
-//! of the shift-invert problem relative to its eigenvalue,
-//! `||(lambda - sigma) Op x - x||_M = ||(K - sigma M)^-1 (K x - lambda M x)||_M`, is at
-//! most [`PartialOptions::tol`]. The plain relative residual
+//! Convergence: a Ritz pair `(theta, x)` of `Op`, `||x||_M = 1`, is converged when the
+//! residual of the shift-invert problem relative to its eigenvalue,
+//! `||Op x - theta x||_M / theta` (`= ||(K - sigma M)^-1 (K x - lambda M x)||_M` at
+//! `theta = 1 / (lambda - sigma)`), is at most [`PartialOptions::tol`] (default 1e-10). The plain relative residual
 //! `||K x - lambda M x|| / (|lambda| ||M x||)` is reported too, but cannot be the test:
 //! on stiff models its rounding floor is about `eps ||K|| / lambda` (3e-7 on the bridge,
 //! whose `K` has entries up to 1.8e6 on massless rotations), far above the accuracy the
-//! eigenvalues and shapes actually reach (checked against dense solves to 1e-9).
+//! eigenvalues and shapes actually reach (tests/partial_eigen.rs: the bridge's lowest
+//! 10 within 5e-12 of a dense condensed solve, MAC above 1 - 4e-15).
 
 mod basis;
 mod iterate;

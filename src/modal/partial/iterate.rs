@@ -61,7 +61,10 @@ impl PartialSolver {
             ws.basis
                 .combine(&y, pp, [&mut ws.x, &mut ws.opx, &mut ws.mx]);
             let res = self.operator_residuals(&theta[..pp], ws);
-            cols = (0..pp).filter(|&i| !(res[i] <= self.options.tol)).collect();
+            let tol = self.options.tol;
+            cols = (0..pp)
+                .filter(|&i| res[i].is_nan() || res[i] > tol)
+                .collect();
             if cols.iter().all(|&i| i >= n_modes) {
                 ws.lambda.clear();
                 ws.lambda
