@@ -4,7 +4,10 @@
 
 pub mod condensed;
 pub mod dense;
+pub mod partial;
 mod tridiagonal;
+
+pub use partial::{PartialEigen, PartialOptions, PartialSolver, PartialWorkspace};
 
 use crate::error::{Error, Result};
 use nalgebra::allocator::Allocator;

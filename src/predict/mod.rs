@@ -13,7 +13,7 @@
 pub mod modal;
 pub mod reduced;
 
-pub use modal::{DenseModes, ModalPredictor, ModeSolver};
+pub use modal::{DenseModes, ModalPredictor, ModeSolver, PartialModes};
 
 use crate::error::{Error, Result};
 use crate::model::StructuralModel;

@@ -6,14 +6,16 @@
 //! (mass-normalised, sign as the solver gives it: likelihoods of shapes must be
 //! invariant to the sign). The eigen-solution comes from a [`ModeSolver`]: the dense
 //! solver of [`crate::modal::Modes`] here ([`DenseModes`], with its shear-frame fast
-//! path), a partial or reduced-basis solver for large models.
+//! path), or the sparse shift-invert partial solver of [`crate::modal::PartialSolver`]
+//! for large models ([`PartialModes`]).
 
 use std::ops::Range;
 use std::sync::Arc;
 
 use super::{Parametrisation, Predict};
 use crate::error::{Error, Result};
-use crate::modal::Modes;
+use crate::modal::{Modes, PartialOptions, PartialSolver, PartialWorkspace};
+use crate::model::sparse::SparsePencil;
 use crate::model::StructuralModel;
 use nalgebra::DMatrix;
 
@@ -111,6 +113,68 @@ impl ModeSolver for DenseModes {
             })?;
         for i in 0..n {
             eigenvalues[i] = modes.omega_rad_s[i] * modes.omega_rad_s[i];
+            for (s, &d) in shapes[i * dofs.len()..(i + 1) * dofs.len()]
+                .iter_mut()
+                .zip(dofs)
+            {
+                *s = modes.phi[(d, i)];
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The lowest modes by the sparse shift-invert solver of [`PartialSolver`], for large
+/// models (hundreds to thousands of DOFs, possibly with massless DOFs): the symbolic
+/// factorisation of the pencil's pattern is shared by all threads, the numeric one is
+/// per workspace.
+#[derive(Debug, Clone)]
+pub struct PartialModes {
+    model: Arc<StructuralModel>,
+    solver: PartialSolver,
+}
+
+impl PartialModes {
+    /// Builds the sparse pencil of `model` and analyses its pattern.
+    pub fn new(model: Arc<StructuralModel>, options: PartialOptions) -> Result<Self> {
+        let pencil = Arc::new(SparsePencil::from_model(&model));
+        let solver = PartialSolver::new(pencil, options)?;
+        Ok(PartialModes { model, solver })
+    }
+    pub fn model(&self) -> &StructuralModel {
+        &self.model
+    }
+    pub fn solver(&self) -> &PartialSolver {
+        &self.solver
+    }
+}
+
+impl ModeSolver for PartialModes {
+    type Workspace = PartialWorkspace;
+
+    fn n_dof(&self) -> usize {
+        self.model.n_dof()
+    }
+
+    fn workspace(&self) -> PartialWorkspace {
+        self.solver.workspace()
+    }
+
+    fn lowest_modes(
+        &self,
+        alpha: &[f64],
+        beta: &[f64],
+        dofs: &[usize],
+        ws: &mut PartialWorkspace,
+        eigenvalues: &mut [f64],
+        shapes: &mut [f64],
+    ) -> Result<()> {
+        let n = eigenvalues.len();
+        let modes = self.solver.solve(alpha, beta, n, ws).map_err(|e| {
+            Error::Model(format!("no modes at alpha {alpha:?}, beta {beta:?}: {e}"))
+        })?;
+        eigenvalues.copy_from_slice(&modes.eigenvalues_rad2_s2);
+        for i in 0..n {
             for (s, &d) in shapes[i * dofs.len()..(i + 1) * dofs.len()]
                 .iter_mut()
                 .zip(dofs)
