@@ -415,9 +415,9 @@ pub fn compare_with_full(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::model::Parameter;
+pub(crate) mod test_models {
+    use crate::model::{Parameter, StructuralModel};
+    use nalgebra::DMatrix;
 
     /// A chain with massless rotational DOFs between its masses: every second DOF has no
     /// mass; three stiffness groups.
@@ -453,6 +453,14 @@ mod tests {
         StructuralModel::from_matrices(k0, m0, infl, Vec::new(), None).unwrap()
     }
 
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    use super::test_models::chain_model;
+
     /// Oracle: a basis holding the exact modes at a point reproduces them there to
     /// rounding; elsewhere its eigenvalues are upper bounds (Rayleigh-Ritz) and close.
     #[test]
@@ -483,51 +491,5 @@ mod tests {
             .lowest_modes(&[1.0; 3], &[], &dofs, &mut (), &mut ev, &mut sh)
             .unwrap();
         assert!(ev[0] > 0.0 && ev[0] < ev[1]);
-    }
-
-    /// Oracle: the analytic Jacobian of the reduced modes, through every block kind of
-    /// the posterior (values of frequencies, MAC shape, SMU's shape difference), equals
-    /// central differences of the residuals.
-    #[test]
-    fn analytic_jacobian_matches_central_differences() {
-        use crate::infer::likelihood::Transform;
-        use crate::infer::{Block, NoiseScale, Posterior};
-        use crate::predict::modal::ModalPredictor;
-        use crate::predict::{Parametrisation, Predict};
-        use crate::update::lsq::LeastSquaresProblem;
-        let model = Arc::new(chain_model(30));
-        let snaps: Vec<(Vec<f64>, Vec<f64>)> = vec![(vec![0.0; 3], Vec::new())];
-        let red = ReducedModes::from_snapshots(&model, &snaps, &BasisOptions::default()).unwrap();
-        let params = Parametrisation::all_alphas(&model).unwrap();
-        let dofs: Vec<usize> = (0..60).step_by(6).collect();
-        let p = ModalPredictor::new(red, params, dofs.clone(), vec![0, 1, 2]).unwrap();
-        let shape: Vec<f64> = (0..dofs.len()).map(|k| 0.3 + (k as f64 * 0.7).sin()).collect();
-        let blocks = vec![
-            Block::values("f", p.freq_range(), &[1.0, 2.0, 3.0], &[0.1, 0.2, 0.3], Transform::EigenvalueOfHz, NoiseScale::Fixed(1.0)).unwrap(),
-            Block::shape_mac("mac", p.shape_range(0), &shape, NoiseScale::Fixed(2.0)).unwrap(),
-            Block::shape_difference("diff", p.shape_range(1), &shape, 3, &vec![1.5; dofs.len()], NoiseScale::Fixed(1.0)).unwrap(),
-        ];
-        let post = Posterior::new(p, &[(-0.5, 0.5); 3], &[], blocks).unwrap();
-        let ls = post.least_squares(&[]).unwrap();
-        let x = [0.1, -0.2, 0.15];
-        let mut ws = ls.workspace();
-        let (m, n) = (ls.n_residuals(), 3);
-        let mut jac = DMatrix::zeros(m, n);
-        ls.jacobian(&x, &mut ws, &mut jac).unwrap();
-        assert!(post.predictor().jacobian(&x, &mut post.predictor().workspace(), &mut DMatrix::zeros(post.predictor().n_outputs(), 3)).unwrap());
-        let h = 1e-6;
-        let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
-        let mut worst: f64 = 0.0;
-        for j in 0..n {
-            let (mut xp, mut xm) = (x.to_vec(), x.to_vec());
-            xp[j] += h;
-            xm[j] -= h;
-            ls.residuals(&xp, &mut ws, &mut rp).unwrap();
-            ls.residuals(&xm, &mut ws, &mut rm).unwrap();
-            for i in 0..m {
-                worst = worst.max((jac[(i, j)] - (rp[i] - rm[i]) / (2.0 * h)).abs());
-            }
-        }
-        assert!(worst < 1e-6 * jac.amax(), "worst {worst}, max {}", jac.amax());
     }
 }

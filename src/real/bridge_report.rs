@@ -6,6 +6,7 @@ use std::path::Path;
 
 use super::bridge::{smu_bounds, SMU_PUBLISHED_ALPHA, SMU_PUBLISHED_OBJECTIVE};
 use super::bridge_run::{BridgeStudy, SmuFit};
+use super::bridge_posterior::Identified;
 use super::posterior::{posterior_summary, quantile_sorted, write_summary};
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use crate::error::{Error, Result};
@@ -348,8 +349,8 @@ fn report_md(
         })
         .fold(0.0, f64::max);
     let n_bound = s.on_bound.iter().filter(|b| **b != 0).count();
-    let count = |v: super::bridge_run::Identified| post.verdicts.iter().filter(|x| **x == v).count();
-    use super::bridge_run::Identified as I;
+    let count = |v: Identified| post.verdicts.iter().filter(|x| **x == v).count();
+    use Identified as I;
     let mut md = format!(
         "# Steel pedestrian bridge (946 DOFs): SMU's updating, reproduced, and its posterior\n\n\
          Data: `../shared/data/real/bridge-fe` (SMU, GPL-3.0), read in place. Formulation: \
@@ -422,8 +423,25 @@ fn report_md(
         1e3 * b.exact_eval_s,
         b.exact_eval_s / b.reduced_eval_s
     );
+    let at_draws = &post.basis_at_draws;
+    let worst_rel = at_draws.iter().flat_map(|p| p.eigenvalue_rel.iter()).fold(0.0f64, |a, b| a.max(b.abs()));
+    let worst_mac = at_draws.iter().flat_map(|p| p.one_minus_mac.iter()).fold(0.0f64, |a, b| a.max(*b));
     md += &format!(
-        "## 3. What the 5 modes identify\n\n{post_md}\n![contraction](fig_contraction.png)\n\n\
+        "## 3. What the 5 modes identify\n\nLikelihood: eigenvalue residuals over their \
+         measured scatter and shape residuals over theirs (per entry), Gaussian, each kind with \
+         a sampled noise scale; uniform prior on SMU's box. Sampled on a basis local to the \
+         per-entry optimum ({} vectors, +-{} of each box width, built in {:.1} s); checked \
+         against the exact solve at {} posterior draws: eigenvalue error at most {:.2e}, \
+         1 - MAC at most {:.2e}.\n\n",
+        post.basis_size,
+        study.settings.local_fraction,
+        post.basis_build_s,
+        at_draws.len(),
+        worst_rel,
+        worst_mac
+    );
+    md += &format!(
+        "{post_md}\n![contraction](fig_contraction.png)\n\n\
          ![box positions](fig_box_positions.png)\n\n{}\n\n{}\n\n![traces](fig_traces.png)\n\n",
         run_line(&post.sampled),
         posterior_table(&post.rows)

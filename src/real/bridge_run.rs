@@ -6,17 +6,17 @@ use std::time::Instant;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal, Uniform};
+use rand_distr::{Distribution, Uniform};
 
 use super::bridge::{
-    bayes_posterior, smu_bounds, smu_posterior, BridgeData, Weighting, SMU_PUBLISHED_ALPHA,
+    smu_bounds, smu_posterior, BridgeData, Weighting, SMU_PUBLISHED_ALPHA,
 };
-use super::posterior::{near_bound, row_from_chains, Sampled, Sampling, Targets};
-use crate::bayes::summary::ParameterSummary;
-use crate::error::{Error, Result};
+use super::bridge_posterior::{sample_posterior, BridgePosterior};
+use super::posterior::Sampling;
+use crate::error::Result;
 use crate::infer::{fit_multistart, FitOptions, Posterior};
-use crate::mcmc::Start;
-use crate::predict::modal::ModalPredictor;
+use crate::modal::PartialOptions;
+use crate::predict::modal::PartialModes;
 use crate::predict::reduced::{
     compare_with_full, BasisOptions, CondensedModes, PointError, ReducedModes,
 };
@@ -38,8 +38,10 @@ pub struct BridgeSettings {
     pub max_evaluations: usize,
     /// Walkers per ensemble (4 ensembles).
     pub n_walkers: usize,
-    /// Posterior draws pushed through the exact-free predictive check.
+    /// Posterior draws pushed through the predictive check.
     pub n_predictive: usize,
+    /// Half-width of the posterior's local basis neighbourhood, fraction of each box width.
+    pub local_fraction: f64,
 }
 
 /// [`BasisOptions`] as written to `run.json`.
@@ -65,6 +67,7 @@ impl Default for BridgeSettings {
             max_evaluations: 3000,
             n_walkers: 48,
             n_predictive: 400,
+            local_fraction: 0.02,
         }
     }
 }
@@ -110,60 +113,6 @@ pub struct SmuFit {
     pub on_bound: Vec<i8>,
     /// `d f / d alpha_j` at `alpha` (exact solver, central differences).
     pub gradient: Vec<f64>,
-}
-
-/// The posterior and its checks.
-#[derive(Debug, Clone)]
-pub struct BridgePosterior {
-    pub sampled: Sampled,
-    pub rows: Vec<ParameterSummary>,
-    /// Prior standard deviation of each alpha (`width / sqrt 12`).
-    pub prior_sd: Vec<f64>,
-    /// Predicted frequencies (Hz) and MACs against the measured shapes, per draw
-    /// (`n_predictive` x 5 each).
-    pub freq_hz: Vec<Vec<f64>>,
-    pub mac: Vec<Vec<f64>>,
-    /// What the data say of each alpha.
-    pub verdicts: Vec<Identified>,
-}
-
-/// What the 5 modes say of one alpha, from its posterior against its prior.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Identified {
-    /// Posterior sd below a quarter of the prior's, away from the bounds.
-    ByData,
-    /// Between a quarter and three quarters of the prior sd.
-    Partly,
-    /// Posterior sd above three quarters of the prior's: the box, not the data.
-    PriorOnly,
-    /// The 95 % interval reaches a bound (within 1 % of the width): the data push
-    /// beyond the box there.
-    AtLowerBound,
-    AtUpperBound,
-}
-
-impl Identified {
-    /// The rule of the variants' docs.
-    pub fn judge(row: &ParameterSummary, prior_sd: f64) -> Self {
-        use crate::bayes::summary::AtBound;
-        match row.at_bound {
-            Some(AtBound::Lower) => Identified::AtLowerBound,
-            Some(AtBound::Upper) => Identified::AtUpperBound,
-            None if row.sd < 0.25 * prior_sd => Identified::ByData,
-            None if row.sd > 0.75 * prior_sd => Identified::PriorOnly,
-            None => Identified::Partly,
-        }
-    }
-    pub fn label(self) -> &'static str {
-        match self {
-            Identified::ByData => "identified by the data",
-            Identified::Partly => "partly identified",
-            Identified::PriorOnly => "prior only",
-            Identified::AtLowerBound => "pushed against the lower bound",
-            Identified::AtUpperBound => "pushed against the upper bound",
-        }
-    }
 }
 
 /// Everything the report renders.
@@ -281,6 +230,11 @@ fn objective<P: crate::predict::Predict>(post: &Posterior<P>, alpha: &[f64]) -> 
     Ok(post.residuals(alpha)?.iter().map(|r| r * r).sum())
 }
 
+/// The exact sparse partial solver (`src/modal/partial.rs`) of the bridge.
+fn partial_modes(data: &BridgeData) -> Result<PartialModes> {
+    PartialModes::new(data.model.clone(), PartialOptions::default())
+}
+
 /// Multistart on the reduced basis, then the best polished with the exact solver.
 pub fn smu_fit(
     data: &BridgeData,
@@ -298,7 +252,7 @@ pub fn smu_fit(
     let t0 = Instant::now();
     let res = fit_multistart(&post, &[], None, &opts)?;
     let wall_s = t0.elapsed().as_secs_f64();
-    let exact = smu_posterior(data, CondensedModes::new(data.model.clone()), weighting)?;
+    let exact = smu_posterior(data, partial_modes(data)?, weighting)?;
     let t0 = Instant::now();
     let polish = FitOptions {
         n_starts: 1,
@@ -374,119 +328,6 @@ fn gradient<P: crate::predict::Predict>(post: &Posterior<P>, alpha: &[f64]) -> R
         .collect()
 }
 
-/// Walker positions: `center` plus Gaussian jitter of 1 % of each coordinate's box
-/// width, folded back into the box; 4 ensembles of `n_walkers`.
-fn start_positions(
-    center: &[f64],
-    bounds: &[(f64, f64)],
-    n: usize,
-    rng: &mut ChaCha8Rng,
-) -> Start {
-    let unit = Normal::new(0.0, 1.0).expect("unit normal");
-    let positions = (0..n)
-        .map(|_| {
-            center
-                .iter()
-                .zip(bounds)
-                .map(|(&c, &(lo, hi))| {
-                    let w = hi - lo;
-                    let v = c + 0.01 * w * unit.sample(rng);
-                    let v = if v < lo { 2.0 * lo - v } else { v };
-                    let v = if v > hi { 2.0 * hi - v } else { v };
-                    v.clamp(lo + 1e-9 * w, hi - 1e-9 * w)
-                })
-                .collect()
-        })
-        .collect();
-    Start::Positions(positions)
-}
-
-/// Samples the Bayesian posterior (reduced basis) from around the per-entry optimum,
-/// and pushes `n_predictive` draws through the predictor.
-pub fn sample_posterior(
-    data: &BridgeData,
-    reduced: &ReducedModes,
-    map_alpha: &[f64],
-    settings: &BridgeSettings,
-    sampling: &mut Sampling<'_>,
-) -> Result<BridgePosterior> {
-    let post = bayes_posterior(data, reduced.clone())?;
-    let res = post.residuals(map_alpha)?;
-    let rms = |r: std::ops::Range<usize>| {
-        (res[r.clone()].iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt()
-    };
-    let n_shape = post.n_residuals() - data.n_modes();
-    let mut center = map_alpha.to_vec();
-    center.push(rms(post.residual_range(0)).ln());
-    center.push(rms(data.n_modes()..data.n_modes() + n_shape).ln());
-    let bounds = post.prior().bounds_of_first(post.dim())?;
-    let bounds: Vec<(f64, f64)> = bounds.lower().iter().copied().zip(bounds.upper().iter().copied()).collect();
-    let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0xb41d);
-    let start = start_positions(&center, &bounds, 4 * settings.n_walkers, &mut rng);
-    let sampled = super::posterior::sample_to_targets(
-        &post,
-        start,
-        settings.n_walkers,
-        settings.seed,
-        &Targets::default(),
-        "bridge-fe posterior",
-        sampling,
-    )?;
-    let names = post.names().to_vec();
-    let rows: Vec<ParameterSummary> = (0..post.dim())
-        .map(|p| {
-            let chains = sampled.chains(p, |v| v);
-            let at = near_bound(&chains, bounds[p]);
-            row_from_chains(&names[p], "-", &chains, settings.n_walkers, sampled.tau_steps[p], at)
-        })
-        .collect();
-    let (freq_hz, mac) = predictive(data, &post, &sampled, settings.n_predictive)?;
-    let prior_sd: Vec<f64> = bounds.iter().map(|(lo, hi)| (hi - lo) / 12f64.sqrt()).collect();
-    let verdicts = rows
-        .iter()
-        .zip(&prior_sd)
-        .map(|(r, &p)| Identified::judge(r, p))
-        .collect();
-    Ok(BridgePosterior {
-        prior_sd,
-        verdicts,
-        sampled,
-        rows,
-        freq_hz,
-        mac,
-    })
-}
-
-/// Frequencies and MACs (against the measured shapes) of `n` draws spread evenly over
-/// the kept draws.
-fn predictive(
-    data: &BridgeData,
-    post: &Posterior<ModalPredictor<ReducedModes>>,
-    sampled: &Sampled,
-    n: usize,
-) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>)> {
-    let d = &sampled.draws;
-    let total = d.n_chains * d.n_draws;
-    if total == 0 {
-        return Err(Error::Numerical("no posterior draws".into()));
-    }
-    let n = n.clamp(1, total);
-    let p = post.predictor();
-    let (mut freqs, mut macs) = (Vec::new(), Vec::new());
-    for k in 0..n {
-        let idx = k * total / n;
-        let z = d.draw(idx % d.n_chains, idx / d.n_chains);
-        let pred = post.predict(&z[..post.n_model()])?;
-        freqs.push(pred[p.freq_range()].to_vec());
-        macs.push(
-            (0..data.n_modes())
-                .map(|i| crate::modal::mac(&pred[p.shape_range(i)], data.psi_exp.column(i).as_slice()))
-                .collect(),
-        );
-    }
-    Ok((freqs, macs))
-}
-
 /// The whole study.
 pub fn run(
     data: &BridgeData,
@@ -496,9 +337,9 @@ pub fn run(
     let (reduced, basis) = build_basis(data, settings)?;
     let smu = smu_fit(data, &reduced, Weighting::SmuLinearIndex, settings)?;
     let per_entry = smu_fit(data, &reduced, Weighting::PerEntry, settings)?;
-    let exact = smu_posterior(data, CondensedModes::new(data.model.clone()), Weighting::SmuLinearIndex)?;
+    let exact = smu_posterior(data, partial_modes(data)?, Weighting::SmuLinearIndex)?;
     let published_objective = objective(&exact, &SMU_PUBLISHED_ALPHA)?;
-    let posterior = sample_posterior(data, &reduced, &per_entry.alpha, settings, sampling)?;
+    let posterior = sample_posterior(data, &per_entry.alpha, settings, sampling)?;
     let freq_exp_hz = data.freq_exp_hz();
     let std_freq_hz = data
         .std_lambda

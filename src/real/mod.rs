@@ -23,6 +23,7 @@
 //! into its output folder.
 
 pub mod bridge;
+pub mod bridge_posterior;
 pub mod bridge_report;
 pub mod bridge_run;
 pub mod four_story;

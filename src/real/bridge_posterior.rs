@@ -1,0 +1,261 @@
+//! The bridge's posterior: a reduced basis local to the optimum (checked against the
+//! exact solve at posterior draws), walkers started from the Gauss-Newton covariance at
+//! the optimum, sampling to the targets, the posterior-predictive frequencies and MACs,
+//! and what the 5 modes say of each alpha.
+
+use std::time::Instant;
+
+use nalgebra::{DMatrix, DVector};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal, Uniform};
+
+use super::bridge::{bayes_posterior, smu_bounds, BridgeData};
+use super::bridge_run::BridgeSettings;
+use super::posterior::{near_bound, row_from_chains, sample_to_targets, Sampled, Sampling, Targets};
+use crate::bayes::summary::{AtBound, ParameterSummary};
+use crate::error::{Error, Result};
+use crate::infer::Posterior;
+use crate::mcmc::Start;
+use crate::predict::modal::ModalPredictor;
+use crate::predict::reduced::{compare_with_full, BasisOptions, PointError, ReducedModes};
+use crate::update::lsq::LeastSquaresProblem;
+
+/// The posterior and its checks.
+#[derive(Debug, Clone)]
+pub struct BridgePosterior {
+    pub sampled: Sampled,
+    pub rows: Vec<ParameterSummary>,
+    /// Prior standard deviation of each coordinate (`width / sqrt 12`).
+    pub prior_sd: Vec<f64>,
+    /// Predicted frequencies (Hz) and MACs against the measured shapes, per draw
+    /// (`n_predictive` x 5 each).
+    pub freq_hz: Vec<Vec<f64>>,
+    pub mac: Vec<Vec<f64>>,
+    /// What the data say of each alpha.
+    pub verdicts: Vec<Identified>,
+    /// The local basis: size, build time, and its error at posterior draws.
+    pub basis_size: usize,
+    pub basis_build_s: f64,
+    pub basis_at_draws: Vec<PointError>,
+}
+
+/// What the 5 modes say of one alpha, from its posterior against its prior.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Identified {
+    /// Posterior sd below a quarter of the prior's, away from the bounds.
+    ByData,
+    /// Between a quarter and three quarters of the prior sd.
+    Partly,
+    /// Posterior sd above three quarters of the prior's: the box, not the data.
+    PriorOnly,
+    /// The 95 % interval reaches a bound (within 1 % of the width): the data push
+    /// beyond the box there.
+    AtLowerBound,
+    AtUpperBound,
+}
+
+impl Identified {
+    /// The rule of the variants' docs.
+    pub fn judge(row: &ParameterSummary, prior_sd: f64) -> Self {
+        match row.at_bound {
+            Some(AtBound::Lower) => Identified::AtLowerBound,
+            Some(AtBound::Upper) => Identified::AtUpperBound,
+            None if row.sd < 0.25 * prior_sd => Identified::ByData,
+            None if row.sd > 0.75 * prior_sd => Identified::PriorOnly,
+            None => Identified::Partly,
+        }
+    }
+    pub fn label(self) -> &'static str {
+        match self {
+            Identified::ByData => "identified by the data",
+            Identified::Partly => "partly identified",
+            Identified::PriorOnly => "prior only",
+            Identified::AtLowerBound => "pushed against the lower bound",
+            Identified::AtUpperBound => "pushed against the upper bound",
+        }
+    }
+}
+
+/// `v` folded back into `[lo, hi]` (reflection at the bounds, then a hair inside).
+fn fold(v: f64, (lo, hi): (f64, f64)) -> f64 {
+    let w = hi - lo;
+    let v = if v < lo { 2.0 * lo - v } else { v };
+    let v = if v > hi { 2.0 * hi - v } else { v };
+    v.clamp(lo + 1e-9 * w, hi - 1e-9 * w)
+}
+
+/// A basis for the neighbourhood of `center`: the exact modes there, with each alpha
+/// moved by +-`frac` of its box width, and at random points of that neighbourhood.
+fn local_basis(
+    data: &BridgeData,
+    center: &[f64],
+    frac: f64,
+    settings: &BridgeSettings,
+    rng: &mut ChaCha8Rng,
+) -> Result<ReducedModes> {
+    let bounds = smu_bounds();
+    let mut snaps = vec![center.to_vec()];
+    for (j, &b) in bounds.iter().enumerate() {
+        for s in [-1.0, 1.0] {
+            let mut a = center.to_vec();
+            a[j] = fold(a[j] + s * frac * (b.1 - b.0), b);
+            snaps.push(a);
+        }
+    }
+    for _ in 0..settings.n_random_snapshots {
+        snaps.push(
+            center
+                .iter()
+                .zip(&bounds)
+                .map(|(&c, &b)| {
+                    let u = Uniform::new(-frac, frac).map_or(0.0, |u| u.sample(rng));
+                    fold(c + u * (b.1 - b.0), b)
+                })
+                .collect(),
+        );
+    }
+    let pairs: Vec<_> = snaps.into_iter().map(|a| (a, Vec::new())).collect();
+    let opts = BasisOptions {
+        modes_per_snapshot: settings.basis.modes_per_snapshot,
+        rel_tol: settings.basis.rel_tol,
+        max_size: settings.basis.max_size,
+    };
+    ReducedModes::from_snapshots(&data.model, &pairs, &opts)
+}
+
+/// Walkers from the Gauss-Newton covariance `(J^T J)^-1` of the whitened residuals at
+/// `center` (noise scales at their residual rms, `ln sigma` with sd `1/sqrt(2 n_b)`),
+/// folded into the box; `n` positions.
+fn gauss_newton_start<P: crate::predict::Predict>(
+    post: &Posterior<P>,
+    center: &[f64],
+    sigma: &[f64],
+    n_per_scale: &[usize],
+    n: usize,
+    rng: &mut ChaCha8Rng,
+) -> Result<Start> {
+    let ls = post.least_squares(sigma)?;
+    let (m, k) = (ls.n_residuals(), ls.n_params());
+    let mut jac = DMatrix::zeros(m, k);
+    ls.jacobian(center, &mut ls.workspace(), &mut jac)?;
+    let mut info = jac.transpose() * &jac;
+    let ridge = 1e-10 * info.diagonal().max();
+    for i in 0..k {
+        info[(i, i)] += ridge;
+    }
+    let cov = info
+        .try_inverse()
+        .ok_or_else(|| Error::Numerical("singular Gauss-Newton information".into()))?;
+    let l = cov
+        .cholesky()
+        .ok_or_else(|| Error::Numerical("Gauss-Newton covariance not positive definite".into()))?
+        .l();
+    let bounds = post.prior().bounds_of_first(post.dim())?;
+    let unit = Normal::new(0.0, 1.0).map_err(|e| Error::Numerical(e.to_string()))?;
+    let positions = (0..n)
+        .map(|_| {
+            let e = DVector::from_fn(k, |_, _| unit.sample(rng));
+            let d = &l * e;
+            let mut z: Vec<f64> = (0..k).map(|i| center[i] + d[i]).collect();
+            for (s, &nb) in sigma.iter().zip(n_per_scale) {
+                z.push(s.ln() + unit.sample(rng) / (2.0 * nb as f64).sqrt());
+            }
+            z.iter()
+                .enumerate()
+                .map(|(i, &v)| fold(v, (bounds.lower()[i], bounds.upper()[i])))
+                .collect()
+        })
+        .collect();
+    Ok(Start::Positions(positions))
+}
+
+/// Samples the Bayesian posterior from around `map_alpha` on a local basis, and checks
+/// the basis and the fit through the predictive draws.
+pub fn sample_posterior(
+    data: &BridgeData,
+    map_alpha: &[f64],
+    settings: &BridgeSettings,
+    sampling: &mut Sampling<'_>,
+) -> Result<BridgePosterior> {
+    let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0xb41d);
+    let t0 = Instant::now();
+    let reduced = local_basis(data, map_alpha, settings.local_fraction, settings, &mut rng)?;
+    let basis_build_s = t0.elapsed().as_secs_f64();
+    let post = bayes_posterior(data, reduced.clone())?;
+    let res = post.residuals(map_alpha)?;
+    let n_modes = data.n_modes();
+    let rms = |r: &[f64]| (r.iter().map(|v| v * v).sum::<f64>() / r.len() as f64).sqrt();
+    let sigma = [rms(&res[..n_modes]), rms(&res[n_modes..])];
+    let n_per_scale = [n_modes, res.len() - n_modes];
+    let start = gauss_newton_start(&post, map_alpha, &sigma, &n_per_scale, 4 * settings.n_walkers, &mut rng)?;
+    let sampled = sample_to_targets(
+        &post,
+        start,
+        settings.n_walkers,
+        settings.seed,
+        &Targets::default(),
+        "bridge-fe posterior",
+        sampling,
+    )?;
+    let bounds = post.prior().bounds_of_first(post.dim())?;
+    let bounds: Vec<(f64, f64)> = bounds.lower().iter().copied().zip(bounds.upper().iter().copied()).collect();
+    let names = post.names().to_vec();
+    let rows: Vec<ParameterSummary> = (0..post.dim())
+        .map(|p| {
+            let chains = sampled.chains(p, |v| v);
+            let at = near_bound(&chains, bounds[p]);
+            row_from_chains(&names[p], "-", &chains, settings.n_walkers, sampled.tau_steps[p], at)
+        })
+        .collect();
+    let (freq_hz, mac, draws) = predictive(data, &post, &sampled, settings.n_predictive)?;
+    let checks: Vec<Vec<f64>> = draws.iter().step_by((draws.len() / settings.n_check_points.max(1)).max(1)).take(settings.n_check_points).cloned().collect();
+    let basis_at_draws = compare_with_full(&data.model, &reduced, &checks, n_modes, &data.meas_dofs)?;
+    let prior_sd: Vec<f64> = bounds.iter().map(|(lo, hi)| (hi - lo) / 12f64.sqrt()).collect();
+    let verdicts = rows.iter().zip(&prior_sd).map(|(r, &p)| Identified::judge(r, p)).collect();
+    Ok(BridgePosterior {
+        prior_sd,
+        verdicts,
+        sampled,
+        rows,
+        freq_hz,
+        mac,
+        basis_size: reduced.size(),
+        basis_build_s,
+        basis_at_draws,
+    })
+}
+
+/// Frequencies and MACs (against the measured shapes) of `n` draws spread evenly over
+/// the kept draws, and those draws' alphas.
+#[allow(clippy::type_complexity)]
+fn predictive(
+    data: &BridgeData,
+    post: &Posterior<ModalPredictor<ReducedModes>>,
+    sampled: &Sampled,
+    n: usize,
+) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>)> {
+    let d = &sampled.draws;
+    let total = d.n_chains * d.n_draws;
+    if total == 0 {
+        return Err(Error::Numerical("no posterior draws".into()));
+    }
+    let n = n.clamp(1, total);
+    let p = post.predictor();
+    let (mut freqs, mut macs, mut alphas) = (Vec::new(), Vec::new(), Vec::new());
+    for k in 0..n {
+        let idx = k * total / n;
+        let z = d.draw(idx % d.n_chains, idx / d.n_chains);
+        let alpha = &z[..post.n_model()];
+        let pred = post.predict(alpha)?;
+        freqs.push(pred[p.freq_range()].to_vec());
+        macs.push(
+            (0..data.n_modes())
+                .map(|i| crate::modal::mac(&pred[p.shape_range(i)], data.psi_exp.column(i).as_slice()))
+                .collect(),
+        );
+        alphas.push(alpha.to_vec());
+    }
+    Ok((freqs, macs, alphas))
+}
