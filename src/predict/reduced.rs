@@ -26,7 +26,8 @@ use super::modal::ModeSolver;
 use crate::error::{Error, Result};
 use crate::modal::condensed::lowest_modes_condensed;
 use crate::modal::dense::{
-    cholesky_in_place, matmul, solve_lower, solve_lower_transpose, symmetric_eigen, symmetrise,
+    cholesky_in_place, matmul, solve_lower, solve_lower_transpose, symmetric_eigen,
+    symmetrise,
 };
 use crate::model::StructuralModel;
 
@@ -131,7 +132,11 @@ impl ReducedModes {
         let solved: Vec<_> = snapshots
             .par_iter()
             .map(|(a, b)| {
-                lowest_modes_condensed(&model.stiffness(a), &model.mass(b), opts.modes_per_snapshot)
+                lowest_modes_condensed(
+                    &model.stiffness(a),
+                    &model.mass(b),
+                    opts.modes_per_snapshot,
+                )
             })
             .collect::<Result<_>>()?;
         let n = model.n_dof();
@@ -140,10 +145,7 @@ impl ReducedModes {
         let mut lambdas: Vec<f64> = solved.iter().flat_map(|s| s.eigenvalues.clone()).collect();
         lambdas.sort_by(f64::total_cmp);
         let lambda_ref = lambdas[lambdas.len() / 2].max(f64::MIN_POSITIVE);
-        let (k0, m0) = (
-            model.stiffness(&model.alpha_zero()),
-            model.mass(&model.beta_zero()),
-        );
+        let (k0, m0) = (model.stiffness(&model.alpha_zero()), model.mass(&model.beta_zero()));
         let w = &m0 + &k0 / lambda_ref;
         let gram = project(&x, &w);
         let (s, u) = symmetric_eigen(gram.as_ref())?;
@@ -393,8 +395,7 @@ pub fn compare_with_full(
             let mut sh = vec![0.0; n_modes * dofs.len()];
             let mut ws = reduced.workspace();
             reduced.lowest_modes(alpha, &beta, dofs, &mut ws, &mut ev, &mut sh)?;
-            let exact =
-                lowest_modes_condensed(&model.stiffness(alpha), &model.mass(&beta), n_modes)?;
+            let exact = lowest_modes_condensed(&model.stiffness(alpha), &model.mass(&beta), n_modes)?;
             let nd = dofs.len();
             let one_minus_mac = (0..n_modes)
                 .map(|i| {
@@ -457,11 +458,10 @@ mod tests {
     #[test]
     fn reduced_basis_is_exact_at_its_snapshots_and_bounds_elsewhere() {
         let model = chain_model(40);
-        let snaps: Vec<(Vec<f64>, Vec<f64>)> =
-            [[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [-0.3, 0.2, 0.5]]
-                .iter()
-                .map(|a| (a.to_vec(), Vec::new()))
-                .collect();
+        let snaps: Vec<(Vec<f64>, Vec<f64>)> = [[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [-0.3, 0.2, 0.5]]
+            .iter()
+            .map(|a| (a.to_vec(), Vec::new()))
+            .collect();
         let opts = BasisOptions {
             modes_per_snapshot: 8,
             ..BasisOptions::default()
@@ -470,11 +470,7 @@ mod tests {
         assert!(red.size() <= 24 && red.size() >= 8, "{}", red.size());
         let dofs: Vec<usize> = (0..80).step_by(4).collect();
         let at_snap = compare_with_full(&model, &red, &[snaps[1].0.clone()], 6, &dofs).unwrap();
-        for (e, m) in at_snap[0]
-            .eigenvalue_rel
-            .iter()
-            .zip(&at_snap[0].one_minus_mac)
-        {
+        for (e, m) in at_snap[0].eigenvalue_rel.iter().zip(&at_snap[0].one_minus_mac) {
             assert!(e.abs() < 1e-10 && *m < 1e-10, "{e} {m}");
         }
         let other = compare_with_full(&model, &red, &[vec![0.1, 0.1, 0.3]], 6, &dofs).unwrap();
@@ -505,29 +501,11 @@ mod tests {
         let params = Parametrisation::all_alphas(&model).unwrap();
         let dofs: Vec<usize> = (0..60).step_by(6).collect();
         let p = ModalPredictor::new(red, params, dofs.clone(), vec![0, 1, 2]).unwrap();
-        let shape: Vec<f64> = (0..dofs.len())
-            .map(|k| 0.3 + (k as f64 * 0.7).sin())
-            .collect();
+        let shape: Vec<f64> = (0..dofs.len()).map(|k| 0.3 + (k as f64 * 0.7).sin()).collect();
         let blocks = vec![
-            Block::values(
-                "f",
-                p.freq_range(),
-                &[1.0, 2.0, 3.0],
-                &[0.1, 0.2, 0.3],
-                Transform::EigenvalueOfHz,
-                NoiseScale::Fixed(1.0),
-            )
-            .unwrap(),
+            Block::values("f", p.freq_range(), &[1.0, 2.0, 3.0], &[0.1, 0.2, 0.3], Transform::EigenvalueOfHz, NoiseScale::Fixed(1.0)).unwrap(),
             Block::shape_mac("mac", p.shape_range(0), &shape, NoiseScale::Fixed(2.0)).unwrap(),
-            Block::shape_difference(
-                "diff",
-                p.shape_range(1),
-                &shape,
-                3,
-                &vec![1.5; dofs.len()],
-                NoiseScale::Fixed(1.0),
-            )
-            .unwrap(),
+            Block::shape_difference("diff", p.shape_range(1), &shape, 3, &vec![1.5; dofs.len()], NoiseScale::Fixed(1.0)).unwrap(),
         ];
         let post = Posterior::new(p, &[(-0.5, 0.5); 3], &[], blocks).unwrap();
         let ls = post.least_squares(&[]).unwrap();
@@ -536,14 +514,7 @@ mod tests {
         let (m, n) = (ls.n_residuals(), 3);
         let mut jac = DMatrix::zeros(m, n);
         ls.jacobian(&x, &mut ws, &mut jac).unwrap();
-        assert!(post
-            .predictor()
-            .jacobian(
-                &x,
-                &mut post.predictor().workspace(),
-                &mut DMatrix::zeros(post.predictor().n_outputs(), 3)
-            )
-            .unwrap());
+        assert!(post.predictor().jacobian(&x, &mut post.predictor().workspace(), &mut DMatrix::zeros(post.predictor().n_outputs(), 3)).unwrap());
         let h = 1e-6;
         let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
         let mut worst: f64 = 0.0;
@@ -557,10 +528,6 @@ mod tests {
                 worst = worst.max((jac[(i, j)] - (rp[i] - rm[i]) / (2.0 * h)).abs());
             }
         }
-        assert!(
-            worst < 1e-6 * jac.amax(),
-            "worst {worst}, max {}",
-            jac.amax()
-        );
+        assert!(worst < 1e-6 * jac.amax(), "worst {worst}, max {}", jac.amax());
     }
 }

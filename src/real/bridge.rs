@@ -27,8 +27,8 @@ const MANIFEST: &str = include_str!("../../experiments/models/bridge-fe.toml");
 
 /// SMU's published optimum (`PostProcess.m`, 4 decimals), SMU's order.
 pub const SMU_PUBLISHED_ALPHA: [f64; 17] = [
-    -0.1, -0.045, 0.4, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, 0.4, 0.4, -0.7168, 3.9951,
-    -0.1633, 10.0,
+    -0.1, -0.045, 0.4, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, 0.4, 0.4, -0.7168,
+    3.9951, -0.1633, 10.0,
 ];
 /// SMU's published objective `f = sum r^2` at its optimum.
 pub const SMU_PUBLISHED_OBJECTIVE: f64 = 2.8474;
@@ -80,10 +80,7 @@ fn shared_of(data_dir: &Path) -> &Path {
 /// `data_dir` (`<shared>/data/real/bridge-fe`).
 pub fn load(data_dir: &Path) -> Result<BridgeData> {
     let shared = shared_of(data_dir).display().to_string();
-    let text = MANIFEST.replace(
-        "{shared}",
-        &shared.replace('\\', "\\\\").replace('"', "\\\""),
-    );
+    let text = MANIFEST.replace("{shared}", &shared.replace('\\', "\\\\").replace('"', "\\\""));
     let label = Path::new("experiments/models/bridge-fe.toml");
     let model = ModelManifest::load_text(&text, label, data_dir)?;
     let meas_dofs = model.measured_dofs().to_vec();

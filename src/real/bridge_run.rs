@@ -222,10 +222,7 @@ pub fn build_basis(
     let checks = box_points(settings.n_check_points, &mut rng);
     let n_modes = data.n_modes();
     let points = compare_with_full(&data.model, &reduced, &checks, n_modes, &data.meas_dofs)?;
-    let mut rel: Vec<f64> = points
-        .iter()
-        .flat_map(|p| p.eigenvalue_rel.clone())
-        .collect();
+    let mut rel: Vec<f64> = points.iter().flat_map(|p| p.eigenvalue_rel.clone()).collect();
     rel.sort_by(f64::total_cmp);
     let max_one_minus_mac = points
         .iter()
@@ -379,7 +376,12 @@ fn gradient<P: crate::predict::Predict>(post: &Posterior<P>, alpha: &[f64]) -> R
 
 /// Walker positions: `center` plus Gaussian jitter of 1 % of each coordinate's box
 /// width, folded back into the box; 4 ensembles of `n_walkers`.
-fn start_positions(center: &[f64], bounds: &[(f64, f64)], n: usize, rng: &mut ChaCha8Rng) -> Start {
+fn start_positions(
+    center: &[f64],
+    bounds: &[(f64, f64)],
+    n: usize,
+    rng: &mut ChaCha8Rng,
+) -> Start {
     let unit = Normal::new(0.0, 1.0).expect("unit normal");
     let positions = (0..n)
         .map(|_| {
@@ -418,12 +420,7 @@ pub fn sample_posterior(
     center.push(rms(post.residual_range(0)).ln());
     center.push(rms(data.n_modes()..data.n_modes() + n_shape).ln());
     let bounds = post.prior().bounds_of_first(post.dim())?;
-    let bounds: Vec<(f64, f64)> = bounds
-        .lower()
-        .iter()
-        .copied()
-        .zip(bounds.upper().iter().copied())
-        .collect();
+    let bounds: Vec<(f64, f64)> = bounds.lower().iter().copied().zip(bounds.upper().iter().copied()).collect();
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed ^ 0xb41d);
     let start = start_positions(&center, &bounds, 4 * settings.n_walkers, &mut rng);
     let sampled = super::posterior::sample_to_targets(
@@ -440,21 +437,11 @@ pub fn sample_posterior(
         .map(|p| {
             let chains = sampled.chains(p, |v| v);
             let at = near_bound(&chains, bounds[p]);
-            row_from_chains(
-                &names[p],
-                "-",
-                &chains,
-                settings.n_walkers,
-                sampled.tau_steps[p],
-                at,
-            )
+            row_from_chains(&names[p], "-", &chains, settings.n_walkers, sampled.tau_steps[p], at)
         })
         .collect();
     let (freq_hz, mac) = predictive(data, &post, &sampled, settings.n_predictive)?;
-    let prior_sd: Vec<f64> = bounds
-        .iter()
-        .map(|(lo, hi)| (hi - lo) / 12f64.sqrt())
-        .collect();
+    let prior_sd: Vec<f64> = bounds.iter().map(|(lo, hi)| (hi - lo) / 12f64.sqrt()).collect();
     let verdicts = rows
         .iter()
         .zip(&prior_sd)
@@ -493,9 +480,7 @@ fn predictive(
         freqs.push(pred[p.freq_range()].to_vec());
         macs.push(
             (0..data.n_modes())
-                .map(|i| {
-                    crate::modal::mac(&pred[p.shape_range(i)], data.psi_exp.column(i).as_slice())
-                })
+                .map(|i| crate::modal::mac(&pred[p.shape_range(i)], data.psi_exp.column(i).as_slice()))
                 .collect(),
         );
     }
@@ -511,11 +496,7 @@ pub fn run(
     let (reduced, basis) = build_basis(data, settings)?;
     let smu = smu_fit(data, &reduced, Weighting::SmuLinearIndex, settings)?;
     let per_entry = smu_fit(data, &reduced, Weighting::PerEntry, settings)?;
-    let exact = smu_posterior(
-        data,
-        CondensedModes::new(data.model.clone()),
-        Weighting::SmuLinearIndex,
-    )?;
+    let exact = smu_posterior(data, CondensedModes::new(data.model.clone()), Weighting::SmuLinearIndex)?;
     let published_objective = objective(&exact, &SMU_PUBLISHED_ALPHA)?;
     let posterior = sample_posterior(data, &reduced, &per_entry.alpha, settings, sampling)?;
     let freq_exp_hz = data.freq_exp_hz();
@@ -534,11 +515,6 @@ pub fn run(
         posterior,
         freq_exp_hz,
         std_freq_hz,
-        names: data
-            .model
-            .alpha_parameters()
-            .iter()
-            .map(|p| p.name.clone())
-            .collect(),
+        names: data.model.alpha_parameters().iter().map(|p| p.name.clone()).collect(),
     })
 }
