@@ -35,8 +35,12 @@ enum Command {
     Run(cli::repro::RunArgs),
     /// Studies on real measurements (../shared/data/real): four-story-modal, wheel-frf, tower-hmd.
     Real(cli::real::Args),
-    /// Sample the posterior of masses, stiffnesses and damping given a campaign's FRFs.
+    /// Sample the posterior of masses, stiffnesses and damping given a campaign's FRFs
+    /// (shear frame or general model: the campaign's manifest gives the variables).
     Sample(cli::sample::Args),
+    /// Maximum-likelihood update of the same model (multistart least squares on the
+    /// standardised FRF magnitudes, Gauss-Newton sd): takes `sample`'s flags, writes fit.json.
+    Fit(cli::sample::Args),
     /// Simulate a campaign with known truth from a model file.
     Simulate(cli::simulate::Args),
 }
@@ -67,6 +71,7 @@ fn main() -> std::process::ExitCode {
         Command::Run(a) => cli::repro::run(a),
         Command::Real(a) => cli::real::run_cmd(a),
         Command::Sample(a) => cli::sample::run(a),
+        Command::Fit(a) => cli::sample::fit(a),
         Command::Simulate(a) => cli::simulate::run(a),
     };
     match result {

@@ -74,6 +74,10 @@ pub struct FrfData {
     pub sigma: Vec<f64>,
     /// Points whose relative standard deviation was raised to the floor.
     pub n_floored: usize,
+    /// Selected bins left out because a used response had zero coherence there (no
+    /// finite error; see [`FrfData::with_input_noise`]).
+    #[serde(default)]
+    pub n_dropped_bins: usize,
     /// Noise shared between points, on top of `sigma` (empty: independent points).
     #[serde(default)]
     pub correlated: Vec<CorrelatedNoise>,
@@ -106,6 +110,13 @@ impl FrfData {
     /// (magnitude residuals) or `a_k` (log residuals), `a` the low-rank relative loadings
     /// of [`crate::signal::InputNoise::low_rank`] at the test's selected bins (the same
     /// for every response).
+    ///
+    /// A selected bin where the coherence of one of the used responses is zero (or not
+    /// a number) has no finite Bendat & Piersol error: the estimator says the response
+    /// there is noise. Such bins are left out of the test's block (for all of its
+    /// responses) and counted in [`Self::n_dropped_bins`]. This happens on noisy
+    /// simulated campaigns of general models (a displacement sensor's band edges); a
+    /// test whose every selected bin is dropped is an error naming it.
     pub fn with_input_noise(
         frfs: &[&TestFrf],
         kind: FrfKind,
@@ -126,79 +137,11 @@ impl FrfData {
             residual,
             sigma: Vec::new(),
             n_floored: 0,
+            n_dropped_bins: 0,
             correlated: Vec::new(),
         };
         for frf in frfs {
-            let full = frf.frf_block()?;
-            let mags = frf.selected_magnitudes();
-            let shared = match (&frf.input_noise, input_noise) {
-                (Some(n), InputNoiseModel::Shared) => {
-                    Some(n.low_rank(&frf.selected, SHARED_NOISE_REL_TOL)?)
-                }
-                _ => None,
-            };
-            let rel = match shared {
-                Some(_) => frf.selected_output_rel_std(),
-                None => frf.selected_rel_std(),
-            };
-            let nw = full.omega_rad_s.len();
-            let start = data.magnitude.len();
-            let mut pairs = Vec::new();
-            let mut loadings = Vec::new();
-            for (j, p) in full.pairs.iter().enumerate() {
-                if p.kind != kind || nw == 0 {
-                    continue;
-                }
-                pairs.push(*p);
-                for (i, (&m, &r)) in mags[j * nw..(j + 1) * nw]
-                    .iter()
-                    .zip(&rel[j * nw..(j + 1) * nw])
-                    .enumerate()
-                {
-                    if !(m.is_finite() && m > 0.0) {
-                        return Err(Error::Usage(format!(
-                            "test {}: measured magnitude {m} at a selected point; \
-                             magnitudes must be positive",
-                            frf.test
-                        )));
-                    }
-                    let r = if r.is_nan() { f64::INFINITY } else { r };
-                    if r < rel_sigma_floor {
-                        data.n_floored += 1;
-                    }
-                    let mut r = r.max(rel_sigma_floor);
-                    if let Some(lr) = &shared {
-                        r = (r * r + lr.dropped_var[i]).sqrt();
-                        let unit = match residual {
-                            ResidualForm::Magnitude => m,
-                            ResidualForm::LogMagnitude => 1.0,
-                        };
-                        let row = &lr.loadings[i * lr.rank..(i + 1) * lr.rank];
-                        loadings.extend(row.iter().map(|a| a * unit));
-                    }
-                    data.magnitude.push(m);
-                    data.sigma.push(match residual {
-                        ResidualForm::Magnitude => m * r,
-                        ResidualForm::LogMagnitude => r,
-                    });
-                }
-            }
-            if let Some(lr) = shared.filter(|lr| lr.rank > 0 && !pairs.is_empty()) {
-                data.correlated.push(CorrelatedNoise {
-                    start,
-                    len: data.magnitude.len() - start,
-                    rank: lr.rank,
-                    loadings,
-                });
-            }
-            if !pairs.is_empty() {
-                data.blocks.push(FrfBlock {
-                    omega_rad_s: full.omega_rad_s.clone(),
-                    pairs,
-                });
-                data.tests.push(frf.test.clone());
-                data.window_tau_s.push(frf.exp_window_tau_s);
-            }
+            data.push_test(frf, kind, rel_sigma_floor, input_noise)?;
         }
         if data.blocks.is_empty() {
             return Err(Error::Usage(format!(
@@ -207,6 +150,98 @@ impl FrfData {
         }
         data.validate()?;
         Ok(data)
+    }
+
+    /// Appends the `kind` responses of one test at its selected bins with finite errors
+    /// (see [`Self::with_input_noise`]).
+    fn push_test(
+        &mut self,
+        frf: &TestFrf,
+        kind: FrfKind,
+        rel_sigma_floor: f64,
+        input_noise: InputNoiseModel,
+    ) -> Result<()> {
+        let full = frf.frf_block()?;
+        let mags = frf.selected_magnitudes();
+        let noise = frf
+            .input_noise
+            .as_ref()
+            .filter(|_| input_noise == InputNoiseModel::Shared);
+        let rel = match noise {
+            Some(_) => frf.selected_output_rel_std(),
+            None => frf.selected_rel_std(),
+        };
+        let nw = full.omega_rad_s.len();
+        let used: Vec<usize> = (0..full.pairs.len())
+            .filter(|&j| full.pairs[j].kind == kind && nw > 0)
+            .collect();
+        // positions (into `selected`) of the bins kept: every used response has a
+        // finite error there
+        let keep: Vec<usize> = (0..nw)
+            .filter(|&i| used.iter().all(|&j| rel[j * nw + i].is_finite()))
+            .collect();
+        if !used.is_empty() && keep.is_empty() {
+            return Err(Error::Usage(format!(
+                "test {}: every selected bin has a {kind:?} response with zero coherence \
+                 (no finite error); the test carries no usable {kind:?} points",
+                frf.test
+            )));
+        }
+        self.n_dropped_bins += (nw - keep.len()) * usize::from(!used.is_empty());
+        let bins: Vec<usize> = keep.iter().map(|&i| frf.selected[i]).collect();
+        let shared = noise
+            .map(|n| n.low_rank(&bins, SHARED_NOISE_REL_TOL))
+            .transpose()?;
+        let start = self.magnitude.len();
+        let mut loadings = Vec::new();
+        for &j in &used {
+            for (q, &i) in keep.iter().enumerate() {
+                let (m, r) = (mags[j * nw + i], rel[j * nw + i]);
+                if !(m.is_finite() && m > 0.0) {
+                    return Err(Error::Usage(format!(
+                        "test {}: measured magnitude {m} at a selected point; \
+                         magnitudes must be positive",
+                        frf.test
+                    )));
+                }
+                if r < rel_sigma_floor {
+                    self.n_floored += 1;
+                }
+                let mut r = r.max(rel_sigma_floor);
+                if let Some(lr) = &shared {
+                    r = (r * r + lr.dropped_var[q]).sqrt();
+                    let unit = match self.residual {
+                        ResidualForm::Magnitude => m,
+                        ResidualForm::LogMagnitude => 1.0,
+                    };
+                    let row = &lr.loadings[q * lr.rank..(q + 1) * lr.rank];
+                    loadings.extend(row.iter().map(|a| a * unit));
+                }
+                self.magnitude.push(m);
+                self.sigma.push(match self.residual {
+                    ResidualForm::Magnitude => m * r,
+                    ResidualForm::LogMagnitude => r,
+                });
+            }
+        }
+        if used.is_empty() {
+            return Ok(());
+        }
+        if let Some(lr) = shared.filter(|lr| lr.rank > 0) {
+            self.correlated.push(CorrelatedNoise {
+                start,
+                len: self.magnitude.len() - start,
+                rank: lr.rank,
+                loadings,
+            });
+        }
+        self.blocks.push(FrfBlock {
+            omega_rad_s: keep.iter().map(|&i| full.omega_rad_s[i]).collect(),
+            pairs: used.iter().map(|&j| full.pairs[j]).collect(),
+        });
+        self.tests.push(frf.test.clone());
+        self.window_tau_s.push(frf.exp_window_tau_s);
+        Ok(())
     }
 
     /// Number of points.

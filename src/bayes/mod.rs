@@ -58,8 +58,10 @@
 pub mod coverage;
 mod data;
 pub mod figures;
+pub mod fit;
 mod forward;
 mod likelihood;
+mod moves;
 mod posterior;
 pub mod predictive;
 pub mod prior;

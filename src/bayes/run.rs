@@ -9,7 +9,8 @@
 //!   otherwise so that `--resume --max-steps <more>` extends it);
 //! - `posterior.json` ([`PosteriorSummary`]), `draws.csv` and `draws.npy` (physical units,
 //!   `(chain, draw, parameter)`, parameter order as in `posterior.json`),
-//!   `ln_posterior.npy` `(chain, draw)`, `log_likelihood.npy` `(chain, draw, point)`;
+//!   `ln_posterior.npy` `(chain, draw)`, `log_likelihood.npy` `(chain, draw, point)`
+//!   (`log_likelihood_thin<k>.npy`, every k-th draw, above [`MAX_POINTWISE_VALUES`]);
 //! - figures `corner`, `traces`, `predictive`, `cv` (PNG and SVG), `run.json`.
 //!
 //! Every file is written atomically. Chains are walkers (chain = ensemble x walkers +
@@ -17,6 +18,7 @@
 
 use super::data::{FrfData, InputNoiseModel, DEFAULT_REL_SIGMA_FLOOR};
 use super::figures::write_figures;
+pub use super::moves::{de_stretch_moves, default_moves};
 use super::posterior::{FrfPosterior, PosteriorOptions};
 use super::start::{ball_positions, find_start, StartPoint};
 use super::summary::{
@@ -26,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::frf::FrfKind;
 use crate::io::{read_campaign, resolve_data, write_atomic, Campaign, RunInfo};
 use crate::mcmc::{
-    Burn, CheckpointConfig, Draws, LogDensity, MoveSpec, Moves, ProgressFn, RunSummary, Sampler,
+    Burn, CheckpointConfig, Draws, LogDensity, Moves, ProgressFn, RunSummary, Sampler,
     SamplerConfig, Start, StopReason, WeightedMove,
 };
 use crate::signal::{estimate_campaign, EstimateSection, InputKind, TestFrf};
@@ -147,59 +149,6 @@ impl SampleSettings {
     pub fn to_toml(&self) -> Result<String> {
         toml::to_string(self).map_err(|e| Error::Usage(format!("settings: {e}")))
     }
-}
-
-/// The default move mixture: 0.5 differential evolution + 0.5 independence
-/// ([`crate::mcmc::Independence`], a multivariate t with 10 degrees of freedom fitted to
-/// the complementary half-ensemble), with 12 x dim walkers per ensemble.
-///
-/// Measured on the four-story campaign (hammer tests, Caughey receptance, 13 parameters,
-/// 4 ensembles, seed 1, one thread, `tests/bayes_bench.rs`; smallest bulk ESS per second
-/// of sampling, same session): 0.9 DE + 0.1 stretch with 4 x dim walkers 2318/s (the
-/// former default; 8 x dim: 2838/s), 0.5 DE + 0.5 independence with 4 x dim 2826/s,
-/// 8 x dim 7789/s, 12 x dim 10656/s, 0.3 DE + 0.7 independence with 8 x dim 8936/s. The
-/// independence proposal needs a complement well above the dimension (its covariance
-/// estimate), hence the larger ensembles; DE keeps the local exploration and the
-/// burn-in. Earlier measurements without it (integrated autocorrelation time in steps,
-/// mean over parameters, hammer / shake table, 4 x 52 walkers): DE alone 45 / 45,
-/// 0.9 DE + 0.1 stretch 47 / 46, 0.9 DE + 0.1 snooker 50 / 48, 0.5 DE + 0.5 stretch
-/// 64 / 67, stretch alone 170 / 176.
-pub fn default_moves() -> Vec<WeightedMove> {
-    vec![
-        WeightedMove {
-            spec: MoveSpec::De {
-                gamma0: None,
-                sigma: 1e-5,
-            },
-            weight: 0.5,
-        },
-        WeightedMove {
-            spec: MoveSpec::Independence {
-                nu: 10.0,
-                gaussian: false,
-                scale: 1.0,
-            },
-            weight: 0.5,
-        },
-    ]
-}
-
-/// The former default, 0.9 differential evolution + 0.1 stretch (4 x dim walkers): the
-/// moves emcee also has, for like-for-like comparisons (`benches/emcee_vs_rust.py`).
-pub fn de_stretch_moves() -> Vec<WeightedMove> {
-    vec![
-        WeightedMove {
-            spec: MoveSpec::De {
-                gamma0: None,
-                sigma: 1e-5,
-            },
-            weight: 0.9,
-        },
-        WeightedMove {
-            spec: MoveSpec::Stretch { a: 2.0 },
-            weight: 0.1,
-        },
-    ]
 }
 
 /// The campaign's FRF estimates and the posterior of a run.
@@ -375,7 +324,7 @@ fn toml_value(settings: &SampleSettings) -> Result<serde_json::Value> {
     serde_json::to_value(settings).map_err(|e| Error::Numerical(format!("settings: {e}")))
 }
 
-fn multistart_options(settings: &SampleSettings) -> MultistartOptions {
+pub(crate) fn multistart_options(settings: &SampleSettings) -> MultistartOptions {
     MultistartOptions {
         n_starts: settings.n_starts,
         seed: settings.seed,
@@ -508,7 +457,16 @@ fn finish(
     info.timings_s.push(("sampling".into(), wall_s));
     stage("writing outputs");
     let (summary, mut draws) = summarize_run(post, sampler, &run, wall_s, settings)?;
-    info.time("pointwise_log_likelihood", || draws.compute_pointwise(post))?;
+    let every = pointwise_thin(draws.n_chains * draws.n_draws, post.data().len());
+    // Small enough: every draw, as ever; else a thinned copy (see `MAX_POINTWISE_VALUES`).
+    let thinned = info.time("pointwise_log_likelihood", || -> Result<Option<Draws>> {
+        if every == 1 {
+            return draws.compute_pointwise(post).map(|()| None);
+        }
+        let mut t = draws.thinned(every);
+        t.compute_pointwise(post)?;
+        Ok(Some(t))
+    })?;
     let params = output_params(post);
     let phys = physical_draws(post, &params, &draws);
     let names: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
@@ -517,7 +475,10 @@ fn finish(
         phys.write_csv(&out.join("draws.csv"), &names)?;
         phys.write_npy(&out.join("draws.npy"))?;
         phys.write_ln_density_npy(&out.join("ln_posterior.npy"))?;
-        phys.write_pointwise_npy(&out.join("log_likelihood.npy"))
+        match &thinned {
+            None => phys.write_pointwise_npy(&out.join("log_likelihood.npy")),
+            Some(t) => t.write_pointwise_npy(&out.join(format!("log_likelihood_thin{every}.npy"))),
+        }
     })?;
     info.time("figures", || {
         write_figures(out, prep, sampler, &params, &draws, settings)
@@ -535,6 +496,17 @@ fn finish(
         start,
         info,
     })
+}
+
+/// Most values of the pointwise log-likelihood array a run writes (2^27, 1 GiB of
+/// f64). Above it (e.g. the ten-story frame: 1104 walkers x ~400 draws x ~1200 points,
+/// 4 GiB) `log_likelihood_thin<k>.npy` holds every k-th draw of each chain instead of
+/// `log_likelihood.npy`, k the smallest that fits. The four-story runs stay below it.
+pub const MAX_POINTWISE_VALUES: usize = 1 << 27;
+
+/// The k of [`MAX_POINTWISE_VALUES`] for `n_rows` draws (all chains) of `n_points`.
+fn pointwise_thin(n_rows: usize, n_points: usize) -> usize {
+    (n_rows * n_points).div_ceil(MAX_POINTWISE_VALUES).max(1)
 }
 
 /// The kept draws (automatic burn-in, or the second half when tau is not yet reliable)

@@ -225,6 +225,7 @@ pub fn small_problem(residual: ResidualForm, prior: PriorKind) -> Result<FrfPost
         residual,
         sigma: vec![1.0; n],
         n_floored: 0,
+        n_dropped_bins: 0,
         correlated: Vec::new(),
     };
     let options = PosteriorOptions {

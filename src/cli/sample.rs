@@ -104,6 +104,49 @@ pub struct Args {
     /// Multistart solves for the start point [default: 32].
     #[arg(long)]
     pub starts: Option<usize>,
+    /// Prior box of every stiffness variable alpha, `LO,HI`: multipliers of the model's
+    /// influence matrices, `K = K0 + sum_r alpha_r K_r` (for a shear frame and for a
+    /// manifest whose `K_r` are the parts at their nominal values, story r has
+    /// `k_r0 (1 + alpha_r)`) [default: -0.3,0.3].
+    #[arg(long, value_name = "LO,HI", value_parser = parse_box, allow_hyphen_values = true)]
+    pub alpha_bounds: Option<Box2>,
+    /// Prior box of every mass variable beta, `LO,HI`, `M = M0 + sum_r beta_r M_r`
+    /// [default: -0.1,0.111, the paper's bounds].
+    #[arg(long, value_name = "LO,HI", value_parser = parse_box, allow_hyphen_values = true)]
+    pub beta_bounds: Option<Box2>,
+    /// Prior box of one variable by name, `NAME=LO,HI` (repeatable), overriding the
+    /// above: `--bound k3=-0.5,0.5`, `--bound a1=1e-6,1e-2` (damping in physical units:
+    /// a0 1/s [default 1e-4,1], a1 s [1e-10,1e-3], xiN [1e-4,0.1]).
+    #[arg(long = "bound", value_name = "NAME=LO,HI", value_parser = parse_named_box, allow_hyphen_values = true)]
+    pub bounds: Vec<(String, Box2)>,
+}
+
+/// A `[lower, upper]` pair given on the command line.
+pub type Box2 = [f64; 2];
+
+/// Parses `LO,HI` (finite, `LO < HI`).
+fn parse_box(s: &str) -> Result<Box2, String> {
+    let (lo, hi) = s
+        .split_once(',')
+        .ok_or_else(|| format!("'{s}': give the box as LO,HI, e.g. -0.3,0.3"))?;
+    let num = |v: &str| {
+        v.trim()
+            .parse::<f64>()
+            .map_err(|e| format!("'{s}': '{v}' is not a number ({e})"))
+    };
+    let (lo, hi) = (num(lo)?, num(hi)?);
+    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+        return Err(format!("'{s}': the box needs finite LO < HI"));
+    }
+    Ok([lo, hi])
+}
+
+/// Parses `NAME=LO,HI`.
+fn parse_named_box(s: &str) -> Result<(String, Box2), String> {
+    let (name, b) = s
+        .split_once('=')
+        .ok_or_else(|| format!("'{s}': give NAME=LO,HI, e.g. k3=-0.5,0.5"))?;
+    Ok((name.trim().to_string(), parse_box(b)?))
 }
 
 impl Args {
@@ -124,6 +167,9 @@ impl Args {
             ("--ensembles", self.ensembles.is_some()),
             ("--checkpoint-every", self.checkpoint_every.is_some()),
             ("--starts", self.starts.is_some()),
+            ("--alpha-bounds", self.alpha_bounds.is_some()),
+            ("--beta-bounds", self.beta_bounds.is_some()),
+            ("--bound", !self.bounds.is_empty()),
         ];
         flags.iter().filter(|f| f.1).map(|f| f.0).collect()
     }
@@ -219,6 +265,15 @@ impl Args {
         if let Some(v) = self.max_steps {
             s.max_steps = v;
         }
+        if let Some(b) = self.alpha_bounds {
+            s.variables.alpha = b;
+        }
+        if let Some(b) = self.beta_bounds {
+            s.variables.beta = b;
+        }
+        for (name, b) in &self.bounds {
+            s.variables.bounds.insert(name.clone(), *b);
+        }
         Ok(s)
     }
 }
@@ -279,6 +334,36 @@ fn print(outcome: &SampleOutcome) {
             s.rhat_max, s.ess_bulk_min, s.n_stuck_walkers
         );
     }
+}
+
+/// `frfbayes fit`: the maximum-likelihood point of the posterior `sample` would sample,
+/// with Gauss-Newton standard deviations (`fit.json`).
+pub fn fit(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !args.resume,
+        "fit has no --resume: it starts again in seconds"
+    );
+    let settings = args.settings()?;
+    let report = frfbayes::bayes::fit::run_fit(&settings, &args.out)?;
+    println!("wrote {}", args.out.join("fit.json").display());
+    println!(
+        "{} points ({} bins dropped for zero coherence), {} starts, {} at the best cost {:.6e}",
+        report.n_points,
+        report.n_dropped_bins,
+        report.start.n_starts,
+        report.start.n_at_best,
+        report.start.cost
+    );
+    println!("{:<20} {:>14} {:>12}", "parameter", "value", "sd (GN)");
+    for p in &report.parameters {
+        println!(
+            "{:<20} {:>14.6e} {:>12.3e}",
+            format!("{} ({})", p.name, p.unit),
+            p.value,
+            p.sd
+        );
+    }
+    Ok(())
 }
 
 /// Runs or resumes a sampling run.

@@ -172,6 +172,45 @@ impl Draws {
             .collect()
     }
 
+    /// Every `every`-th draw of each chain (draws 0, every, 2 every, ...), with its log
+    /// density and pointwise terms; `thin_steps` scaled accordingly. `every = 1` is a copy.
+    pub fn thinned(&self, every: usize) -> Draws {
+        let every = every.max(1);
+        let kept: Vec<usize> = (0..self.n_draws).step_by(every).collect();
+        let (dim, np) = (self.dim, self.n_pointwise);
+        let mut out = Draws {
+            n_draws: kept.len(),
+            values: Vec::with_capacity(self.n_chains * kept.len() * dim),
+            ln_density: Vec::with_capacity(self.n_chains * kept.len()),
+            pointwise: Vec::with_capacity(self.n_chains * kept.len() * np),
+            thin_steps: self.thin_steps * every as u64,
+            ..self.clone_header()
+        };
+        for c in 0..self.n_chains {
+            for &d in &kept {
+                let r = c * self.n_draws + d;
+                out.values
+                    .extend_from_slice(&self.values[r * dim..(r + 1) * dim]);
+                out.ln_density.push(self.ln_density[r]);
+                if np > 0 && !self.pointwise.is_empty() {
+                    out.pointwise
+                        .extend_from_slice(&self.pointwise[r * np..(r + 1) * np]);
+                }
+            }
+        }
+        out
+    }
+
+    /// The shape fields without the arrays.
+    fn clone_header(&self) -> Draws {
+        Draws {
+            values: Vec::new(),
+            ln_density: Vec::new(),
+            pointwise: Vec::new(),
+            ..*self
+        }
+    }
+
     /// Evaluates `density`'s pointwise log-likelihood at every draw (in parallel) and
     /// stores it in [`Draws::pointwise`]. An alternative to `store_pointwise` when the
     /// terms are many: storing them for every stored step costs
