@@ -32,12 +32,17 @@ fn data_dir() -> Option<PathBuf> {
 }
 
 fn fixture() -> serde_json::Value {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/bridge_smu_reference.json");
+    let p =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/bridge_smu_reference.json");
     serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
 }
 
 fn vec_of(v: &serde_json::Value) -> Vec<f64> {
-    v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
 }
 
 #[test]
@@ -46,7 +51,11 @@ fn smu_objective_matches_the_scipy_reference() {
         return;
     };
     let data = load(&dir).unwrap();
-    assert_eq!(data.reference, vec![11, 28, 6, 4, 38], "SMU's q(i), 0-based");
+    assert_eq!(
+        data.reference,
+        vec![11, 28, 6, 4, 38],
+        "SMU's q(i), 0-based"
+    );
     let fx = fixture();
     let solver = || CondensedModes::new(data.model.clone());
     let smu = smu_posterior(&data, solver(), Weighting::SmuLinearIndex).unwrap();
@@ -60,7 +69,10 @@ fn smu_objective_matches_the_scipy_reference() {
         for (post, key) in [(&smu, "objective_smu"), (&per, "objective_per_entry")] {
             let want = case[key].as_f64().unwrap();
             let got = f(post, &alpha);
-            assert!((got / want - 1.0).abs() < 1e-6, "{name} {key}: {got} vs {want}");
+            assert!(
+                (got / want - 1.0).abs() < 1e-6,
+                "{name} {key}: {got} vs {want}"
+            );
         }
         let (mut ev, mut sh) = (vec![0.0; 5], vec![0.0; 5 * 58]);
         solver()

@@ -307,9 +307,7 @@ impl Block {
                     let dt = match transform {
                         Transform::Identity => 1.0,
                         Transform::Ln => 1.0 / p[i],
-                        Transform::EigenvalueOfHz => {
-                            8.0 * std::f64::consts::PI.powi(2) * p[i]
-                        }
+                        Transform::EigenvalueOfHz => 8.0 * std::f64::consts::PI.powi(2) * p[i],
                     };
                     for t in 0..n_par {
                         jac[(row0 + i, t)] = scale * inv_sd[i] * dt * dpred[(off + i, t)];
@@ -328,7 +326,11 @@ impl Block {
                         u_dp += u[i] * dp(i);
                         p_dp += p[i] * dp(i);
                     }
-                    let dc = if pp > 0.0 { u_dp / pp - 2.0 * pu * p_dp / (pp * pp) } else { 0.0 };
+                    let dc = if pp > 0.0 {
+                        u_dp / pp - 2.0 * pu * p_dp / (pp * pp)
+                    } else {
+                        0.0
+                    };
                     for i in 0..p.len() {
                         jac[(row0 + i, t)] = -scale * (dc * p[i] + c * dp(i));
                     }

@@ -147,7 +147,7 @@ fn sampling_recovers_the_least_squares_mean() {
     }
 }
 
-    /// Oracle: the analytic Jacobian of the reduced modes, through every block kind of
+/// Oracle: the analytic Jacobian of the reduced modes, through every block kind of
 /// the posterior (values of frequencies, MAC shape, SMU's shape difference), equals
 /// central differences of the residuals.
 #[test]
@@ -159,15 +159,38 @@ fn analytic_jacobian_matches_central_differences() {
     use crate::update::lsq::LeastSquaresProblem;
     let model = Arc::new(crate::predict::reduced::test_models::chain_model(30));
     let snaps: Vec<(Vec<f64>, Vec<f64>)> = vec![(vec![0.0; 3], Vec::new())];
-    let red = crate::predict::reduced::ReducedModes::from_snapshots(&model, &snaps, &crate::predict::reduced::BasisOptions::default()).unwrap();
+    let red = crate::predict::reduced::ReducedModes::from_snapshots(
+        &model,
+        &snaps,
+        &crate::predict::reduced::BasisOptions::default(),
+    )
+    .unwrap();
     let params = Parametrisation::all_alphas(&model).unwrap();
     let dofs: Vec<usize> = (0..60).step_by(6).collect();
     let p = ModalPredictor::new(red, params, dofs.clone(), vec![0, 1, 2]).unwrap();
-    let shape: Vec<f64> = (0..dofs.len()).map(|k| 0.3 + (k as f64 * 0.7).sin()).collect();
+    let shape: Vec<f64> = (0..dofs.len())
+        .map(|k| 0.3 + (k as f64 * 0.7).sin())
+        .collect();
     let blocks = vec![
-        Block::values("f", p.freq_range(), &[1.0, 2.0, 3.0], &[0.1, 0.2, 0.3], Transform::EigenvalueOfHz, NoiseScale::Fixed(1.0)).unwrap(),
+        Block::values(
+            "f",
+            p.freq_range(),
+            &[1.0, 2.0, 3.0],
+            &[0.1, 0.2, 0.3],
+            Transform::EigenvalueOfHz,
+            NoiseScale::Fixed(1.0),
+        )
+        .unwrap(),
         Block::shape_mac("mac", p.shape_range(0), &shape, NoiseScale::Fixed(2.0)).unwrap(),
-        Block::shape_difference("diff", p.shape_range(1), &shape, 3, &vec![1.5; dofs.len()], NoiseScale::Fixed(1.0)).unwrap(),
+        Block::shape_difference(
+            "diff",
+            p.shape_range(1),
+            &shape,
+            3,
+            &vec![1.5; dofs.len()],
+            NoiseScale::Fixed(1.0),
+        )
+        .unwrap(),
     ];
     let post = Posterior::new(p, &[(-0.5, 0.5); 3], &[], blocks).unwrap();
     let ls = post.least_squares(&[]).unwrap();
@@ -176,7 +199,14 @@ fn analytic_jacobian_matches_central_differences() {
     let (m, n) = (ls.n_residuals(), 3);
     let mut jac = DMatrix::zeros(m, n);
     ls.jacobian(&x, &mut ws, &mut jac).unwrap();
-    assert!(post.predictor().jacobian(&x, &mut post.predictor().workspace(), &mut DMatrix::zeros(post.predictor().n_outputs(), 3)).unwrap());
+    assert!(post
+        .predictor()
+        .jacobian(
+            &x,
+            &mut post.predictor().workspace(),
+            &mut DMatrix::zeros(post.predictor().n_outputs(), 3)
+        )
+        .unwrap());
     let h = 1e-6;
     let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
     let mut worst: f64 = 0.0;
@@ -190,6 +220,9 @@ fn analytic_jacobian_matches_central_differences() {
             worst = worst.max((jac[(i, j)] - (rp[i] - rm[i]) / (2.0 * h)).abs());
         }
     }
-    assert!(worst < 1e-6 * jac.amax(), "worst {worst}, max {}", jac.amax());
+    assert!(
+        worst < 1e-6 * jac.amax(),
+        "worst {worst}, max {}",
+        jac.amax()
+    );
 }
-

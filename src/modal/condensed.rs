@@ -10,8 +10,7 @@
 //! `O(n^3)` per call.
 
 use super::dense::{
-    cholesky_in_place, matmul, solve_lower, solve_lower_transpose, symmetric_eigen,
-    symmetrise,
+    cholesky_in_place, matmul, solve_lower, solve_lower_transpose, symmetric_eigen, symmetrise,
 };
 use crate::error::{Error, Result};
 use crate::model::condense::massless_dofs;
@@ -68,9 +67,8 @@ pub fn lowest_modes_condensed(
         matmul(kc.as_mut(), true, ksm.transpose(), x.as_ref(), -1.0);
     }
     let mut l = sub(m, &kept, &kept);
-    cholesky_in_place(&mut l).ok_or_else(|| {
-        Error::Model("M is not positive definite on its DOFs with mass".into())
-    })?;
+    cholesky_in_place(&mut l)
+        .ok_or_else(|| Error::Model("M is not positive definite on its DOFs with mass".into()))?;
     // A = L^-1 K_c L^-T.
     solve_lower(l.as_ref(), kc.as_mut());
     let mut a = kc.transpose().to_owned();

@@ -181,12 +181,10 @@ impl ModelManifest {
         let path = label;
         let manifest: ModelManifest =
             toml::from_str(text).map_err(|e| Error::invalid(path, e.to_string()))?;
-        manifest
-            .build(dir)
-            .map_err(|e| match e {
-                Error::Model(what) | Error::Usage(what) => Error::invalid(path, what),
-                other => other,
-            })
+        manifest.build(dir).map_err(|e| match e {
+            Error::Model(what) | Error::Usage(what) => Error::invalid(path, what),
+            other => other,
+        })
     }
 
     /// The model, with paths relative to `dir`.

@@ -60,7 +60,16 @@ pub trait ModeSolver: Sync {
         d_eigenvalues: &mut [f64],
         d_shapes: &mut [f64],
     ) -> Result<bool> {
-        let _ = (alpha, beta, dofs, ws, eigenvalues, shapes, d_eigenvalues, d_shapes);
+        let _ = (
+            alpha,
+            beta,
+            dofs,
+            ws,
+            eigenvalues,
+            shapes,
+            d_eigenvalues,
+            d_shapes,
+        );
         Ok(false)
     }
 }

@@ -26,8 +26,7 @@ use super::modal::ModeSolver;
 use crate::error::{Error, Result};
 use crate::modal::condensed::lowest_modes_condensed;
 use crate::modal::dense::{
-    cholesky_in_place, matmul, solve_lower, solve_lower_transpose, symmetric_eigen,
-    symmetrise,
+    cholesky_in_place, matmul, solve_lower, solve_lower_transpose, symmetric_eigen, symmetrise,
 };
 use crate::model::StructuralModel;
 
@@ -132,11 +131,7 @@ impl ReducedModes {
         let solved: Vec<_> = snapshots
             .par_iter()
             .map(|(a, b)| {
-                lowest_modes_condensed(
-                    &model.stiffness(a),
-                    &model.mass(b),
-                    opts.modes_per_snapshot,
-                )
+                lowest_modes_condensed(&model.stiffness(a), &model.mass(b), opts.modes_per_snapshot)
             })
             .collect::<Result<_>>()?;
         let n = model.n_dof();
@@ -145,7 +140,10 @@ impl ReducedModes {
         let mut lambdas: Vec<f64> = solved.iter().flat_map(|s| s.eigenvalues.clone()).collect();
         lambdas.sort_by(f64::total_cmp);
         let lambda_ref = lambdas[lambdas.len() / 2].max(f64::MIN_POSITIVE);
-        let (k0, m0) = (model.stiffness(&model.alpha_zero()), model.mass(&model.beta_zero()));
+        let (k0, m0) = (
+            model.stiffness(&model.alpha_zero()),
+            model.mass(&model.beta_zero()),
+        );
         let w = &m0 + &k0 / lambda_ref;
         let gram = project(&x, &w);
         let (s, u) = symmetric_eigen(gram.as_ref())?;
@@ -395,7 +393,8 @@ pub fn compare_with_full(
             let mut sh = vec![0.0; n_modes * dofs.len()];
             let mut ws = reduced.workspace();
             reduced.lowest_modes(alpha, &beta, dofs, &mut ws, &mut ev, &mut sh)?;
-            let exact = lowest_modes_condensed(&model.stiffness(alpha), &model.mass(&beta), n_modes)?;
+            let exact =
+                lowest_modes_condensed(&model.stiffness(alpha), &model.mass(&beta), n_modes)?;
             let nd = dofs.len();
             let one_minus_mac = (0..n_modes)
                 .map(|i| {
@@ -452,7 +451,6 @@ pub(crate) mod test_models {
             .collect();
         StructuralModel::from_matrices(k0, m0, infl, Vec::new(), None).unwrap()
     }
-
 }
 
 #[cfg(test)]
@@ -466,10 +464,11 @@ mod tests {
     #[test]
     fn reduced_basis_is_exact_at_its_snapshots_and_bounds_elsewhere() {
         let model = chain_model(40);
-        let snaps: Vec<(Vec<f64>, Vec<f64>)> = [[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [-0.3, 0.2, 0.5]]
-            .iter()
-            .map(|a| (a.to_vec(), Vec::new()))
-            .collect();
+        let snaps: Vec<(Vec<f64>, Vec<f64>)> =
+            [[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [-0.3, 0.2, 0.5]]
+                .iter()
+                .map(|a| (a.to_vec(), Vec::new()))
+                .collect();
         let opts = BasisOptions {
             modes_per_snapshot: 8,
             ..BasisOptions::default()
@@ -478,7 +477,11 @@ mod tests {
         assert!(red.size() <= 24 && red.size() >= 8, "{}", red.size());
         let dofs: Vec<usize> = (0..80).step_by(4).collect();
         let at_snap = compare_with_full(&model, &red, &[snaps[1].0.clone()], 6, &dofs).unwrap();
-        for (e, m) in at_snap[0].eigenvalue_rel.iter().zip(&at_snap[0].one_minus_mac) {
+        for (e, m) in at_snap[0]
+            .eigenvalue_rel
+            .iter()
+            .zip(&at_snap[0].one_minus_mac)
+        {
             assert!(e.abs() < 1e-10 && *m < 1e-10, "{e} {m}");
         }
         let other = compare_with_full(&model, &red, &[vec![0.1, 0.1, 0.3]], 6, &dofs).unwrap();

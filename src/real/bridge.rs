@@ -27,8 +27,8 @@ const MANIFEST: &str = include_str!("../../experiments/models/bridge-fe.toml");
 
 /// SMU's published optimum (`PostProcess.m`, 4 decimals), SMU's order.
 pub const SMU_PUBLISHED_ALPHA: [f64; 17] = [
-    -0.1, -0.045, 0.4, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, 0.4, 0.4, -0.7168,
-    3.9951, -0.1633, 10.0,
+    -0.1, -0.045, 0.4, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, -0.2, 0.4, 0.4, -0.7168, 3.9951,
+    -0.1633, 10.0,
 ];
 /// SMU's published objective `f = sum r^2` at its optimum.
 pub const SMU_PUBLISHED_OBJECTIVE: f64 = 2.8474;
@@ -80,7 +80,10 @@ fn shared_of(data_dir: &Path) -> &Path {
 /// `data_dir` (`<shared>/data/real/bridge-fe`).
 pub fn load(data_dir: &Path) -> Result<BridgeData> {
     let shared = shared_of(data_dir).display().to_string();
-    let text = MANIFEST.replace("{shared}", &shared.replace('\\', "\\\\").replace('"', "\\\""));
+    let text = MANIFEST.replace(
+        "{shared}",
+        &shared.replace('\\', "\\\\").replace('"', "\\\""),
+    );
     let label = Path::new("experiments/models/bridge-fe.toml");
     let model = ModelManifest::load_text(&text, label, data_dir)?;
     let meas_dofs = model.measured_dofs().to_vec();
@@ -171,6 +174,40 @@ fn shape_weights(data: &BridgeData, i: usize, weighting: Weighting) -> Vec<f64> 
         .collect()
 }
 
+/// The eigenvalue block and one shape-difference block per mode, shape weights scaled
+/// by `shape_factor`, with the noise scales `eig_scale` and `shape_scale`.
+fn modal_blocks<S: ModeSolver>(
+    data: &BridgeData,
+    p: &ModalPredictor<S>,
+    weighting: Weighting,
+    shape_factor: f64,
+    (eig_scale, shape_scale): (NoiseScale, NoiseScale),
+) -> Result<Vec<Block>> {
+    let mut blocks = vec![Block::values(
+        "eigenvalues",
+        p.freq_range(),
+        &data.freq_exp_hz(),
+        &data.std_lambda,
+        Transform::EigenvalueOfHz,
+        eig_scale,
+    )?];
+    for i in 0..data.n_modes() {
+        let w: Vec<f64> = shape_weights(data, i, weighting)
+            .iter()
+            .map(|w| w * shape_factor)
+            .collect();
+        blocks.push(Block::shape_difference(
+            &format!("shape {}", i + 1),
+            p.shape_range(i),
+            data.psi_exp.column(i).as_slice(),
+            data.reference[i],
+            &w,
+            shape_scale,
+        )?);
+    }
+    Ok(blocks)
+}
+
 /// SMU's objective as a posterior with every noise scale fixed at 1: its cost
 /// `0.5 ||r||^2` is half of SMU's `f = sum r^2` (docs/bridge-smu.md, sections 5-6).
 pub fn smu_posterior<S: ModeSolver>(
@@ -179,24 +216,8 @@ pub fn smu_posterior<S: ModeSolver>(
     weighting: Weighting,
 ) -> Result<Posterior<ModalPredictor<S>>> {
     let p = predictor(data, solver)?;
-    let mut blocks = vec![Block::values(
-        "eigenvalues",
-        p.freq_range(),
-        &data.freq_exp_hz(),
-        &data.std_lambda,
-        Transform::EigenvalueOfHz,
-        NoiseScale::Fixed(1.0),
-    )?];
-    for i in 0..data.n_modes() {
-        blocks.push(Block::shape_difference(
-            &format!("shape {}", i + 1),
-            p.shape_range(i),
-            data.psi_exp.column(i).as_slice(),
-            data.reference[i],
-            &shape_weights(data, i, weighting),
-            NoiseScale::Fixed(1.0),
-        )?);
-    }
+    let fixed = NoiseScale::Fixed(1.0);
+    let blocks = modal_blocks(data, &p, weighting, 1.0, (fixed, fixed))?;
     Posterior::new(p, &smu_bounds(), &[], blocks)
 }
 
@@ -212,31 +233,11 @@ pub fn bayes_posterior<S: ModeSolver>(
     solver: S,
 ) -> Result<Posterior<ModalPredictor<S>>> {
     let p = predictor(data, solver)?;
-    let mut blocks = vec![Block::values(
-        "eigenvalues",
-        p.freq_range(),
-        &data.freq_exp_hz(),
-        &data.std_lambda,
-        Transform::EigenvalueOfHz,
-        NoiseScale::Sampled(0),
-    )?];
-    for i in 0..data.n_modes() {
-        let w: Vec<f64> = shape_weights(data, i, Weighting::PerEntry)
-            .iter()
-            .map(|w| w * N_MEAS)
-            .collect();
-        blocks.push(Block::shape_difference(
-            &format!("shape {}", i + 1),
-            p.shape_range(i),
-            data.psi_exp.column(i).as_slice(),
-            data.reference[i],
-            &w,
-            NoiseScale::Sampled(1),
-        )?);
-    }
+    let scales = (NoiseScale::Sampled(0), NoiseScale::Sampled(1));
+    let blocks = modal_blocks(data, &p, Weighting::PerEntry, N_MEAS, scales)?;
     let scales = [
-        ("sigma_eigenvalues".to_string(), LN_SIGMA_BOUNDS),
-        ("sigma_shapes".to_string(), LN_SIGMA_BOUNDS),
+        ("ln_sigma_eigenvalues".to_string(), LN_SIGMA_BOUNDS),
+        ("ln_sigma_shapes".to_string(), LN_SIGMA_BOUNDS),
     ];
     Posterior::new(p, &smu_bounds(), &scales, blocks)
 }

@@ -5,13 +5,15 @@
 use std::path::Path;
 
 use super::bridge::{smu_bounds, SMU_PUBLISHED_ALPHA, SMU_PUBLISHED_OBJECTIVE};
-use super::bridge_run::{BridgeStudy, SmuFit};
 use super::bridge_posterior::Identified;
+use super::bridge_run::{BridgeStudy, SmuFit};
 use super::posterior::{posterior_summary, quantile_sorted, write_summary};
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use crate::error::{Error, Result};
 use crate::io::write_atomic;
-use crate::plot::{bar_chart, line_chart, BarChartSpec, BarGroup, LineChartSpec, Mark, RefLine, Scale, Series};
+use crate::plot::{
+    bar_chart, line_chart, BarChartSpec, BarGroup, LineChartSpec, Mark, RefLine, Scale, Series,
+};
 
 /// SMU's own time for 100 starts (fmincon, its analytic Jacobian), from its results.
 const SMU_WALL_S: f64 = 4593.0;
@@ -43,10 +45,7 @@ fn smu_json(fit: &SmuFit) -> serde_json::Value {
 /// Writes every output of the study into `out`.
 pub fn write(study: &BridgeStudy, out: &Path, timings: &[(String, f64)]) -> Result<()> {
     write_json(&out.join("smu.json"), &smu_json(&study.smu))?;
-    write_json(
-        &out.join("smu_per_entry.json"),
-        &smu_json(&study.per_entry),
-    )?;
+    write_json(&out.join("smu_per_entry.json"), &smu_json(&study.per_entry))?;
     write_json(
         &out.join("basis_check.json"),
         &serde_json::to_value(&study.basis).map_err(|e| Error::Numerical(e.to_string()))?,
@@ -77,7 +76,9 @@ fn fit_table(study: &BridgeStudy) -> (String, String) {
     let bounds = smu_bounds();
     let (s, p) = (&study.smu, &study.per_entry);
     let mut rows = Vec::new();
-    let mut csv = String::from("alpha,lower,upper,smu_published,ours_smu,dev_box_frac,ours_per_entry,df_dalpha_smu\n");
+    let mut csv = String::from(
+        "alpha,lower,upper,smu_published,ours_smu,dev_box_frac,ours_per_entry,df_dalpha_smu\n",
+    );
     for j in 0..17 {
         let w = bounds[j].1 - bounds[j].0;
         let dev = (s.alpha[j] - SMU_PUBLISHED_ALPHA[j]).abs() / w;
@@ -92,8 +93,14 @@ fn fit_table(study: &BridgeStudy) -> (String, String) {
         ]);
         csv += &format!(
             "{},{},{},{},{},{},{},{}\n",
-            study.names[j], bounds[j].0, bounds[j].1, SMU_PUBLISHED_ALPHA[j], s.alpha[j], dev,
-            p.alpha[j], s.gradient[j]
+            study.names[j],
+            bounds[j].0,
+            bounds[j].1,
+            SMU_PUBLISHED_ALPHA[j],
+            s.alpha[j],
+            dev,
+            p.alpha[j],
+            s.gradient[j]
         );
     }
     let md = md_table(
@@ -115,7 +122,8 @@ fn identification_table(study: &BridgeStudy) -> (String, String) {
     let post = &study.posterior;
     let bounds = smu_bounds();
     let mut rows = Vec::new();
-    let mut csv = String::from("alpha,lower,upper,map,mean,sd,q2_5,q97_5,sd_over_prior_sd,verdict\n");
+    let mut csv =
+        String::from("alpha,lower,upper,map,mean,sd,q2_5,q97_5,sd_over_prior_sd,verdict\n");
     for j in 0..17 {
         let r = &post.rows[j];
         let ratio = r.sd / post.prior_sd[j];
@@ -130,8 +138,15 @@ fn identification_table(study: &BridgeStudy) -> (String, String) {
         ]);
         csv += &format!(
             "{},{},{},{},{},{},{},{},{},{}\n",
-            study.names[j], bounds[j].0, bounds[j].1, study.per_entry.alpha[j], r.mean, r.sd,
-            r.q2_5, r.q97_5, ratio,
+            study.names[j],
+            bounds[j].0,
+            bounds[j].1,
+            study.per_entry.alpha[j],
+            r.mean,
+            r.sd,
+            r.q2_5,
+            r.q97_5,
+            ratio,
             post.verdicts[j].label()
         );
     }
@@ -201,13 +216,16 @@ fn figures(study: &BridgeStudy, out: &Path) -> Result<()> {
     let names: Vec<String> = study.names.clone();
     bar_chart(
         &BarChartSpec {
-            title: "Bridge: posterior sd over prior sd of each alpha (1 = the data say nothing)".into(),
+            title: "Bridge: posterior sd over prior sd of each alpha (1 = the data say nothing)"
+                .into(),
             x_label: "Stiffness group".into(),
             y_label: "sd / prior sd".into(),
             categories: names.clone(),
             groups: vec![BarGroup {
                 label: String::new(),
-                values: (0..17).map(|j| post.rows[j].sd / post.prior_sd[j]).collect(),
+                values: (0..17)
+                    .map(|j| post.rows[j].sd / post.prior_sd[j])
+                    .collect(),
             }],
             y_scale: Scale::Log,
             show_values: false,
@@ -231,11 +249,28 @@ fn figures(study: &BridgeStudy, out: &Path) -> Result<()> {
             y_label: "Position in the box".into(),
             series: vec![
                 series("posterior 2.5 %", &|j| post.rows[j].q2_5, Mark::Points),
-                series("posterior median", &|j| post.rows[j].q50, Mark::LineAndPoints),
+                series(
+                    "posterior median",
+                    &|j| post.rows[j].q50,
+                    Mark::LineAndPoints,
+                ),
                 series("posterior 97.5 %", &|j| post.rows[j].q97_5, Mark::Points),
-                series("SMU published optimum", &|j| SMU_PUBLISHED_ALPHA[j], Mark::Points),
+                series(
+                    "SMU published optimum",
+                    &|j| SMU_PUBLISHED_ALPHA[j],
+                    Mark::Points,
+                ),
             ],
-            y_refs: vec![RefLine { value: 0.0, label: "bounds".into() }, RefLine { value: 1.0, label: String::new() }],
+            y_refs: vec![
+                RefLine {
+                    value: 0.0,
+                    label: "bounds".into(),
+                },
+                RefLine {
+                    value: 1.0,
+                    label: String::new(),
+                },
+            ],
             ..LineChartSpec::default()
         },
         &out.join("fig_box_positions"),
@@ -243,10 +278,17 @@ fn figures(study: &BridgeStudy, out: &Path) -> Result<()> {
     predictive_figure(study, out)?;
     basis_figure(study, out)?;
     starts_figure(study, out)?;
-    let mut trace_names: Vec<(String, String)> = names.iter().map(|n| (n.clone(), "-".into())).collect();
+    let mut trace_names: Vec<(String, String)> =
+        names.iter().map(|n| (n.clone(), "-".into())).collect();
     trace_names.push(("ln sigma_eigenvalues".into(), "-".into()));
     trace_names.push(("ln sigma_shapes".into(), "-".into()));
-    trace_figure(&post.sampled, &trace_names, &|_, v| v, "Bridge posterior: walker traces (first ensemble)", &out.join("fig_traces"))
+    trace_figure(
+        &post.sampled,
+        &trace_names,
+        &|_, v| v,
+        "Bridge posterior: walker traces (first ensemble)",
+        &out.join("fig_traces"),
+    )
 }
 
 fn predictive_figure(study: &BridgeStudy, out: &Path) -> Result<()> {
@@ -261,20 +303,50 @@ fn predictive_figure(study: &BridgeStudy, out: &Path) -> Result<()> {
             })
             .collect()
     };
-    let scatter: Vec<f64> = (0..modes.len()).map(|i| 100.0 * study.std_freq_hz[i] / study.freq_exp_hz[i]).collect();
+    let scatter: Vec<f64> = (0..modes.len())
+        .map(|i| 100.0 * study.std_freq_hz[i] / study.freq_exp_hz[i])
+        .collect();
     line_chart(
         &LineChartSpec {
             title: "Bridge: posterior-predictive frequencies against the measured ones".into(),
             x_label: "Mode".into(),
             y_label: "Predicted / measured - 1 (%)".into(),
             series: vec![
-                Series { label: "posterior median".into(), x: modes.clone(), y: q(0), mark: Mark::LineAndPoints },
-                Series { label: "95 % interval".into(), x: modes.clone(), y: q(1), mark: Mark::Points },
-                Series { label: String::new(), x: modes.clone(), y: q(2), mark: Mark::Points },
-                Series { label: "+ test-to-test scatter".into(), x: modes.clone(), y: scatter.clone(), mark: Mark::Line },
-                Series { label: "- test-to-test scatter".into(), x: modes.clone(), y: scatter.iter().map(|v| -v).collect(), mark: Mark::Line },
+                Series {
+                    label: "posterior median".into(),
+                    x: modes.clone(),
+                    y: q(0),
+                    mark: Mark::LineAndPoints,
+                },
+                Series {
+                    label: "95 % interval".into(),
+                    x: modes.clone(),
+                    y: q(1),
+                    mark: Mark::Points,
+                },
+                Series {
+                    label: String::new(),
+                    x: modes.clone(),
+                    y: q(2),
+                    mark: Mark::Points,
+                },
+                Series {
+                    label: "+ test-to-test scatter".into(),
+                    x: modes.clone(),
+                    y: scatter.clone(),
+                    mark: Mark::Line,
+                },
+                Series {
+                    label: "- test-to-test scatter".into(),
+                    x: modes.clone(),
+                    y: scatter.iter().map(|v| -v).collect(),
+                    mark: Mark::Line,
+                },
             ],
-            y_refs: vec![RefLine { value: 0.0, label: "measured".into() }],
+            y_refs: vec![RefLine {
+                value: 0.0,
+                label: "measured".into(),
+            }],
             ..LineChartSpec::default()
         },
         &out.join("fig_predictive_frequencies"),
@@ -288,7 +360,10 @@ fn basis_figure(study: &BridgeStudy, out: &Path) -> Result<()> {
         .map(|i| Series {
             label: format!("mode {}", i + 1),
             x: x.clone(),
-            y: pts.iter().map(|p| p.eigenvalue_rel[i].abs().max(1e-16)).collect(),
+            y: pts
+                .iter()
+                .map(|p| p.eigenvalue_rel[i].abs().max(1e-16))
+                .collect(),
             mark: Mark::Points,
         })
         .collect();
@@ -323,11 +398,24 @@ fn starts_figure(study: &BridgeStudy, out: &Path) -> Result<()> {
             x_label: "Start (sorted by end objective)".into(),
             y_label: "f = sum r^2".into(),
             series: vec![
-                Series { label: "SMU weighting (as computed)".into(), x: (1..=s.len()).map(|i| i as f64).collect(), y: s, mark: Mark::Points },
-                Series { label: "per-entry weighting".into(), x: (1..=p.len()).map(|i| i as f64).collect(), y: p, mark: Mark::Points },
+                Series {
+                    label: "SMU weighting (as computed)".into(),
+                    x: (1..=s.len()).map(|i| i as f64).collect(),
+                    y: s,
+                    mark: Mark::Points,
+                },
+                Series {
+                    label: "per-entry weighting".into(),
+                    x: (1..=p.len()).map(|i| i as f64).collect(),
+                    y: p,
+                    mark: Mark::Points,
+                },
             ],
             y_scale: Scale::Log,
-            y_refs: vec![RefLine { value: SMU_PUBLISHED_OBJECTIVE, label: "SMU published 2.8474".into() }],
+            y_refs: vec![RefLine {
+                value: SMU_PUBLISHED_OBJECTIVE,
+                label: "SMU published 2.8474".into(),
+            }],
             ..LineChartSpec::default()
         },
         &out.join("fig_multistart"),
@@ -424,18 +512,22 @@ fn report_md(
         b.exact_eval_s / b.reduced_eval_s
     );
     let at_draws = &post.basis_at_draws;
-    let worst_rel = at_draws.iter().flat_map(|p| p.eigenvalue_rel.iter()).fold(0.0f64, |a, b| a.max(b.abs()));
-    let worst_mac = at_draws.iter().flat_map(|p| p.one_minus_mac.iter()).fold(0.0f64, |a, b| a.max(*b));
+    let worst_rel = at_draws
+        .iter()
+        .flat_map(|p| p.eigenvalue_rel.iter())
+        .fold(0.0f64, |a, b| a.max(b.abs()));
+    let worst_mac = at_draws
+        .iter()
+        .flat_map(|p| p.one_minus_mac.iter())
+        .fold(0.0f64, |a, b| a.max(*b));
     md += &format!(
         "## 3. What the 5 modes identify\n\nLikelihood: eigenvalue residuals over their \
          measured scatter and shape residuals over theirs (per entry), Gaussian, each kind with \
-         a sampled noise scale; uniform prior on SMU's box. Sampled on a basis local to the \
-         per-entry optimum ({} vectors, +-{} of each box width, built in {:.1} s); checked \
-         against the exact solve at {} posterior draws: eigenvalue error at most {:.2e}, \
-         1 - MAC at most {:.2e}.\n\n",
+         a sampled noise scale; uniform prior on SMU's box. Sampled on the reduced basis of \
+         section 2 ({} vectors), from the Gauss-Newton covariance at the per-entry optimum; \
+         the basis checked against the exact solve at {} posterior draws: eigenvalue error at \
+         most {:.2e}, 1 - MAC at most {:.2e}.\n\n",
         post.basis_size,
-        study.settings.local_fraction,
-        post.basis_build_s,
         at_draws.len(),
         worst_rel,
         worst_mac
@@ -453,7 +545,10 @@ fn report_md(
     md += "## Run\n\n";
     md += &md_table(
         &["stage", "wall (s)"],
-        &timings.iter().map(|(k, v)| vec![k.clone(), format!("{v:.1}")]).collect::<Vec<_>>(),
+        &timings
+            .iter()
+            .map(|(k, v)| vec![k.clone(), format!("{v:.1}")])
+            .collect::<Vec<_>>(),
     );
     md
 }

@@ -8,9 +8,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Uniform};
 
-use super::bridge::{
-    smu_bounds, smu_posterior, BridgeData, Weighting, SMU_PUBLISHED_ALPHA,
-};
+use super::bridge::{smu_bounds, smu_posterior, BridgeData, Weighting, SMU_PUBLISHED_ALPHA};
 use super::bridge_posterior::{sample_posterior, BridgePosterior};
 use super::posterior::Sampling;
 use crate::error::Result;
@@ -40,8 +38,8 @@ pub struct BridgeSettings {
     pub n_walkers: usize,
     /// Posterior draws pushed through the predictive check.
     pub n_predictive: usize,
-    /// Half-width of the posterior's local basis neighbourhood, fraction of each box width.
-    pub local_fraction: f64,
+    /// Step cap of the sampler (the study stops there, converged or not, and says which).
+    pub max_steps: u64,
 }
 
 /// [`BasisOptions`] as written to `run.json`.
@@ -67,7 +65,7 @@ impl Default for BridgeSettings {
             max_evaluations: 3000,
             n_walkers: 48,
             n_predictive: 400,
-            local_fraction: 0.02,
+            max_steps: 9000,
         }
     }
 }
@@ -171,7 +169,10 @@ pub fn build_basis(
     let checks = box_points(settings.n_check_points, &mut rng);
     let n_modes = data.n_modes();
     let points = compare_with_full(&data.model, &reduced, &checks, n_modes, &data.meas_dofs)?;
-    let mut rel: Vec<f64> = points.iter().flat_map(|p| p.eigenvalue_rel.clone()).collect();
+    let mut rel: Vec<f64> = points
+        .iter()
+        .flat_map(|p| p.eigenvalue_rel.clone())
+        .collect();
     rel.sort_by(f64::total_cmp);
     let max_one_minus_mac = points
         .iter()
@@ -230,6 +231,9 @@ fn objective<P: crate::predict::Predict>(post: &Posterior<P>, alpha: &[f64]) -> 
     Ok(post.residuals(alpha)?.iter().map(|r| r * r).sum())
 }
 
+/// Distinct end points of the multistart polished with the exact solver.
+const POLISHED: usize = 5;
+
 /// The exact sparse partial solver (`src/modal/partial.rs`) of the bridge.
 fn partial_modes(data: &BridgeData) -> Result<PartialModes> {
     PartialModes::new(data.model.clone(), PartialOptions::default())
@@ -259,7 +263,30 @@ pub fn smu_fit(
         trf: trf_options(200),
         ..FitOptions::default()
     };
-    let polished = fit_multistart(&exact, &[], Some(&res.best.x), &polish)?;
+    // The reduced basis ranks end points to its own accuracy (eigenvalues within a few
+    // 1e-3): polish the best few distinct ones exactly and keep the best.
+    let mut ends: Vec<(f64, Vec<f64>)> = res
+        .starts
+        .iter()
+        .filter_map(|s| s.solution.as_ref().ok())
+        .map(|s| (s.cost, s.x.clone()))
+        .collect();
+    ends.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut distinct: Vec<(f64, Vec<f64>)> = Vec::new();
+    for e in ends {
+        if distinct.len() < POLISHED && distinct.iter().all(|d| (d.0 - e.0).abs() > 1e-6 * d.0) {
+            distinct.push(e);
+        }
+    }
+    let mut best: Option<crate::infer::FitResult> = None;
+    for (_, x) in &distinct {
+        let p = fit_multistart(&exact, &[], Some(x), &polish)?;
+        if best.as_ref().is_none_or(|b| p.best.cost < b.best.cost) {
+            best = Some(p);
+        }
+    }
+    let polished =
+        best.ok_or_else(|| crate::error::Error::Numerical("no start converged".into()))?;
     let polish_s = t0.elapsed().as_secs_f64();
     let alpha = polished.best.x.clone();
     let bounds = smu_bounds();
@@ -339,7 +366,7 @@ pub fn run(
     let per_entry = smu_fit(data, &reduced, Weighting::PerEntry, settings)?;
     let exact = smu_posterior(data, partial_modes(data)?, Weighting::SmuLinearIndex)?;
     let published_objective = objective(&exact, &SMU_PUBLISHED_ALPHA)?;
-    let posterior = sample_posterior(data, &per_entry.alpha, settings, sampling)?;
+    let posterior = sample_posterior(data, &reduced, &per_entry.alpha, settings, sampling)?;
     let freq_exp_hz = data.freq_exp_hz();
     let std_freq_hz = data
         .std_lambda
@@ -356,6 +383,11 @@ pub fn run(
         posterior,
         freq_exp_hz,
         std_freq_hz,
-        names: data.model.alpha_parameters().iter().map(|p| p.name.clone()).collect(),
+        names: data
+            .model
+            .alpha_parameters()
+            .iter()
+            .map(|p| p.name.clone())
+            .collect(),
     })
 }

@@ -97,7 +97,10 @@ fn bridge_fe_runs_end_to_end() {
     }
     assert_eq!(smu["n_starts"], serde_json::json!(4));
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
-    assert!(report.starts_with("# ") && !report.contains("NaN"), "{report}");
+    assert!(
+        report.starts_with("# ") && !report.contains("NaN"),
+        "{report}"
+    );
     for stem in [
         "fig_contraction",
         "fig_box_positions",
