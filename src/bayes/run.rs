@@ -10,7 +10,7 @@
 //! - `posterior.json` ([`PosteriorSummary`]), `draws.csv` and `draws.npy` (physical units,
 //!   `(chain, draw, parameter)`, parameter order as in `posterior.json`),
 //!   `ln_posterior.npy` `(chain, draw)`, `log_likelihood.npy` `(chain, draw, point)`
-//!   (`log_likelihood_thin<k>.npy`, every k-th draw, above [`MAX_POINTWISE_VALUES`]);
+//!   (every k-th draw above [`MAX_POINTWISE_VALUES`], k in `log_likelihood_thin.json`);
 //! - figures `corner`, `traces`, `predictive`, `cv` (PNG and SVG), `run.json`.
 //!
 //! Every file is written atomically. Chains are walkers (chain = ensemble x walkers +
@@ -477,7 +477,11 @@ fn finish(
         phys.write_ln_density_npy(&out.join("ln_posterior.npy"))?;
         match &thinned {
             None => phys.write_pointwise_npy(&out.join("log_likelihood.npy")),
-            Some(t) => t.write_pointwise_npy(&out.join(format!("log_likelihood_thin{every}.npy"))),
+            Some(t) => {
+                let note = format!("{{\"every\": {every}}}\n");
+                write_atomic(&out.join("log_likelihood_thin.json"), note.as_bytes())?;
+                t.write_pointwise_npy(&out.join("log_likelihood.npy"))
+            }
         }
     })?;
     info.time("figures", || {
@@ -500,8 +504,8 @@ fn finish(
 
 /// Most values of the pointwise log-likelihood array a run writes (2^27, 1 GiB of
 /// f64). Above it (e.g. the ten-story frame: 1104 walkers x ~400 draws x ~1200 points,
-/// 4 GiB) `log_likelihood_thin<k>.npy` holds every k-th draw of each chain instead of
-/// `log_likelihood.npy`, k the smallest that fits. The four-story runs stay below it.
+/// 4 GiB) `log_likelihood.npy` holds every k-th draw of each chain, k the smallest that
+/// fits, written to `log_likelihood_thin.json` beside it.
 pub const MAX_POINTWISE_VALUES: usize = 1 << 27;
 
 /// The k of [`MAX_POINTWISE_VALUES`] for `n_rows` draws (all chains) of `n_points`.
