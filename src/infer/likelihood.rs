@@ -277,10 +277,8 @@ impl Block {
                 weight,
             } => {
                 let pref = p[*reference];
-                let mut k = 0;
-                for j in (0..p.len()).filter(|j| j != reference) {
+                for (k, j) in (0..p.len()).filter(|j| j != reference).enumerate() {
                     out[k] = weight[j] * (p[j] / pref - observed[j]);
-                    k += 1;
                 }
             }
         }
@@ -342,11 +340,9 @@ impl Block {
                 let pref = p[*reference];
                 for t in 0..n_par {
                     let dref = dpred[(off + reference, t)];
-                    let mut k = 0;
-                    for j in (0..p.len()).filter(|j| j != reference) {
+                    for (k, j) in (0..p.len()).filter(|j| j != reference).enumerate() {
                         let d = dpred[(off + j, t)] / pref - p[j] * dref / (pref * pref);
                         jac[(row0 + k, t)] = scale * weight[j] * d;
-                        k += 1;
                     }
                 }
             }
@@ -393,7 +389,7 @@ mod tests {
         let direct: f64 = (0..2)
             .map(|i| {
                 let s = sd[i] * sigma;
-                let z = (pred[i] as f64).ln() - (y[i] as f64).ln();
+                let z = pred[i].ln() - y[i].ln();
                 -0.5 * (z / s).powi(2) - s.ln() - HALF_LN_2PI
             })
             .sum();

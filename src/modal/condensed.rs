@@ -138,8 +138,8 @@ mod tests {
         let a = &l_inv * &k * l_inv.transpose();
         let mut ev: Vec<f64> = a.symmetric_eigenvalues().iter().copied().collect();
         ev.sort_by(f64::total_cmp);
-        for j in 0..4 {
-            assert!((ev[j] / modes.eigenvalues[j] - 1.0).abs() < 1e-6);
+        for (e, m) in ev.iter().zip(&modes.eigenvalues) {
+            assert!((e / m - 1.0).abs() < 1e-6);
         }
         let mut bad = k.clone();
         bad[(1, 1)] = -1e6;

@@ -315,7 +315,7 @@ impl<S: ModeSolver> Predict for ModalPredictor<S> {
         let nd = self.dofs.len();
         for (i, &m) in self.modes.iter().enumerate() {
             let lambda = ws.eigenvalues[m];
-            if !(lambda > 0.0) {
+            if lambda.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return Err(Error::Model(format!(
                     "model mode {} has eigenvalue {lambda} (not positive)",
                     m + 1
@@ -357,7 +357,7 @@ impl<S: ModeSolver> Predict for ModalPredictor<S> {
         jac.fill(0.0);
         for (i, &m) in self.modes.iter().enumerate() {
             let lambda = ws.eigenvalues[m];
-            if !(lambda > 0.0) {
+            if lambda.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return Err(Error::Model(format!(
                     "model mode {} has eigenvalue {lambda} (not positive)",
                     m + 1

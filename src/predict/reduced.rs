@@ -346,7 +346,7 @@ impl ReducedModes {
         let b = self.size();
         for i in 0..eigenvalues.len() {
             let m = mu[i];
-            if !(m > 0.0) {
+            if m.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return Err(Error::Model(format!(
                     "mode {} has no mass in the reduced basis at alpha {alpha:?}",
                     i + 1

@@ -201,7 +201,7 @@ pub fn sample_posterior(
         .cloned()
         .collect();
     let basis_at_draws =
-        compare_with_full(&data.model, &reduced, &checks, n_modes, &data.meas_dofs)?;
+        compare_with_full(&data.model, reduced, &checks, n_modes, &data.meas_dofs)?;
     let prior_sd: Vec<f64> = bounds
         .iter()
         .map(|(lo, hi)| (hi - lo) / 12f64.sqrt())

@@ -72,6 +72,7 @@ fn bound_str(b: i8) -> &'static str {
     }
 }
 
+#[allow(clippy::needless_range_loop)] // j indexes parallel arrays
 fn fit_table(study: &BridgeStudy) -> (String, String) {
     let bounds = smu_bounds();
     let (s, p) = (&study.smu, &study.per_entry);
@@ -118,6 +119,7 @@ fn fit_table(study: &BridgeStudy) -> (String, String) {
     (md, csv)
 }
 
+#[allow(clippy::needless_range_loop)] // j indexes parallel arrays
 fn identification_table(study: &BridgeStudy) -> (String, String) {
     let post = &study.posterior;
     let bounds = smu_bounds();

@@ -312,6 +312,7 @@ impl Reader {
     }
 
     /// Converts the bytes of one numeric data element of MAT type `ty` to `f64`.
+    #[allow(clippy::modulo_one)] // the macro checks whole values for every width, 1 included
     fn convert(&self, ty: u32, d: &[u8], what: &str) -> std::result::Result<Vec<f64>, String> {
         macro_rules! conv {
             ($t:ty) => {{

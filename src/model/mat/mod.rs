@@ -118,6 +118,7 @@ impl MatData {
     }
 
     /// The real part (and imaginary part when complex) of a variable, dense.
+    #[allow(clippy::type_complexity)]
     fn dense(&self, name: &str) -> Result<(usize, usize, Vec<f64>, Option<Vec<f64>>)> {
         let (info, values) = self.find(name)?;
         let (rows, cols) = (info.dims[0], info.dims[1]);
