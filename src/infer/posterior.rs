@@ -321,8 +321,7 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
     fn jacobian(&self, x: &[f64], ws: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()> {
         let p = &self.post.predictor;
         ws.dpred.resize_mut(p.n_outputs(), p.n_params(), 0.0);
-        if p.jacobian(x, &mut ws.ws, &mut ws.dpred)? {
-            p.predict(x, &mut ws.ws, &mut ws.pred)?;
+        if p.jacobian(x, &mut ws.ws, &mut ws.pred, &mut ws.dpred)? {
             for (b, block) in self.post.blocks.iter().enumerate() {
                 let row0 = self.post.offsets[b];
                 block.residual_jacobian(&ws.pred, &ws.dpred, self.inv_sigma[b], row0, jac);

@@ -39,16 +39,18 @@ pub trait Predict: Sync {
     fn workspace(&self) -> Self::Workspace;
     /// Predictions at `theta` into `out` (length `n_outputs()`).
     fn predict(&self, theta: &[f64], ws: &mut Self::Workspace, out: &mut [f64]) -> Result<()>;
-    /// The analytic Jacobian `d out_i / d theta_j` into `jac` (`n_outputs x n_params`),
+    /// The predictions at `theta` into `out` and the analytic Jacobian
+    /// `d out_i / d theta_j` into `jac` (`n_outputs x n_params`), from one solve,
     /// returning `Ok(true)`; `Ok(false)` (the default) when the predictor has none and
     /// callers should difference [`Predict::predict`].
     fn jacobian(
         &self,
         theta: &[f64],
         ws: &mut Self::Workspace,
+        out: &mut [f64],
         jac: &mut DMatrix<f64>,
     ) -> Result<bool> {
-        let _ = (theta, ws, jac);
+        let _ = (theta, ws, out, jac);
         Ok(false)
     }
 }

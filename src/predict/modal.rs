@@ -273,6 +273,23 @@ impl<S: ModeSolver> ModalPredictor<S> {
         let start = self.modes.len() + i * self.dofs.len();
         start..start + self.dofs.len()
     }
+
+    /// The paired modes' frequencies (Hz) and shapes from the solved modes in `ws`.
+    fn write_outputs<W>(&self, ws: &ModalWorkspace<W>, out: &mut [f64]) -> Result<()> {
+        let nd = self.dofs.len();
+        for (i, &m) in self.modes.iter().enumerate() {
+            let lambda = ws.eigenvalues[m];
+            if lambda.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                return Err(Error::Model(format!(
+                    "model mode {} has eigenvalue {lambda} (not positive)",
+                    m + 1
+                )));
+            }
+            out[i] = lambda.sqrt() / (2.0 * std::f64::consts::PI);
+            out[self.shape_range(i)].copy_from_slice(&ws.shapes[m * nd..(m + 1) * nd]);
+        }
+        Ok(())
+    }
 }
 
 impl<S: ModeSolver> Predict for ModalPredictor<S> {
@@ -312,19 +329,7 @@ impl<S: ModeSolver> Predict for ModalPredictor<S> {
             &mut ws.eigenvalues,
             &mut ws.shapes,
         )?;
-        let nd = self.dofs.len();
-        for (i, &m) in self.modes.iter().enumerate() {
-            let lambda = ws.eigenvalues[m];
-            if lambda.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-                return Err(Error::Model(format!(
-                    "model mode {} has eigenvalue {lambda} (not positive)",
-                    m + 1
-                )));
-            }
-            out[i] = lambda.sqrt() / (2.0 * std::f64::consts::PI);
-            out[self.shape_range(i)].copy_from_slice(&ws.shapes[m * nd..(m + 1) * nd]);
-        }
-        Ok(())
+        self.write_outputs(ws, out)
     }
 
     /// `d out / d theta` from the solver's eigen-derivatives when it has them:
@@ -334,6 +339,7 @@ impl<S: ModeSolver> Predict for ModalPredictor<S> {
         &self,
         theta: &[f64],
         ws: &mut Self::Workspace,
+        out: &mut [f64],
         jac: &mut DMatrix<f64>,
     ) -> Result<bool> {
         self.params.apply(theta, &mut ws.alpha, &mut ws.beta);
@@ -353,18 +359,11 @@ impl<S: ModeSolver> Predict for ModalPredictor<S> {
         )? {
             return Ok(false);
         }
+        self.write_outputs(ws, out)?;
         let chain = self.params.chain(theta);
         jac.fill(0.0);
         for (i, &m) in self.modes.iter().enumerate() {
-            let lambda = ws.eigenvalues[m];
-            if lambda.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-                return Err(Error::Model(format!(
-                    "model mode {} has eigenvalue {lambda} (not positive)",
-                    m + 1
-                )));
-            }
-            let f_hz = lambda.sqrt() / (2.0 * std::f64::consts::PI);
-            let df = 1.0 / (8.0 * std::f64::consts::PI.powi(2) * f_hz);
+            let df = 1.0 / (8.0 * std::f64::consts::PI.powi(2) * out[i]);
             let rows = self.shape_range(i);
             for (t, &(v, factor)) in chain.iter().enumerate() {
                 jac[(i, t)] = df * factor * ws.d_eigenvalues[m * n_var + v];

@@ -70,7 +70,7 @@ impl ModeSolver for CondensedModes {
 }
 
 /// How a reduced basis is built.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct BasisOptions {
     /// Exact modes kept from each snapshot.
     pub modes_per_snapshot: usize,

@@ -47,10 +47,12 @@ pub enum Identified {
     ByData,
     /// Between a quarter and three quarters of the prior sd.
     Partly,
-    /// Posterior sd above three quarters of the prior's: the box, not the data.
+    /// Posterior sd above three quarters of the prior's: the box, not the data (whether
+    /// or not its 95 % interval reaches a bound, as a flat posterior's does).
     PriorOnly,
-    /// The 95 % interval reaches a bound (within 1 % of the width): the data push
-    /// beyond the box there.
+    /// Narrowed by the data (sd at most three quarters of the prior's) and its 95 %
+    /// interval reaches a bound (within 1 % of the width): the data push beyond the
+    /// box there.
     AtLowerBound,
     AtUpperBound,
 }
@@ -58,11 +60,13 @@ pub enum Identified {
 impl Identified {
     /// The rule of the variants' docs.
     pub fn judge(row: &ParameterSummary, prior_sd: f64) -> Self {
+        if row.sd > 0.75 * prior_sd {
+            return Identified::PriorOnly;
+        }
         match row.at_bound {
             Some(AtBound::Lower) => Identified::AtLowerBound,
             Some(AtBound::Upper) => Identified::AtUpperBound,
             None if row.sd < 0.25 * prior_sd => Identified::ByData,
-            None if row.sd > 0.75 * prior_sd => Identified::PriorOnly,
             None => Identified::Partly,
         }
     }
@@ -256,4 +260,48 @@ fn predictive(
         alphas.push(alpha.to_vec());
     }
     Ok((freqs, macs, alphas))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(sd: f64, at_bound: Option<AtBound>) -> ParameterSummary {
+        ParameterSummary {
+            name: "a".into(),
+            unit: "-".into(),
+            mean: 0.0,
+            sd,
+            cv: 0.0,
+            q2_5: 0.0,
+            q50: 0.0,
+            q97_5: 0.0,
+            rhat: 1.0,
+            ess_bulk: 1000.0,
+            ess_tail: 1000.0,
+            tau: 1.0,
+            at_bound,
+        }
+    }
+
+    /// A prior-wide posterior is prior only even when its interval touches a bound; a
+    /// narrowed one at a bound is pushed against it.
+    #[test]
+    fn verdict_rule() {
+        let lower = Some(AtBound::Lower);
+        assert_eq!(
+            Identified::judge(&row(0.9, lower), 1.0),
+            Identified::PriorOnly
+        );
+        assert_eq!(
+            Identified::judge(&row(0.5, lower), 1.0),
+            Identified::AtLowerBound
+        );
+        assert_eq!(Identified::judge(&row(0.1, None), 1.0), Identified::ByData);
+        assert_eq!(Identified::judge(&row(0.5, None), 1.0), Identified::Partly);
+        assert_eq!(
+            Identified::judge(&row(0.8, None), 1.0),
+            Identified::PriorOnly
+        );
+    }
 }

@@ -27,7 +27,7 @@ pub struct BridgeSettings {
     /// Random snapshot points of the reduced basis (beside the nominal model, the
     /// published optimum and every alpha at each of its bounds).
     pub n_random_snapshots: usize,
-    pub basis: BasisOptionsJson,
+    pub basis: BasisOptions,
     /// Random points of the box where the basis is checked against the exact solve.
     pub n_check_points: usize,
     /// Starts of each multistart (SMU: 100).
@@ -42,20 +42,12 @@ pub struct BridgeSettings {
     pub max_steps: u64,
 }
 
-/// [`BasisOptions`] as written to `run.json`.
-#[derive(Debug, Clone, serde::Serialize)]
-pub struct BasisOptionsJson {
-    pub modes_per_snapshot: usize,
-    pub rel_tol: f64,
-    pub max_size: usize,
-}
-
 impl Default for BridgeSettings {
     fn default() -> Self {
         BridgeSettings {
             seed: 1,
             n_random_snapshots: 24,
-            basis: BasisOptionsJson {
+            basis: BasisOptions {
                 modes_per_snapshot: 8,
                 rel_tol: 1e-12,
                 max_size: 48,
@@ -158,13 +150,8 @@ pub fn build_basis(
     }
     snaps.extend(box_points(settings.n_random_snapshots, &mut rng));
     let pairs: Vec<_> = snaps.iter().map(|a| (a.clone(), Vec::new())).collect();
-    let opts = BasisOptions {
-        modes_per_snapshot: settings.basis.modes_per_snapshot,
-        rel_tol: settings.basis.rel_tol,
-        max_size: settings.basis.max_size,
-    };
     let t0 = Instant::now();
-    let reduced = ReducedModes::from_snapshots(&data.model, &pairs, &opts)?;
+    let reduced = ReducedModes::from_snapshots(&data.model, &pairs, &settings.basis)?;
     let build_s = t0.elapsed().as_secs_f64();
     let checks = box_points(settings.n_check_points, &mut rng);
     let n_modes = data.n_modes();
