@@ -19,6 +19,7 @@ pub mod likelihood;
 pub mod posterior;
 pub mod prior;
 pub mod sample;
+pub mod unconstrained;
 mod tempering;
 #[cfg(test)]
 mod tests;
@@ -34,3 +35,4 @@ pub use posterior::Posterior;
 pub use prior::BoxPrior;
 pub use sample::{sample_to_targets, Sampled, Sampling, Targets};
 pub use tempering::TemperingRun;
+pub use unconstrained::{sample_in_unconstrained, LogitMap, Unconstrained};

@@ -10,12 +10,10 @@ use rand_distr::{Distribution, Normal};
 
 use super::bridge::{bayes_posterior, BridgeData};
 use super::bridge_run::BridgeSettings;
-use super::posterior::{
-    near_bound, row_from_chains, sample_to_targets, Sampled, Sampling, Targets,
-};
+use super::posterior::{near_bound, row_from_chains, Sampled, Sampling, Targets};
 use crate::bayes::summary::{AtBound, ParameterSummary};
 use crate::error::{Error, Result};
-use crate::infer::Posterior;
+use crate::infer::{sample_in_unconstrained, Posterior};
 use crate::mcmc::Start;
 use crate::predict::modal::ModalPredictor;
 use crate::predict::reduced::{compare_with_full, PointError, ReducedModes};
@@ -81,13 +79,18 @@ impl Identified {
     }
 }
 
-/// `v` folded back into `[lo, hi]` (reflection at the bounds, then a hair inside).
+/// `v` folded back into `[lo, hi]` (reflection at the bounds), then kept [`START_MARGIN`]
+/// of the width inside: the sampler runs in logit coordinates, where a start a hair from a
+/// bound is a walker far out in the tail that the stretch move seldom brings back.
 fn fold(v: f64, (lo, hi): (f64, f64)) -> f64 {
     let w = hi - lo;
     let v = if v < lo { 2.0 * lo - v } else { v };
     let v = if v > hi { 2.0 * hi - v } else { v };
-    v.clamp(lo + 1e-9 * w, hi - 1e-9 * w)
+    v.clamp(lo + START_MARGIN * w, hi - START_MARGIN * w)
 }
+
+/// How far inside the box walkers start, as a fraction of the width (logit +-4.6).
+const START_MARGIN: f64 = 0.01;
 
 /// Walkers from the Gauss-Newton covariance `(J^T J)^-1` of the whitened residuals at
 /// `center` (noise scales at their residual rms, `ln sigma` with sd `1/sqrt(2 n_b)`),
@@ -162,8 +165,9 @@ pub fn sample_posterior(
         4 * settings.n_walkers,
         &mut rng,
     )?;
-    let sampled = sample_to_targets(
+    let sampled = sample_in_unconstrained(
         &post,
+        post.prior(),
         start,
         settings.n_walkers,
         settings.seed,

@@ -439,7 +439,9 @@ fn report_md(
         })
         .fold(0.0, f64::max);
     let n_bound = s.on_bound.iter().filter(|b| **b != 0).count();
-    let count = |v: Identified| post.verdicts.iter().filter(|x| **x == v).count();
+    // the alphas only (the noise scales follow them in `verdicts`)
+    let alphas = &post.verdicts[..smu_bounds().len()];
+    let count = |v: Identified| alphas.iter().filter(|x| **x == v).count();
     use Identified as I;
     let mut md = format!(
         "# Steel pedestrian bridge (946 DOFs): SMU's updating, reproduced, and its posterior\n\n\
