@@ -19,10 +19,10 @@ pub mod likelihood;
 pub mod posterior;
 pub mod prior;
 pub mod sample;
-pub mod unconstrained;
 mod tempering;
 #[cfg(test)]
 mod tests;
+pub mod unconstrained;
 
 pub use evidence::{
     stepping_stone, Evidence, EvidenceOptions, EvidenceProgress, PosteriorDraws, Stage,

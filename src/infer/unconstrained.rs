@@ -196,11 +196,7 @@ mod tests {
     use crate::mcmc::DensityFn;
 
     fn prior() -> BoxPrior {
-        BoxPrior::new(
-            vec!["a".into(), "b".into()],
-            &[(-1.0, 2.0), (0.0, 1.0)],
-        )
-        .unwrap()
+        BoxPrior::new(vec!["a".into(), "b".into()], &[(-1.0, 2.0), (0.0, 1.0)]).unwrap()
     }
 
     #[test]
@@ -264,13 +260,19 @@ mod tests {
         let eb = 1.0 / (1.0 - (-4.0f64).exp()) - 0.25;
         // 4 sigma of the Monte Carlo error (mean: its MCSE; sd: sd / sqrt(2 ESS))
         let ess_a = (sd_a / summary[0].mcse_mean).powi(2);
-        assert!((mean_a - 0.5).abs() < 4.0 * summary[0].mcse_mean, "E a {mean_a}");
+        assert!(
+            (mean_a - 0.5).abs() < 4.0 * summary[0].mcse_mean,
+            "E a {mean_a}"
+        );
         let sd_exact = 3.0 / 12f64.sqrt();
         assert!(
             (sd_a - sd_exact).abs() < 4.0 * sd_exact / (2.0 * ess_a).sqrt(),
             "sd a {sd_a}"
         );
-        assert!((mean_b - eb).abs() < 4.0 * summary[1].mcse_mean, "E b {mean_b} vs {eb}");
+        assert!(
+            (mean_b - eb).abs() < 4.0 * summary[1].mcse_mean,
+            "E b {mean_b} vs {eb}"
+        );
         assert!(s.draws.values.iter().all(|v| (-1.0..=2.0).contains(v)));
         // log densities are those of z: 4 b
         for (row, lnp) in s.draws.values.chunks(2).zip(&s.draws.ln_density) {

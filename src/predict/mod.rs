@@ -10,9 +10,11 @@
 //! [`Parametrisation`] maps `theta` onto the model's updating variables `alpha`
 //! (stiffness, paper Eq. 20) and `beta` (mass, Eq. 21), on a linear or a log scale.
 
+pub mod frf;
 pub mod modal;
 pub mod reduced;
 
+pub use frf::{FrfDamping, FrfOutput, FrfPredictor, FrfWorkspace};
 pub use modal::{DenseModes, ModalPredictor, ModeSolver, PartialModes};
 
 use crate::error::{Error, Result};
