@@ -21,6 +21,14 @@
 //! - [`BlockKind::ShapeDifference`]: the eigenvector difference of SMU (Wang's
 //!   Structural Model Updating toolbox): both shapes scaled so that a reference entry is
 //!   1, then `r_j = w_j (phi_j / phi_ref - psi_j / psi_ref)` for every other entry.
+//! - [`BlockKind::ComplexGain`]: complex values `y_k` (an FRF of one channel, real and
+//!   imaginary parts interleaved) with complex variances `E|e_k|^2 = sigma^2 v_k`, against
+//!   `g h_k` with an unknown real gain `g` (a channel calibration) integrated out under a
+//!   flat prior on the real line. Whitened real parts `y~ = sqrt(2 / v) (Re y, Im y)` and
+//!   `h~` likewise; the residual is `(I - P_h~) y~` with `2n - 1` degrees of freedom, and the
+//!   integral leaves the factor `sqrt(2 pi sigma^2 / ||h~||^2)`, whose `-ln ||h~||` depends
+//!   on the model ([`Block::ln_marginal`]). The gain given the rest is Gaussian with mean
+//!   `h~.y~ / ||h~||^2` and variance `sigma^2 / ||h~||^2` ([`Block::conditional_gain`]).
 
 use std::ops::Range;
 
@@ -76,6 +84,12 @@ pub enum BlockKind {
         observed: Vec<f64>,
         reference: usize,
         weight: Vec<f64>,
+    },
+    ComplexGain {
+        /// Whitened observations `y~` (real, imaginary interleaved).
+        observed: Vec<f64>,
+        /// `sqrt(2 / v_k)`, repeated for both parts.
+        inv_sd: Vec<f64>,
     },
 }
 
@@ -197,6 +211,73 @@ impl Block {
         Self::checked(name, predictions, kind, scale)
     }
 
+    /// Complex values (`observed`: real and imaginary parts interleaved, `2n` entries)
+    /// with complex standard deviations `sd_complex` (`n` entries, `sqrt(E|e|^2)`) against
+    /// predictions times an unknown real gain, integrated out (see the module docs).
+    pub fn complex_gain(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        sd_complex: &[f64],
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        check_finite(name, "observed", observed)?;
+        let n = sd_complex.len();
+        if observed.len() != 2 * n || predictions.len() != 2 * n || n < 1 {
+            return Err(Error::Usage(format!(
+                "{name}: {} predictions and {} observed parts for {n} complex values",
+                predictions.len(),
+                observed.len()
+            )));
+        }
+        if let Some(i) = sd_complex.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(Error::Usage(format!(
+                "{name}: standard deviation {i} is {}; it must be positive",
+                sd_complex[i]
+            )));
+        }
+        let inv_sd: Vec<f64> = sd_complex
+            .iter()
+            .flat_map(|s| [2f64.sqrt() / s; 2])
+            .collect();
+        let observed = observed.iter().zip(&inv_sd).map(|(y, w)| y * w).collect();
+        Self::checked(
+            name,
+            predictions,
+            BlockKind::ComplexGain { observed, inv_sd },
+            scale,
+        )
+    }
+
+    /// The model-dependent part of the likelihood that the residuals do not carry:
+    /// `-ln ||h~||` of a [`BlockKind::ComplexGain`] block (the gain integral), 0 for the
+    /// other kinds.
+    pub fn ln_marginal(&self, pred: &[f64]) -> f64 {
+        match &self.kind {
+            BlockKind::ComplexGain { inv_sd, .. } => {
+                let p = &pred[self.predictions.clone()];
+                let hh: f64 = p.iter().zip(inv_sd).map(|(h, w)| (h * w).powi(2)).sum();
+                -0.5 * hh.ln()
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// Mean and standard deviation of the gain of a [`BlockKind::ComplexGain`] block
+    /// given the predictions and `sigma`; `None` for the other kinds.
+    pub fn conditional_gain(&self, pred: &[f64], sigma: f64) -> Option<(f64, f64)> {
+        let BlockKind::ComplexGain { observed, inv_sd } = &self.kind else {
+            return None;
+        };
+        let p = &pred[self.predictions.clone()];
+        let (mut hh, mut hy) = (0.0, 0.0);
+        for ((h, w), y) in p.iter().zip(inv_sd).zip(observed) {
+            hh += (h * w).powi(2);
+            hy += h * w * y;
+        }
+        Some((hy / hh, sigma / hh.sqrt()))
+    }
+
     fn checked(
         name: &str,
         predictions: Range<usize>,
@@ -240,6 +321,9 @@ impl Block {
         match &self.kind {
             BlockKind::Values { inv_sd, .. } => base + inv_sd.iter().map(|w| w.ln()).sum::<f64>(),
             BlockKind::ShapeMac { .. } => base,
+            BlockKind::ComplexGain { inv_sd, .. } => {
+                base + inv_sd.iter().map(|w| w.ln()).sum::<f64>()
+            }
             BlockKind::ShapeDifference {
                 weight, reference, ..
             } => {
@@ -279,6 +363,17 @@ impl Block {
                 let pref = p[*reference];
                 for (k, j) in (0..p.len()).filter(|j| j != reference).enumerate() {
                     out[k] = weight[j] * (p[j] / pref - observed[j]);
+                }
+            }
+            BlockKind::ComplexGain { observed, inv_sd } => {
+                let (mut hh, mut hy) = (0.0, 0.0);
+                for ((h, w), y) in p.iter().zip(inv_sd).zip(observed) {
+                    hh += (h * w).powi(2);
+                    hy += h * w * y;
+                }
+                let g = if hh > 0.0 { hy / hh } else { 0.0 };
+                for i in 0..p.len() {
+                    out[i] = observed[i] - g * p[i] * inv_sd[i];
                 }
             }
         }
@@ -331,6 +426,32 @@ impl Block {
                     };
                     for i in 0..p.len() {
                         jac[(row0 + i, t)] = -scale * (dc * p[i] + c * dp(i));
+                    }
+                }
+            }
+            BlockKind::ComplexGain {
+                observed: y,
+                inv_sd,
+            } => {
+                // r = y - g h, h = w p, g = (h.y) / (h.h).
+                let h: Vec<f64> = p.iter().zip(inv_sd).map(|(a, w)| a * w).collect();
+                let hh: f64 = h.iter().map(|v| v * v).sum();
+                let hy: f64 = h.iter().zip(y).map(|(a, b)| a * b).sum();
+                let g = if hh > 0.0 { hy / hh } else { 0.0 };
+                for t in 0..n_par {
+                    let dh = |i: usize| inv_sd[i] * dpred[(off + i, t)];
+                    let (mut y_dh, mut h_dh) = (0.0, 0.0);
+                    for i in 0..h.len() {
+                        y_dh += y[i] * dh(i);
+                        h_dh += h[i] * dh(i);
+                    }
+                    let dg = if hh > 0.0 {
+                        y_dh / hh - 2.0 * hy * h_dh / (hh * hh)
+                    } else {
+                        0.0
+                    };
+                    for i in 0..h.len() {
+                        jac[(row0 + i, t)] = -scale * (dg * h[i] + g * dh(i));
                     }
                 }
             }
@@ -394,6 +515,91 @@ mod tests {
             })
             .sum();
         assert!((b.ln_likelihood(&r, sigma) - direct).abs() < 1e-12);
+    }
+
+    /// The complex-gain block is the gain integral of the complex Gaussian density:
+    /// `ln int prod_k (pi s^2 v_k)^-1 exp(-|y_k - g h_k|^2 / (s^2 v_k)) dg`, by the
+    /// trapezoidal rule over the gain, equals `ln L_b + ln_marginal`.
+    #[test]
+    fn complex_gain_block_is_the_gain_integral() {
+        let y = [1.0, 0.5, -0.3, 0.8, 0.2, -1.1];
+        let h = [0.9, 0.6, -0.2, 0.7, 0.3, -1.0];
+        let v = [0.04, 0.09, 0.05];
+        let sd: Vec<f64> = v.iter().map(|x: &f64| x.sqrt()).collect();
+        let sigma = 1.3;
+        let b = Block::complex_gain("c", 0..6, &y, &sd, NoiseScale::Fixed(sigma)).unwrap();
+        let mut r = [0.0; 6];
+        b.residuals(&h, &mut r);
+        let got = b.ln_likelihood(&r, sigma) + b.ln_marginal(&h);
+        let density = |g: f64| -> f64 {
+            (0..3)
+                .map(|k| {
+                    let var = sigma * sigma * v[k];
+                    let e2 = (y[2 * k] - g * h[2 * k]).powi(2)
+                        + (y[2 * k + 1] - g * h[2 * k + 1]).powi(2);
+                    -(std::f64::consts::PI * var).ln() - e2 / var
+                })
+                .sum::<f64>()
+                .exp()
+        };
+        let (lo, hi, n) = (-3.0, 5.0, 200_000);
+        let dg = (hi - lo) / n as f64;
+        let integral: f64 = (0..=n)
+            .map(|i| {
+                let w = if i == 0 || i == n { 0.5 } else { 1.0 };
+                w * density(lo + i as f64 * dg)
+            })
+            .sum::<f64>()
+            * dg;
+        assert!(
+            (got - integral.ln()).abs() < 1e-9,
+            "{got} vs {}",
+            integral.ln()
+        );
+        let (g, sd_g) = b.conditional_gain(&h, sigma).unwrap();
+        assert!(g > 0.9 && g < 1.3 && sd_g > 0.0);
+    }
+
+    /// The complex-gain residual Jacobian against central differences, for predictions
+    /// `p(t) = (t0 + t1 k, sin(t0 k))` in k.
+    #[test]
+    fn complex_gain_residual_jacobian_matches_differences() {
+        let y = [1.0, 0.5, -0.3, 0.8, 0.2, -1.1];
+        let b =
+            Block::complex_gain("c", 0..6, &y, &[0.2, 0.3, 0.25], NoiseScale::Fixed(1.0)).unwrap();
+        let pred = |t: &[f64]| -> Vec<f64> {
+            (0..3)
+                .flat_map(|k| [t[0] + t[1] * k as f64, (t[0] * k as f64).sin()])
+                .collect()
+        };
+        let t = [0.7, -0.4];
+        let dpred = DMatrix::from_fn(6, 2, |i, j| {
+            let k = (i / 2) as f64;
+            match (i % 2, j) {
+                (0, 0) => 1.0,
+                (0, _) => k,
+                (_, 0) => k * (t[0] * k).cos(),
+                _ => 0.0,
+            }
+        });
+        let mut jac = DMatrix::zeros(6, 2);
+        b.residual_jacobian(&pred(&t), &dpred, 1.0, 0, &mut jac);
+        for j in 0..2 {
+            let (mut up, mut dn) = (t, t);
+            up[j] += 1e-6;
+            dn[j] -= 1e-6;
+            let (mut ru, mut rd) = ([0.0; 6], [0.0; 6]);
+            b.residuals(&pred(&up), &mut ru);
+            b.residuals(&pred(&dn), &mut rd);
+            for i in 0..6 {
+                let fd = (ru[i] - rd[i]) / 2e-6;
+                assert!(
+                    (jac[(i, j)] - fd).abs() < 1e-7,
+                    "({i}, {j}): {} vs {fd}",
+                    jac[(i, j)]
+                );
+            }
+        }
     }
 
     #[test]

@@ -206,7 +206,8 @@ impl<P: Predict> Posterior<P> {
             }
             let mut total = 0.0;
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
-                let l = b.ln_likelihood(&s.res[o..o + b.n_residuals()], self.sigma(b, z));
+                let l = b.ln_likelihood(&s.res[o..o + b.n_residuals()], self.sigma(b, z))
+                    + b.ln_marginal(&s.pred);
                 if !terms.is_empty() {
                     terms[i] = l;
                 }

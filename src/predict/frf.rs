@@ -25,7 +25,6 @@
 
 use std::sync::Arc;
 
-use nalgebra::DMatrix;
 use num_complex::Complex64;
 
 use super::modal::ModeSolver;

@@ -30,15 +30,22 @@
 // than zipped iterators here.
 #![allow(clippy::needless_range_loop)]
 
-use nalgebra::DMatrix;
+use std::f64::consts::PI;
+use std::sync::Arc;
+
 use num_complex::Complex64;
 
 use super::tower::{TowerFrf, FLOOR_MASS_KG};
 use crate::error::{Error, Result};
+use crate::frf::{Excitation, FrfBlock, FrfKind, FrfPair};
+use crate::infer::{Block, NoiseScale, Posterior};
 use crate::mcmc::LogDensity;
 use crate::modal::Modes;
 use crate::model::StructuralModel;
-use crate::update::lsq::{fd_jacobian, Bounds, FdScheme, LeastSquaresProblem};
+use crate::predict::{
+    Coordinate, DenseModes, FrfDamping, FrfOutput, FrfPredictor, Parametrisation, Predict, Scale,
+    Variable,
+};
 
 /// Stories (and measured floors).
 pub const N: usize = 5;
@@ -113,10 +120,14 @@ impl TowerData {
     }
 }
 
-/// The likelihood; see the module docs.
+/// The likelihood; see the module docs. A thin adapter on the one posterior layer: an
+/// [`FrfPredictor`] of the shear model (complex accelerances of the five floors to the
+/// damper force at floor 5, modal damping) and one [`Block::complex_gain`] per channel,
+/// all with the sampled scale `s`.
 #[derive(Debug, Clone)]
 pub struct TowerLikelihood {
     pub data: TowerData,
+    post: Posterior<FrfPredictor<DenseModes>>,
 }
 
 /// The gains given the other coordinates: `(A_c, b_c, RSS_c)` per channel.
@@ -138,6 +149,45 @@ impl GainFit {
     }
 }
 
+/// The unit-gain predictor of the accelerances at `freq_hz` (coordinates `ln k`, `ln xi`).
+fn predictor(freq_hz: &[f64]) -> Result<FrfPredictor<DenseModes>> {
+    let model = Arc::new(StructuralModel::shear_frame(
+        &[FLOOR_MASS_KG; N],
+        &[K_CENTRE_N_PER_M; N],
+    )?);
+    let coords = (0..N)
+        .map(|r| Coordinate {
+            name: format!("ln_k{}", r + 1),
+            variable: Variable::Alpha(r),
+            scale: Scale::Log {
+                ln_offset: K_CENTRE_N_PER_M.ln(),
+            },
+        })
+        .collect();
+    let params = Parametrisation::new(&model, coords)?;
+    let pairs = (0..N)
+        .map(|c| FrfPair {
+            response: c,
+            excitation: Excitation::Dof(N - 1),
+            kind: FrfKind::Accelerance,
+        })
+        .collect();
+    let block = FrfBlock {
+        omega_rad_s: freq_hz.iter().map(|f| 2.0 * PI * f).collect(),
+        pairs,
+    };
+    FrfPredictor::new(
+        DenseModes::new(model.clone()),
+        model,
+        params,
+        FrfDamping::Modal,
+        FrfOutput::Complex,
+        N,
+        &[block],
+        &[None],
+    )
+}
+
 /// Model accelerances `[channel][bin]` at stiffnesses, damping ratios and gains.
 pub fn model_frf(
     freq_hz: &[f64],
@@ -145,26 +195,20 @@ pub fn model_frf(
     xi: &[f64],
     gains: &[f64],
 ) -> Result<Vec<Vec<Complex64>>> {
-    let model = StructuralModel::shear_frame(&[FLOOR_MASS_KG; N], k)?;
-    let modes = Modes::solve(
-        &model.stiffness(&model.alpha_zero()),
-        &model.mass(&model.beta_zero()),
-        model.ground_influence(),
-        None,
-    )?;
-    let two_pi = 2.0 * std::f64::consts::PI;
-    let mut out = vec![vec![Complex64::new(0.0, 0.0); freq_hz.len()]; N];
-    for (kk, &f) in freq_hz.iter().enumerate() {
-        let w = two_pi * f;
-        for r in 0..N {
-            let wr = modes.omega_rad_s[r];
-            let g = -w * w / Complex64::new(wr * wr - w * w, 2.0 * xi[r] * wr * w);
-            for c in 0..N {
-                out[c][kk] += gains[c] * modes.phi[(c, r)] * modes.phi[(N - 1, r)] * g;
-            }
-        }
-    }
-    Ok(out)
+    let p = predictor(freq_hz)?;
+    let theta: Vec<f64> = k.iter().chain(xi).map(|v| v.ln()).collect();
+    let mut out = vec![0.0; p.n_outputs()];
+    p.predict(&theta, &mut p.workspace(), &mut out)?;
+    let nb = freq_hz.len();
+    Ok((0..N)
+        .map(|c| {
+            (0..nb)
+                .map(|i| {
+                    gains[c] * Complex64::new(out[2 * (c * nb + i)], out[2 * (c * nb + i) + 1])
+                })
+                .collect()
+        })
+        .collect())
 }
 
 /// Natural frequencies (Hz) of the shear model.
@@ -180,6 +224,35 @@ pub fn natural_freq_hz(k: &[f64]) -> Result<Vec<f64>> {
 }
 
 impl TowerLikelihood {
+    /// The posterior of `data` on the layer.
+    pub fn new(data: TowerData) -> Result<Self> {
+        let p = predictor(&data.freq_hz)?;
+        let nb = data.freq_hz.len();
+        let blocks = (0..N)
+            .map(|c| {
+                let observed: Vec<f64> = data.y[c].iter().flat_map(|y| [y.re, y.im]).collect();
+                let sd: Vec<f64> = data.v[c].iter().map(|v| v.sqrt()).collect();
+                let range = 2 * c * nb..2 * (c + 1) * nb;
+                Block::complex_gain(
+                    &format!("floor {}", c + 1),
+                    range,
+                    &observed,
+                    &sd,
+                    NoiseScale::Sampled(0),
+                )
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let bounds = Self::bounds();
+        let scale = [("ln_s".to_string(), bounds[2 * N])];
+        let post = Posterior::new(p, &bounds[..2 * N], &scale, blocks)?;
+        Ok(TowerLikelihood { data, post })
+    }
+
+    /// The layer's posterior (coordinates `ln k`, `ln xi`, `ln s`).
+    pub fn posterior(&self) -> &Posterior<FrfPredictor<DenseModes>> {
+        &self.post
+    }
+
     /// Prior box: `k` within a factor 10 of [`K_CENTRE_N_PER_M`], `xi` in [0.002, 0.3],
     /// `s` in [0.1, 1000].
     pub fn bounds() -> Vec<(f64, f64)> {
@@ -208,8 +281,8 @@ impl TowerLikelihood {
 
     /// The gain fit at `t` (unit-gain model, then per-channel sums).
     pub fn gain_fit(&self, t: &[f64]) -> Result<GainFit> {
-        let (k, xi, _) = Self::unpack(t);
-        let h = model_frf(&self.data.freq_hz, &k, &xi, &[1.0; N])?;
+        let h = self.post.predict(&t[..2 * N])?;
+        let nb = self.data.freq_hz.len();
         let mut fit = GainFit {
             a: [0.0; N],
             b: [0.0; N],
@@ -217,7 +290,8 @@ impl TowerLikelihood {
         };
         for c in 0..N {
             let (mut a, mut b) = (0.0, 0.0);
-            for ((h, y), w) in h[c].iter().zip(&self.data.y[c]).zip(&self.data.inv_v[c]) {
+            for (i, (y, w)) in self.data.y[c].iter().zip(&self.data.inv_v[c]).enumerate() {
+                let h = Complex64::new(h[2 * (c * nb + i)], h[2 * (c * nb + i) + 1]);
                 a += h.norm_sqr() * w;
                 b += (h.conj() * y).re * w;
             }
@@ -249,63 +323,7 @@ impl LogDensity for TowerLikelihood {
     }
 
     fn ln_density(&self, t: &[f64]) -> Result<f64> {
-        if t.iter()
-            .zip(Self::bounds())
-            .any(|(x, (lo, hi))| !(*x >= lo && *x <= hi))
-        {
-            return Ok(f64::NEG_INFINITY);
-        }
-        let s = t[2 * N].exp();
-        let fit = match self.gain_fit(t) {
-            Ok(f) => f,
-            Err(Error::Model(_)) => return Ok(f64::NEG_INFINITY),
-            Err(e) => return Err(e),
-        };
-        if fit.a.iter().any(|a| a.is_nan() || *a <= 0.0) {
-            return Ok(f64::NEG_INFINITY);
-        }
-        let n = self.data.n_points() as f64;
-        let rss: f64 = fit.rss.iter().sum();
-        let ln_a: f64 = fit.a.iter().map(|a| a.ln()).sum();
-        Ok(-(2.0 * n - N as f64) * s.ln() - rss / (s * s) - 0.5 * ln_a)
-    }
-}
-
-/// Least squares for the start: coordinates `ln k` (5), `ln xi` (5), signed gains (5);
-/// residuals are the real and imaginary parts of the standardised residuals; central
-/// finite-difference Jacobian ([`fd_jacobian`]) inside `bounds`, the box of the solve.
-pub struct TowerLsq<'a> {
-    pub data: &'a TowerData,
-    pub bounds: &'a Bounds,
-}
-
-impl LeastSquaresProblem for TowerLsq<'_> {
-    type Workspace = ();
-    fn n_params(&self) -> usize {
-        3 * N
-    }
-    fn n_residuals(&self) -> usize {
-        2 * self.data.n_points()
-    }
-    fn workspace(&self) {}
-    fn residuals(&self, x: &[f64], _: &mut (), r: &mut [f64]) -> Result<()> {
-        let k: Vec<f64> = x[..N].iter().map(|v| v.exp()).collect();
-        let xi: Vec<f64> = x[N..2 * N].iter().map(|v| v.exp()).collect();
-        let h = model_frf(&self.data.freq_hz, &k, &xi, &x[2 * N..])?;
-        let mut i = 0;
-        for c in 0..N {
-            for b in 0..self.data.freq_hz.len() {
-                let e = (self.data.y[c][b] - h[c][b]) / self.data.v[c][b].sqrt();
-                r[i] = e.re;
-                r[i + 1] = e.im;
-                i += 2;
-            }
-        }
-        Ok(())
-    }
-    fn jacobian(&self, x: &[f64], ws: &mut (), j: &mut DMatrix<f64>) -> Result<()> {
-        let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, ws, r);
-        fd_jacobian(FdScheme::Central, x, self.bounds, residuals, j).map(|_| ())
+        self.post.ln_density(t)
     }
 }
 
@@ -313,6 +331,7 @@ impl LeastSquaresProblem for TowerLsq<'_> {
 mod tests {
     use super::*;
     use crate::frf::direct;
+    use nalgebra::DMatrix;
 
     /// Synthetic data from the same forward model (signed gains, complex noise of the
     /// modelled variance with s = 1): the log-likelihood peaks at the true stiffnesses
@@ -359,15 +378,14 @@ mod tests {
             .zip(&inv_v)
             .map(|(y, w)| y.iter().zip(w).map(|(y, w)| y.norm_sqr() * w).sum())
             .collect();
-        let lik = TowerLikelihood {
-            data: TowerData {
-                freq_hz,
-                y,
-                v,
-                inv_v,
-                yy,
-            },
-        };
+        let lik = TowerLikelihood::new(TowerData {
+            freq_hz,
+            y,
+            v,
+            inv_v,
+            yy,
+        })
+        .unwrap();
         let mut t: Vec<f64> = k.iter().chain(&xi).map(|x| x.ln()).collect();
         t.push(0.0);
         let l0 = lik.ln_density(&t).unwrap();
@@ -411,6 +429,67 @@ mod tests {
             .sum::<f64>()
             * step;
         assert!((num / (std::f64::consts::PI / a).sqrt() - 1.0).abs() < 1e-6);
+    }
+
+    /// The layer's density is the hand-written gain-marginal likelihood of the module
+    /// docs, `-(2n - N) ln s - sum RSS_c / s^2 - 1/2 sum ln A_c`, up to a constant: their
+    /// differences between points agree.
+    #[test]
+    fn layer_density_is_the_gain_marginal_likelihood() {
+        let k = [3.0e6, 2.8e6, 2.5e6, 2.2e6, 2.0e6];
+        let xi = [0.02, 0.015, 0.01, 0.012, 0.03];
+        let freq_hz: Vec<f64> = (0..120).map(|i| 0.4 + 0.04 * i as f64).collect();
+        let h = model_frf(&freq_hz, &k, &xi, &[0.9, -1.1, 1.0, 0.8, 1.2]).unwrap();
+        let y: Vec<Vec<Complex64>> = h
+            .iter()
+            .map(|c| {
+                c.iter()
+                    .enumerate()
+                    .map(|(i, x)| x * Complex64::new(1.0, 0.02 * (i % 7) as f64))
+                    .collect()
+            })
+            .collect();
+        let v: Vec<Vec<f64>> = y
+            .iter()
+            .map(|c| c.iter().map(|x| 1e-3 * x.norm_sqr()).collect())
+            .collect();
+        let inv_v: Vec<Vec<f64>> = v
+            .iter()
+            .map(|c| c.iter().map(|x| 1.0 / x).collect())
+            .collect();
+        let yy = y
+            .iter()
+            .zip(&inv_v)
+            .map(|(y, w)| y.iter().zip(w).map(|(y, w)| y.norm_sqr() * w).sum())
+            .collect();
+        let lik = TowerLikelihood::new(TowerData {
+            freq_hz,
+            y,
+            v,
+            inv_v,
+            yy,
+        })
+        .unwrap();
+        let hand = |t: &[f64]| -> f64 {
+            let fit = lik.gain_fit(t).unwrap();
+            let s = t[2 * N].exp();
+            let n = lik.data.n_points() as f64;
+            -(2.0 * n - N as f64) * s.ln()
+                - fit.rss.iter().sum::<f64>() / (s * s)
+                - 0.5 * fit.a.iter().map(|a| a.ln()).sum::<f64>()
+        };
+        let mut t0: Vec<f64> = k.iter().chain(&xi).map(|x| x.ln()).collect();
+        t0.push(0.3);
+        let mut t1 = t0.clone();
+        t1[1] += 0.02;
+        t1[7] -= 0.1;
+        t1[10] = 0.9;
+        let d_layer = lik.ln_density(&t1).unwrap() - lik.ln_density(&t0).unwrap();
+        let d_hand = hand(&t1) - hand(&t0);
+        assert!(
+            (d_layer - d_hand).abs() < 1e-8 * d_hand.abs().max(1.0),
+            "{d_layer} vs {d_hand}"
+        );
     }
 
     /// Oracle: the modal sum against the direct solve `-w^2 (K - w^2 M + j w C)^-1` with

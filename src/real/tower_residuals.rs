@@ -243,15 +243,14 @@ mod tests {
             .iter()
             .map(|c| c.iter().map(|x| 1.0 / x).collect())
             .collect();
-        let lik = TowerLikelihood {
-            data: TowerData {
-                freq_hz: freq_hz.clone(),
-                y: h.clone(),
-                v,
-                inv_v,
-                yy: vec![0.0; N],
-            },
-        };
+        let lik = TowerLikelihood::new(TowerData {
+            freq_hz: freq_hz.clone(),
+            y: h.clone(),
+            v,
+            inv_v,
+            yy: vec![0.0; N],
+        })
+        .unwrap();
         let mut t: Vec<f64> = k.iter().chain(&xi).map(|x| x.ln()).collect();
         t.push(0.0);
         let a = shear_model_residuals(&lik, &t, &g).unwrap();

@@ -13,12 +13,12 @@ use super::posterior::{
 };
 use super::tower::{estimate_frf, load, TowerFrf};
 use super::tower_model::{
-    model_frf, natural_freq_hz, TowerData, TowerLikelihood, TowerLsq, K_CENTRE_N_PER_M, N,
+    model_frf, natural_freq_hz, TowerData, TowerLikelihood, K_CENTRE_N_PER_M, N,
 };
 use super::tower_residuals::{shear_model_residuals, ResidualAnalysis};
 use crate::error::Result;
+use crate::infer::{fit_multistart, FitOptions};
 use crate::mcmc::{Ball, LogDensity, Start};
-use crate::update::lsq::{multistart, Bounds, MultistartOptions};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -125,29 +125,22 @@ pub fn fit_band(
 ) -> Result<TowerFit> {
     let data = TowerData::from_frf(frf, band.0, band.1)?;
     let bounds = TowerLikelihood::bounds();
-    let mut lo: Vec<f64> = bounds[..2 * N].iter().map(|b| b.0).collect();
-    let mut hi: Vec<f64> = bounds[..2 * N].iter().map(|b| b.1).collect();
-    lo.extend([-20.0; N]);
-    hi.extend([20.0; N]);
+    let lik = TowerLikelihood::new(data)?;
+    // MAP of ln k, ln xi at s = 1 from the prior's centre and Latin hypercube starts,
+    // the gains profiled out exactly (the complex-gain blocks' projection).
     let mut x0 = vec![K_CENTRE_N_PER_M.ln(); N];
     x0.extend([0.02f64.ln(); N]);
-    x0.extend([1.0; N]);
-    let lsq_bounds = Bounds::new(lo, hi)?;
-    let ms = multistart(
-        &TowerLsq {
-            data: &data,
-            bounds: &lsq_bounds,
-        },
-        &lsq_bounds,
+    let ms = fit_multistart(
+        lik.posterior(),
+        &[1.0],
         Some(&x0),
-        &MultistartOptions {
+        &FitOptions {
             n_starts: 32,
             seed,
             ..Default::default()
         },
     )?;
-    let lik = TowerLikelihood { data };
-    let mut start = ms.best.x[..2 * N].to_vec();
+    let mut start = ms.best.x.clone();
     let fit = lik.gain_fit(&start)?;
     let rss: f64 = fit.rss.iter().sum();
     start.push((rss / lik.data.n_points() as f64).sqrt().ln());

@@ -2,6 +2,7 @@ use super::*;
 use crate::frf::{FrfKind, FrfPair};
 use crate::modal::PartialOptions;
 use crate::predict::{Coordinate, DenseModes, PartialModes, Scale, Variable};
+use nalgebra::DMatrix;
 use std::f64::consts::PI;
 
 /// Oracle: the receptance at complex frequency `s` by a direct solve of
