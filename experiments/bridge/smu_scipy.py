@@ -499,8 +499,14 @@ def run_checks(data, seed):
     print(json.dumps(checks, indent=1), file=sys.stderr)
     if abs(checks["objective_published"]["smu"] - PUBLISHED_OBJECTIVE) > 5e-5:
         raise SystemExit("f at the published optimum does not round to 2.8474: formulation mismatch")
-    if lam_err > 1e-9 or shape_err > 1e-7:
-        raise SystemExit("eigsh disagrees with the dense eigensolver")
+    # Shapes are normalised to 1 at their reference entry; eigsh and a dense eigh differ
+    # by 1e-8 to 1.5e-7 between scipy builds (ARPACK's stopping rule), four decades below
+    # the measured shape scatter, so 1e-6 separates a formulation error from round-off.
+    if lam_err > 1e-9 or shape_err > 1e-6:
+        raise SystemExit(
+            f"eigsh disagrees with the dense eigensolver: eigenvalues {lam_err:.1e} rel, "
+            f"shapes {shape_err:.1e} abs"
+        )
     if max(checks["jac_fd_rel"].values()) > 1e-4:
         raise SystemExit("analytic Jacobian disagrees with finite differences")
     return checks

@@ -9,8 +9,8 @@ use crate::frf::{Excitation, FrfBlock, FrfKind, FrfPair};
 use crate::mcmc::{Ball, LogDensity, Start};
 use crate::model::StructuralModel;
 use crate::predict::{
-    Coordinate, DenseModes, FrfDamping, FrfOutput, FrfPredictor, Parametrisation, Predict, Scale,
-    Variable,
+    Coordinate, DenseModes, FrfDamping, FrfOptions, FrfOutput, FrfPredictor, Parametrisation,
+    Predict, Scale, Variable,
 };
 use std::f64::consts::PI;
 use std::sync::Arc;
@@ -279,9 +279,11 @@ fn map_fit_on_the_posterior_layer_recovers_the_truth() {
         DenseModes::new(model.clone()),
         model.clone(),
         params,
-        FrfDamping::Rayleigh,
-        FrfOutput::LogMagnitude,
-        5,
+        FrfOptions {
+            damping: FrfDamping::Rayleigh,
+            output: FrfOutput::LogMagnitude,
+            n_modes: 5,
+        },
         &blocks,
         &[None],
     )

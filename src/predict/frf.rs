@@ -60,6 +60,15 @@ impl FrfOutput {
     }
 }
 
+/// How an [`FrfPredictor`] sums and reports: damping model, output form, and the number
+/// of lowest modes in the sums.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrfOptions {
+    pub damping: FrfDamping,
+    pub output: FrfOutput,
+    pub n_modes: usize,
+}
+
 /// One block as the predictor evaluates it: pairs on local shape rows.
 #[derive(Debug, Clone)]
 struct LocalBlock {
@@ -97,17 +106,20 @@ pub struct FrfWorkspace<W> {
 
 impl<S: ModeSolver> FrfPredictor<S> {
     /// `blocks[b]` observed through an exponential window of `window_tau_s[b]` seconds
-    /// (`None`: no window); `n_modes` lowest modes in the sums.
+    /// (`None`: no window).
     pub fn new(
         solver: S,
         model: Arc<StructuralModel>,
         params: Parametrisation,
-        damping: FrfDamping,
-        output: FrfOutput,
-        n_modes: usize,
+        options: FrfOptions,
         blocks: &[FrfBlock],
         window_tau_s: &[Option<f64>],
     ) -> Result<Self> {
+        let FrfOptions {
+            damping,
+            output,
+            n_modes,
+        } = options;
         let n_dof = model.n_dof();
         if solver.n_dof() != n_dof {
             return Err(Error::Usage(format!(

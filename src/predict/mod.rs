@@ -14,7 +14,7 @@ pub mod frf;
 pub mod modal;
 pub mod reduced;
 
-pub use frf::{FrfDamping, FrfOutput, FrfPredictor, FrfWorkspace};
+pub use frf::{FrfDamping, FrfOptions, FrfOutput, FrfPredictor, FrfWorkspace};
 pub use modal::{DenseModes, ModalPredictor, ModeSolver, PartialModes};
 
 use crate::error::{Error, Result};

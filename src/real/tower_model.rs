@@ -43,8 +43,8 @@ use crate::mcmc::LogDensity;
 use crate::modal::Modes;
 use crate::model::StructuralModel;
 use crate::predict::{
-    Coordinate, DenseModes, FrfDamping, FrfOutput, FrfPredictor, Parametrisation, Predict, Scale,
-    Variable,
+    Coordinate, DenseModes, FrfDamping, FrfOptions, FrfOutput, FrfPredictor, Parametrisation,
+    Predict, Scale, Variable,
 };
 
 /// Stories (and measured floors).
@@ -180,9 +180,11 @@ fn predictor(freq_hz: &[f64]) -> Result<FrfPredictor<DenseModes>> {
         DenseModes::new(model.clone()),
         model,
         params,
-        FrfDamping::Modal,
-        FrfOutput::Complex,
-        N,
+        FrfOptions {
+            damping: FrfDamping::Modal,
+            output: FrfOutput::Complex,
+            n_modes: N,
+        },
         &[block],
         &[None],
     )

@@ -94,9 +94,11 @@ fn all_modes_match_the_direct_solve() {
                 DenseModes::new(model.clone()),
                 model.clone(),
                 params.clone(),
-                FrfDamping::Rayleigh,
-                FrfOutput::Complex,
-                5,
+                FrfOptions {
+                    damping: FrfDamping::Rayleigh,
+                    output: FrfOutput::Complex,
+                    n_modes: 5,
+                },
                 &blocks,
                 &[tau],
             )
@@ -146,9 +148,11 @@ fn modal_damping_matches_the_reference_modal_sum() {
         DenseModes::new(model.clone()),
         model.clone(),
         params.clone(),
-        FrfDamping::Modal,
-        FrfOutput::LogMagnitude,
-        5,
+        FrfOptions {
+            damping: FrfDamping::Modal,
+            output: FrfOutput::LogMagnitude,
+            n_modes: 5,
+        },
         &blocks,
         &[None],
     )
@@ -219,9 +223,11 @@ fn partial_solver_matches_the_dense_one() {
         DenseModes::new(model.clone()),
         model.clone(),
         params.clone(),
-        FrfDamping::Rayleigh,
-        FrfOutput::Magnitude,
-        6,
+        FrfOptions {
+            damping: FrfDamping::Rayleigh,
+            output: FrfOutput::Magnitude,
+            n_modes: 6,
+        },
         &blocks,
         &[Some(10.0)],
     )
@@ -230,9 +236,11 @@ fn partial_solver_matches_the_dense_one() {
         PartialModes::new(model.clone(), PartialOptions::default()).unwrap(),
         model.clone(),
         params,
-        FrfDamping::Rayleigh,
-        FrfOutput::Magnitude,
-        6,
+        FrfOptions {
+            damping: FrfDamping::Rayleigh,
+            output: FrfOutput::Magnitude,
+            n_modes: 6,
+        },
         &blocks,
         &[Some(10.0)],
     )
@@ -252,9 +260,11 @@ fn rejects_bad_pairs_modes_and_windows() {
             DenseModes::new(model.clone()),
             model.clone(),
             params.clone(),
-            FrfDamping::Rayleigh,
-            FrfOutput::Magnitude,
-            n_modes,
+            FrfOptions {
+                damping: FrfDamping::Rayleigh,
+                output: FrfOutput::Magnitude,
+                n_modes: n_modes,
+            },
             &[FrfBlock {
                 omega_rad_s: vec![1.0, 2.0],
                 pairs,
