@@ -1,7 +1,7 @@
 //! `frfbayes sample`: posterior sampling of the model given a campaign's FRFs.
 
 use frfbayes::bayes::run::{
-    resume_sample, run_sample, SampleOutcome, SampleSettings, TestSelection,
+    checkpoint_path, resume_sample, run_sample, SampleOutcome, SampleSettings, TestSelection,
 };
 use frfbayes::bayes::PriorKind;
 use frfbayes::frf::FrfKind;
@@ -9,6 +9,7 @@ use frfbayes::mcmc::Progress;
 use frfbayes::update::{DampingModel, ResidualForm};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::ops::ControlFlow;
+use frfbayes::io::{OutputClaim, StagedDir};
 use std::path::PathBuf;
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -344,8 +345,10 @@ pub fn fit(args: Args) -> anyhow::Result<()> {
         "fit has no --resume: it starts again in seconds"
     );
     let settings = args.settings()?;
-    let report = frfbayes::bayes::fit::run_fit(&settings, &args.out)?;
-    println!("wrote {}", args.out.join("fit.json").display());
+    let staged = StagedDir::new(&args.out)?;
+    let report = frfbayes::bayes::fit::run_fit(&settings, staged.path())?;
+    let out = staged.commit()?;
+    println!("wrote {}", out.join("fit.json").display());
     println!(
         "{} points ({} bins dropped for zero coherence), {} starts, {} at the best cost {:.6e}",
         report.n_points,
@@ -380,6 +383,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         pb.set_message(format!("acceptance {:.3}{tau}", p.acceptance));
         ControlFlow::Continue(())
     };
+    let claim = OutputClaim::claim(&args.out)?;
+    let partial = claim.partial_path();
+    let interrupted = checkpoint_path(&partial).exists();
     let outcome = if args.resume {
         let given = args.problem_flags_given();
         anyhow::ensure!(
@@ -388,10 +394,50 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.out.join("settings.toml").display(),
             given.join(", ")
         );
-        resume_sample(&args.out, args.max_steps, &stage, Some(&mut on_step))
+        anyhow::ensure!(
+            interrupted || checkpoint_path(&args.out).exists(),
+            "{}: nothing to resume (no interrupted run beside it, no checkpoint in it: the \
+             run converged, or was stopped before its first checkpoint); start it again \
+             without --resume",
+            args.out.display()
+        );
+        if interrupted {
+            // A killed run: continue it aside and swap it in when done.
+            let (staged, _) = StagedDir::resumable(claim, true)?;
+            let mut o = resume_sample(staged.path(), args.max_steps, &stage, Some(&mut on_step));
+            if let Ok(o) = &mut o {
+                o.out = staged.commit()?;
+            }
+            o
+        } else {
+            // A finished run that stopped unconverged: extend it in place (its outputs
+            // are rewritten only at the end; until then they stay as they were).
+            let o = resume_sample(&args.out, args.max_steps, &stage, Some(&mut on_step));
+            if o.is_ok() {
+                claim.refresh_manifest()?;
+            }
+            o
+        }
     } else {
+        anyhow::ensure!(
+            !interrupted,
+            "{} holds the state of an interrupted run of {}: continue it with --resume, or \
+             delete that folder to start over",
+            partial.display(),
+            args.out.display()
+        );
+        anyhow::ensure!(
+            !checkpoint_path(&args.out).exists(),
+            "{} holds an unfinished run (checkpoint.mcmc); extend it with --resume or delete it",
+            args.out.display()
+        );
         let settings = args.settings()?;
-        run_sample(&settings, &args.out, &stage, Some(&mut on_step))
+        let (staged, _) = StagedDir::resumable(claim, false)?;
+        let mut o = run_sample(&settings, staged.path(), &stage, Some(&mut on_step));
+        if let Ok(o) = &mut o {
+            o.out = staged.commit()?;
+        }
+        o
     };
     pb.finish_and_clear();
     print(&outcome?);
