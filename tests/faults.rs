@@ -50,7 +50,12 @@ fn stderr(o: &Output) -> String {
 /// every one of `needles`.
 fn assert_fails(o: &Output, needles: &[&str]) {
     let err = stderr(o);
-    assert_eq!(o.status.code(), Some(1), "expected exit 1, got {:?}: {err}", o.status);
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "expected exit 1, got {:?}: {err}",
+        o.status
+    );
     assert!(!err.contains("panicked"), "{err}");
     for n in needles {
         assert!(err.contains(n), "message lacks {n:?}: {err}");
@@ -179,20 +184,54 @@ fn every_writing_command_refuses_an_out_that_is_a_file() {
     let f = s(&file);
     let commands: Vec<(&str, Vec<&str>, &Path)> = vec![
         ("frf", vec!["frf", s(campaign()), "--out", f], &file),
-        ("diagnose", vec!["diagnose", s(campaign()), "--out", f, "--quick"], &file),
-        ("simulate", vec!["simulate", "--model", s(&model), "--out", f], &file),
-        ("sample", vec!["sample", "--campaign", s(campaign()), "--out", f], &file),
-        ("fit", vec!["fit", "--campaign", s(campaign()), "--out", f], &file),
+        (
+            "diagnose",
+            vec!["diagnose", s(campaign()), "--out", f, "--quick"],
+            &file,
+        ),
+        (
+            "simulate",
+            vec!["simulate", "--model", s(&model), "--out", f],
+            &file,
+        ),
+        (
+            "sample",
+            vec!["sample", "--campaign", s(campaign()), "--out", f],
+            &file,
+        ),
+        (
+            "fit",
+            vec!["fit", "--campaign", s(campaign()), "--out", f],
+            &file,
+        ),
         ("repro", vec!["repro", "--out", f], &file),
-        ("run", vec!["run", "experiments/paper_repro.toml", "--out", f], &file),
+        (
+            "run",
+            vec!["run", "experiments/paper_repro.toml", "--out", f],
+            &file,
+        ),
         (
             "real",
-            vec!["real", "four-story-modal", "--shared", s(&shared), "--out", f],
+            vec![
+                "real",
+                "four-story-modal",
+                "--shared",
+                s(&shared),
+                "--out",
+                f,
+            ],
             &file,
         ),
         (
             "diagnose-benchmark",
-            vec!["diagnose-benchmark", "--cases", s(&cases), "--work", s(&work), "--quick"],
+            vec![
+                "diagnose-benchmark",
+                "--cases",
+                s(&cases),
+                "--work",
+                s(&work),
+                "--quick",
+            ],
             &case_file,
         ),
     ];
@@ -202,7 +241,11 @@ fn every_writing_command_refuses_an_out_that_is_a_file() {
         c.current_dir(repo());
         let o = run(c);
         assert_fails(&o, &[s(target), "is an existing file", "left untouched"]);
-        assert_eq!(std::fs::read(target).unwrap(), content, "{name} changed the file");
+        assert_eq!(
+            std::fs::read(target).unwrap(),
+            content,
+            "{name} changed the file"
+        );
         assert_eq!(names(tmp.path()), before, "{name} left something beside it");
         assert_eq!(names(&work.join("campaigns")), ["tiny"], "{name}");
     }
@@ -219,12 +262,19 @@ fn only_its_own_output_folders_are_replaced() {
     assert!(first.contains_key(".frfbayes-output"));
     assert_ok(&run(frf(&out)));
     assert_same(&snapshot(&out), &first, &format!("same input, same output"));
-    assert_eq!(names(tmp.path()), ["res"], "no staging, backup or lock file left");
+    assert_eq!(
+        names(tmp.path()),
+        ["res"],
+        "no staging, backup or lock file left"
+    );
     // The user adds a file: the folder is no longer frfbayes' alone.
     std::fs::write(out.join("hammer-floor1/my-notes.txt"), "keep me").unwrap();
     let with_notes = snapshot(&out);
     let o = run(frf(&out));
-    assert_fails(&o, &[s(&out), "hammer-floor1/my-notes.txt", "did not write"]);
+    assert_fails(
+        &o,
+        &[s(&out), "hammer-floor1/my-notes.txt", "did not write"],
+    );
     assert_same(&snapshot(&out), &with_notes, &String::new());
     // A folder of the user's own.
     let mine = tmp.path().join("mine");
@@ -250,7 +300,10 @@ fn a_folder_being_written_is_refused_and_a_stale_lock_taken_over() {
     lock.try_lock().unwrap();
     std::fs::write(&lock_path, "424242").unwrap();
     let o = run(frf(&out));
-    assert_fails(&o, &[s(&out), "pid 424242", "is writing this output folder"]);
+    assert_fails(
+        &o,
+        &[s(&out), "pid 424242", "is writing this output folder"],
+    );
     assert_same(&snapshot(&out), &before, &String::new());
     drop(lock); // released; the file (with a dead pid) stays, as after a SIGKILL
     assert!(lock_path.exists());
@@ -313,7 +366,15 @@ fn full_disk_leaves_previous_results_intact() {
     assert_ok(&run(frf(&out)));
     let before = snapshot(&out);
     let o = run(with_size_limit(frf(&out), 4));
-    assert_fails(&o, &["File too large", "frf.csv", "hint: the disk", "previous results"]);
+    assert_fails(
+        &o,
+        &[
+            "File too large",
+            "frf.csv",
+            "hint: the disk",
+            "previous results",
+        ],
+    );
     assert_same(&snapshot(&out), &before, &String::new());
     assert_eq!(names(tmp.path()), ["res"]);
     // The same for a diagnosis and a simulated campaign.
@@ -379,13 +440,23 @@ fn read_only_folder_is_an_error_and_changes_nothing() {
         std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
         let msg = "running as root without setpriv (util-linux): cannot make a folder \
                    read-only for the binary";
-        assert!(std::env::var_os("FRFBAYES_REQUIRE_EXTERNAL").is_none(), "{msg}");
+        assert!(
+            std::env::var_os("FRFBAYES_REQUIRE_EXTERNAL").is_none(),
+            "{msg}"
+        );
         println!("skipped: {msg}");
         return;
     };
     let o = run(c);
     std::fs::set_permissions(&ro, std::fs::Permissions::from_mode(0o755)).unwrap();
-    assert_fails(&o, &[s(&ro), "Permission denied", "hint: that folder is not writable"]);
+    assert_fails(
+        &o,
+        &[
+            s(&ro),
+            "Permission denied",
+            "hint: that folder is not writable",
+        ],
+    );
     assert_same(&snapshot(&out), &before, &String::new());
     assert_eq!(names(&ro), ["res"]);
 }
@@ -393,7 +464,11 @@ fn read_only_folder_is_an_error_and_changes_nothing() {
 /// Starts `c`, waits until `ready()` or `after`, then SIGKILLs it. Returns whether it
 /// was still running when killed.
 fn kill_when(mut c: Command, after: Duration, ready: impl Fn() -> bool) -> bool {
-    let mut child = c.stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap();
+    let mut child = c
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
     let t0 = Instant::now();
     while t0.elapsed() < after && !ready() {
         if child.try_wait().unwrap().is_some() {
@@ -441,7 +516,11 @@ fn diagnose_killed_anywhere_resumes_to_the_same_diagnosis() {
         // Killed and resumed, or (on a slow machine) finished before the kill.
         assert_complete(&out);
         assert_eq!(std::fs::read(out.join("diagnosis.json")).unwrap(), expected);
-        assert_eq!(names(tmp.path()), ["out", "reference"], "leftovers after resume");
+        assert_eq!(
+            names(tmp.path()),
+            ["out", "reference"],
+            "leftovers after resume"
+        );
     }
 }
 
@@ -456,7 +535,10 @@ fn interrupted_diagnosis(camp: &Path, out: &Path) -> PathBuf {
     let killed = kill_when(diagnose(camp, out, false), Duration::from_secs(60), || {
         stage.exists()
     });
-    assert!(killed && stage.exists(), "the run ended before it could be killed");
+    assert!(
+        killed && stage.exists(),
+        "the run ended before it could be killed"
+    );
     stage
 }
 
@@ -478,7 +560,10 @@ fn damaged_stage_files_are_refused_on_resume() {
     std::fs::write(&stage, &flipped).unwrap();
     let o = run(diagnose(campaign(), &out, true));
     assert_fails(&o, &[s(&stage), "checksum mismatch"]);
-    assert!(!out.exists(), "nothing written where results are looked for");
+    assert!(
+        !out.exists(),
+        "nothing written where results are looked for"
+    );
     std::fs::remove_file(&stage).unwrap();
     assert_ok(&run(diagnose(campaign(), &out, true)));
     assert_eq!(
@@ -562,4 +647,51 @@ fn sample_killed_resumes_identically_and_a_truncated_checkpoint_is_refused() {
         }
     }
     assert_eq!(names(tmp.path()), ["out", "reference"]);
+}
+
+/// A case file with the fixture campaign as its one case.
+fn tiny_cases(dir: &Path) -> PathBuf {
+    let cases = dir.join("cases.toml");
+    std::fs::write(
+        &cases,
+        format!(
+            "hypotheses = []\n[[case]]\nid = \"tiny\"\nmodel = {:?}\nverdict = \"none\"\n\
+             location = {{}}\nsize = \"-\"\nnoise_scale = 1.0\nseed = 16\n",
+            s(&repo().join("tests/fixtures/faults/tiny.toml"))
+        ),
+    )
+    .unwrap();
+    cases
+}
+
+fn benchmark(cases: &Path, work: &Path, resume: bool) -> Command {
+    let report = work.with_extension("md");
+    let mut c = frfbayes(&["diagnose-benchmark", "--cases", s(cases), "--work", s(work)]);
+    c.args(["--report", s(&report), "--quick"]);
+    if resume {
+        c.arg("--resume");
+    }
+    c
+}
+
+/// `diagnose-benchmark` killed inside a case's diagnosis and rerun with `--resume`:
+/// the case's `diagnosis.json` is the uninterrupted run's.
+#[test]
+fn benchmark_killed_mid_case_resumes_to_the_same_diagnosis() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cases = tiny_cases(tmp.path());
+    let reference = tmp.path().join("reference");
+    assert_ok(&run(benchmark(&cases, &reference, false)));
+    let work = tmp.path().join("work");
+    let stage = work.join("diagnoses/.tiny.frfbayes-partial/evidence-nominal.stage");
+    let killed = kill_when(benchmark(&cases, &work, false), Duration::from_secs(60), || {
+        stage.exists()
+    });
+    assert!(killed, "the run ended before it could be killed");
+    assert!(!work.join("diagnoses/tiny").exists());
+    assert_ok(&run(benchmark(&cases, &work, true)));
+    let json = |w: &Path| std::fs::read(w.join("diagnoses/tiny/diagnosis.json")).unwrap();
+    assert_eq!(json(&work), json(&reference));
+    assert_eq!(names(&work.join("diagnoses")), ["tiny"]);
+    assert_eq!(names(&work.join("campaigns")), ["tiny"]);
 }

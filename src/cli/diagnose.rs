@@ -5,8 +5,8 @@ use frfbayes::discrepancy::benchmark::{benchmark_markdown, read_cases, CaseOutco
 use frfbayes::discrepancy::diagnose::{diagnose_resumable, DiagnoseOptions, DiagnoseStage};
 use frfbayes::discrepancy::output::write_diagnosis_into;
 use frfbayes::discrepancy::report::record;
-use frfbayes::infer::evidence::Stage;
 use frfbayes::infer::evidence::EvidenceOptions;
+use frfbayes::infer::evidence::Stage;
 use frfbayes::io::stages::{fingerprint_folder, fingerprint_setting, Stages};
 use frfbayes::io::{read_campaign, write_atomic, Campaign, OutputClaim, StagedDir};
 use frfbayes::simulate::{SimModel, Simulator};

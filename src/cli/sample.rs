@@ -5,11 +5,11 @@ use frfbayes::bayes::run::{
 };
 use frfbayes::bayes::PriorKind;
 use frfbayes::frf::FrfKind;
+use frfbayes::io::{OutputClaim, StagedDir};
 use frfbayes::mcmc::Progress;
 use frfbayes::update::{DampingModel, ResidualForm};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::ops::ControlFlow;
-use frfbayes::io::{OutputClaim, StagedDir};
 use std::path::PathBuf;
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]

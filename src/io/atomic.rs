@@ -136,8 +136,9 @@ mod tests {
     fn staged_dir_keeps_old_content_until_commit() {
         let dir = tempfile::tempdir().unwrap();
         let target = dir.path().join("out");
-        std::fs::create_dir_all(&target).unwrap();
-        std::fs::write(target.join("a.txt"), "old").unwrap();
+        let first = StagedDir::new(&target).unwrap();
+        std::fs::write(first.path().join("a.txt"), "old").unwrap();
+        first.commit().unwrap();
         {
             let staged = StagedDir::new(&target).unwrap();
             std::fs::write(staged.path().join("a.txt"), "new").unwrap();

@@ -3,8 +3,8 @@
 
 pub mod atomic;
 pub mod bundled;
-pub mod output;
 mod campaign;
+pub mod output;
 pub mod runinfo;
 pub mod stages;
 mod types;
@@ -12,8 +12,8 @@ mod writer;
 
 pub use atomic::{write_atomic, write_atomic_with, StagedDir};
 pub use bundled::resolve_data;
-pub use output::{OutputClaim, MANIFEST};
 pub use campaign::{read_campaign, read_nominal};
+pub use output::{OutputClaim, MANIFEST};
 pub use runinfo::RunInfo;
 pub use types::{
     Campaign, Channel, GeneralModel, NominalModel, Quantity, Test, TestKind, GENERAL, SHEAR_FRAME,

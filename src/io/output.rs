@@ -254,10 +254,7 @@ fn foreign_entries(dir: &Path) -> Result<Vec<String>> {
             if LEGACY_MARKERS.iter().any(|m| dir.join(m).is_file()) {
                 Ok(Vec::new())
             } else {
-                Ok(entries
-                    .into_iter()
-                    .filter(|e| !e.contains('/'))
-                    .collect())
+                Ok(entries.into_iter().filter(|e| !e.contains('/')).collect())
             }
         }
         Err(e) => Err(Error::io(&manifest_path, e)),
@@ -320,7 +317,9 @@ impl OutputLock {
                 .open(&path)
                 .map_err(|e| Error::io(&path, e))?;
             let locked = if wait {
-                file.lock().map(|()| true).map_err(|e| Error::io(&path, e))?
+                file.lock()
+                    .map(|()| true)
+                    .map_err(|e| Error::io(&path, e))?
             } else {
                 match file.try_lock() {
                     Ok(()) => true,
@@ -386,4 +385,80 @@ fn same_file(file: &File, path: &Path) -> bool {
 #[cfg(not(unix))]
 fn same_file(_file: &File, path: &Path) -> bool {
     path.exists()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::StagedDir;
+
+    fn build(target: &Path, text: &str) -> PathBuf {
+        let staged = StagedDir::new(target).unwrap();
+        std::fs::create_dir_all(staged.path().join("sub")).unwrap();
+        std::fs::write(staged.path().join("sub/a.txt"), text).unwrap();
+        staged.commit().unwrap()
+    }
+
+    #[test]
+    fn previous_folder_left_aside_by_a_killed_swap_is_put_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out");
+        build(&target, "old");
+        // A run killed between its two renames: the old folder aside, no target.
+        let aside = dir.path().join(".out.999999.frfbayes-old");
+        std::fs::rename(&target, &aside).unwrap();
+        let staging = dir.path().join(".out.999999.frfbayes-staging");
+        std::fs::create_dir_all(&staging).unwrap();
+        let claim = OutputClaim::claim(&target).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(target.join("sub/a.txt")).unwrap(),
+            "old"
+        );
+        assert!(!aside.exists() && !staging.exists());
+        drop(claim);
+        // With the target present, a folder aside is the stale one: deleted.
+        build(&target, "new");
+        std::fs::create_dir_all(&aside).unwrap();
+        drop(OutputClaim::claim(&target).unwrap());
+        assert!(!aside.exists());
+        assert_eq!(
+            std::fs::read_to_string(target.join("sub/a.txt")).unwrap(),
+            "new"
+        );
+        let mut left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["out"]);
+    }
+
+    #[test]
+    fn only_empty_own_or_legacy_folders_may_be_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out");
+        std::fs::create_dir_all(&target).unwrap();
+        drop(OutputClaim::claim(&target).unwrap()); // empty
+        std::fs::write(target.join("user.txt"), "u").unwrap();
+        let e = OutputClaim::claim(&target).unwrap_err().to_string();
+        assert!(e.contains("user.txt") && e.contains("did not write"), "{e}");
+        std::fs::write(target.join("run.json"), "{}").unwrap();
+        drop(OutputClaim::claim(&target).unwrap()); // legacy frfbayes folder
+                                                    // A symbolic link is refused and left alone.
+        #[cfg(unix)]
+        {
+            let link = dir.path().join("link");
+            std::os::unix::fs::symlink(&target, &link).unwrap();
+            let e = OutputClaim::claim(&link).unwrap_err().to_string();
+            assert!(e.contains("symbolic link"), "{e}");
+            assert!(link.join("user.txt").exists());
+        }
+        // A name that clashes with the prefix of another target's leftovers is not
+        // mistaken for one of them.
+        let other = dir.path().join(".out.x.1.frfbayes-staging");
+        std::fs::create_dir_all(&other).unwrap();
+        drop(OutputClaim::claim(&target).unwrap());
+        assert!(other.exists());
+    }
 }

@@ -38,8 +38,8 @@ impl Stages {
         let inputs_path = dir.join(INPUTS);
         let text = fingerprint_text(inputs);
         if resume && inputs_path.exists() {
-            let old = std::fs::read_to_string(&inputs_path)
-                .map_err(|e| Error::io(&inputs_path, e))?;
+            let old =
+                std::fs::read_to_string(&inputs_path).map_err(|e| Error::io(&inputs_path, e))?;
             if old != text {
                 return Err(Error::invalid(
                     &inputs_path,
@@ -65,7 +65,13 @@ impl Stages {
     pub fn path(&self, key: &str) -> PathBuf {
         let safe: String = key
             .chars()
-            .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                    c
+                } else {
+                    '_'
+                }
+            })
             .collect();
         self.dir.join(format!("{safe}.stage"))
     }
@@ -101,8 +107,9 @@ pub fn staged<T: Serialize + DeserializeOwned>(
 /// Writes one stage file (format in the module docs).
 pub fn write_stage<T: Serialize>(path: &Path, value: &T) -> Result<()> {
     let mut payload = Vec::new();
-    ciborium::into_writer(value, &mut payload)
-        .map_err(|e| Error::Numerical(format!("{}: cannot encode the stage: {e}", path.display())))?;
+    ciborium::into_writer(value, &mut payload).map_err(|e| {
+        Error::Numerical(format!("{}: cannot encode the stage: {e}", path.display()))
+    })?;
     let mut bytes = Vec::with_capacity(HEADER_LEN + payload.len());
     bytes.extend_from_slice(MAGIC);
     bytes.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
@@ -205,7 +212,11 @@ fn differences(old: &str, new: &str) -> String {
             _ => {}
         }
     }
-    out.extend(a.keys().filter(|n| !b.contains_key(*n)).map(|n| format!("{n} is gone")));
+    out.extend(
+        a.keys()
+            .filter(|n| !b.contains_key(*n))
+            .map(|n| format!("{n} is gone")),
+    );
     let n = out.len();
     out.truncate(5);
     if n > 5 {
