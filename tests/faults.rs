@@ -261,7 +261,7 @@ fn only_its_own_output_folders_are_replaced() {
     let first = snapshot(&out);
     assert!(first.contains_key(".frfbayes-output"));
     assert_ok(&run(frf(&out)));
-    assert_same(&snapshot(&out), &first, &format!("same input, same output"));
+    assert_same(&snapshot(&out), &first, "same input, same output");
     assert_eq!(
         names(tmp.path()),
         ["res"],
@@ -275,7 +275,7 @@ fn only_its_own_output_folders_are_replaced() {
         &o,
         &[s(&out), "hammer-floor1/my-notes.txt", "did not write"],
     );
-    assert_same(&snapshot(&out), &with_notes, &String::new());
+    assert_same(&snapshot(&out), &with_notes, "");
     // A folder of the user's own.
     let mine = tmp.path().join("mine");
     std::fs::create_dir_all(&mine).unwrap();
@@ -304,11 +304,11 @@ fn a_folder_being_written_is_refused_and_a_stale_lock_taken_over() {
         &o,
         &[s(&out), "pid 424242", "is writing this output folder"],
     );
-    assert_same(&snapshot(&out), &before, &String::new());
+    assert_same(&snapshot(&out), &before, "");
     drop(lock); // released; the file (with a dead pid) stays, as after a SIGKILL
     assert!(lock_path.exists());
     assert_ok(&run(frf(&out)));
-    assert_same(&snapshot(&out), &before, &String::new());
+    assert_same(&snapshot(&out), &before, "");
     assert_eq!(names(tmp.path()), ["res"]);
 }
 
@@ -340,7 +340,7 @@ fn concurrent_runs_into_one_folder_serialise_or_refuse() {
         for o in outputs.iter().filter(|o| !o.status.success()) {
             assert_fails(o, &["is writing this output folder", "wait for it"]);
         }
-        assert_same(&snapshot(&out), &snapshot(&reference), &String::new());
+        assert_same(&snapshot(&out), &snapshot(&reference), "");
         assert_eq!(names(tmp.path()), ["reference", "res"]);
     }
 }
@@ -375,7 +375,7 @@ fn full_disk_leaves_previous_results_intact() {
             "previous results",
         ],
     );
-    assert_same(&snapshot(&out), &before, &String::new());
+    assert_same(&snapshot(&out), &before, "");
     assert_eq!(names(tmp.path()), ["res"]);
     // The same for a diagnosis and a simulated campaign.
     let diag = tmp.path().join("diag");
@@ -383,7 +383,7 @@ fn full_disk_leaves_previous_results_intact() {
     let before = snapshot(&diag);
     let o = run(with_size_limit(diagnose(campaign(), &diag, false), 8));
     assert_fails(&o, &["File too large", "hint: the disk"]);
-    assert_same(&snapshot(&diag), &before, &String::new());
+    assert_same(&snapshot(&diag), &before, "");
     let sim = tmp.path().join("sim");
     let model = repo().join("tests/fixtures/faults/tiny.toml");
     let simulate = || frfbayes(&["simulate", "--model", s(&model), "--out", s(&sim)]);
@@ -391,7 +391,7 @@ fn full_disk_leaves_previous_results_intact() {
     let before = snapshot(&sim);
     let o = run(with_size_limit(simulate(), 16));
     assert_fails(&o, &["File too large", "data.csv"]);
-    assert_same(&snapshot(&sim), &before, &String::new());
+    assert_same(&snapshot(&sim), &before, "");
 }
 
 fn is_root() -> bool {
@@ -457,7 +457,7 @@ fn read_only_folder_is_an_error_and_changes_nothing() {
             "hint: that folder is not writable",
         ],
     );
-    assert_same(&snapshot(&out), &before, &String::new());
+    assert_same(&snapshot(&out), &before, "");
     assert_eq!(names(&ro), ["res"]);
 }
 
@@ -684,9 +684,11 @@ fn benchmark_killed_mid_case_resumes_to_the_same_diagnosis() {
     assert_ok(&run(benchmark(&cases, &reference, false)));
     let work = tmp.path().join("work");
     let stage = work.join("diagnoses/.tiny.frfbayes-partial/evidence-nominal.stage");
-    let killed = kill_when(benchmark(&cases, &work, false), Duration::from_secs(60), || {
-        stage.exists()
-    });
+    let killed = kill_when(
+        benchmark(&cases, &work, false),
+        Duration::from_secs(60),
+        || stage.exists(),
+    );
     assert!(killed, "the run ended before it could be killed");
     assert!(!work.join("diagnoses/tiny").exists());
     assert_ok(&run(benchmark(&cases, &work, true)));

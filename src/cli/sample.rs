@@ -1,12 +1,13 @@
 //! `frfbayes sample`: posterior sampling of the model given a campaign's FRFs.
 
 use frfbayes::bayes::run::{
-    checkpoint_path, resume_sample, run_sample, SampleOutcome, SampleSettings, TestSelection,
+    checkpoint_path, resume_sample, run_sample, SampleOutcome, SampleSettings, StageFn,
+    TestSelection,
 };
 use frfbayes::bayes::PriorKind;
 use frfbayes::frf::FrfKind;
 use frfbayes::io::{OutputClaim, StagedDir};
-use frfbayes::mcmc::Progress;
+use frfbayes::mcmc::{Progress, ProgressFn};
 use frfbayes::update::{DampingModel, ResidualForm};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::ops::ControlFlow;
@@ -369,6 +370,70 @@ pub fn fit(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `sample --resume` into the claimed `--out`: a killed run continues aside and is
+/// swapped in when done; a finished run that stopped unconverged is extended in place
+/// (its outputs are rewritten only at the end; until then they stay as they were).
+fn resume_claimed(
+    args: &Args,
+    claim: OutputClaim,
+    stage: StageFn,
+    on_step: &mut ProgressFn<'_>,
+) -> anyhow::Result<SampleOutcome> {
+    let interrupted = checkpoint_path(&claim.partial_path()).exists();
+    let given = args.problem_flags_given();
+    anyhow::ensure!(
+        given.is_empty(),
+        "--resume continues with the run's own settings ({}); drop {}",
+        args.out.join("settings.toml").display(),
+        given.join(", ")
+    );
+    anyhow::ensure!(
+        interrupted || checkpoint_path(&args.out).exists(),
+        "{}: nothing to resume (no interrupted run beside it, no checkpoint in it: the \
+         run converged, or was stopped before its first checkpoint); start it again \
+         without --resume",
+        args.out.display()
+    );
+    if interrupted {
+        let (staged, _) = StagedDir::resumable(claim, true)?;
+        let mut o = resume_sample(staged.path(), args.max_steps, stage, Some(on_step))?;
+        o.out = staged.commit()?;
+        Ok(o)
+    } else {
+        let o = resume_sample(&args.out, args.max_steps, stage, Some(on_step))?;
+        claim.refresh_manifest()?;
+        Ok(o)
+    }
+}
+
+/// A fresh `sample` into the claimed `--out`, run aside in its partial folder (kept for
+/// `--resume` if the run is killed) and swapped in when done.
+fn fresh_claimed(
+    args: &Args,
+    claim: OutputClaim,
+    stage: StageFn,
+    on_step: &mut ProgressFn<'_>,
+) -> anyhow::Result<SampleOutcome> {
+    let partial = claim.partial_path();
+    anyhow::ensure!(
+        !checkpoint_path(&partial).exists(),
+        "{} holds the state of an interrupted run of {}: continue it with --resume, or \
+         delete that folder to start over",
+        partial.display(),
+        args.out.display()
+    );
+    anyhow::ensure!(
+        !checkpoint_path(&args.out).exists(),
+        "{} holds an unfinished run (checkpoint.mcmc); extend it with --resume or delete it",
+        args.out.display()
+    );
+    let settings = args.settings()?;
+    let (staged, _) = StagedDir::resumable(claim, false)?;
+    let mut o = run_sample(&settings, staged.path(), stage, Some(on_step))?;
+    o.out = staged.commit()?;
+    Ok(o)
+}
+
 /// Runs or resumes a sampling run.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let pb = progress_bar();
@@ -384,60 +449,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ControlFlow::Continue(())
     };
     let claim = OutputClaim::claim(&args.out)?;
-    let partial = claim.partial_path();
-    let interrupted = checkpoint_path(&partial).exists();
     let outcome = if args.resume {
-        let given = args.problem_flags_given();
-        anyhow::ensure!(
-            given.is_empty(),
-            "--resume continues with the run's own settings ({}); drop {}",
-            args.out.join("settings.toml").display(),
-            given.join(", ")
-        );
-        anyhow::ensure!(
-            interrupted || checkpoint_path(&args.out).exists(),
-            "{}: nothing to resume (no interrupted run beside it, no checkpoint in it: the \
-             run converged, or was stopped before its first checkpoint); start it again \
-             without --resume",
-            args.out.display()
-        );
-        if interrupted {
-            // A killed run: continue it aside and swap it in when done.
-            let (staged, _) = StagedDir::resumable(claim, true)?;
-            let mut o = resume_sample(staged.path(), args.max_steps, &stage, Some(&mut on_step));
-            if let Ok(o) = &mut o {
-                o.out = staged.commit()?;
-            }
-            o
-        } else {
-            // A finished run that stopped unconverged: extend it in place (its outputs
-            // are rewritten only at the end; until then they stay as they were).
-            let o = resume_sample(&args.out, args.max_steps, &stage, Some(&mut on_step));
-            if o.is_ok() {
-                claim.refresh_manifest()?;
-            }
-            o
-        }
+        resume_claimed(&args, claim, &stage, &mut on_step)
     } else {
-        anyhow::ensure!(
-            !interrupted,
-            "{} holds the state of an interrupted run of {}: continue it with --resume, or \
-             delete that folder to start over",
-            partial.display(),
-            args.out.display()
-        );
-        anyhow::ensure!(
-            !checkpoint_path(&args.out).exists(),
-            "{} holds an unfinished run (checkpoint.mcmc); extend it with --resume or delete it",
-            args.out.display()
-        );
-        let settings = args.settings()?;
-        let (staged, _) = StagedDir::resumable(claim, false)?;
-        let mut o = run_sample(&settings, staged.path(), &stage, Some(&mut on_step));
-        if let Ok(o) = &mut o {
-            o.out = staged.commit()?;
-        }
-        o
+        fresh_claimed(&args, claim, &stage, &mut on_step)
     };
     pb.finish_and_clear();
     print(&outcome?);
