@@ -60,6 +60,7 @@ fn main() -> std::process::ExitCode {
             return std::process::ExitCode::FAILURE;
         }
     }
+    frfbayes::io::output::set_command(command_name(&cli.command));
     let result = match cli.command {
         Command::Check(a) => cli::check::run(a),
         Command::Diagnose(a) => cli::diagnose::run(a),
@@ -83,6 +84,25 @@ fn main() -> std::process::ExitCode {
             }
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+/// The subcommand's name as typed (recorded in the output folders' manifests).
+fn command_name(c: &Command) -> &'static str {
+    match c {
+        Command::Check(_) => "check",
+        Command::Diagnose(_) => "diagnose",
+        Command::DiagnoseBenchmark(_) => "diagnose-benchmark",
+        Command::Frf(_) => "frf",
+        Command::Modes(_) => "modes",
+        Command::Multistart(_) => "multistart",
+        // `repro` is `run experiments/paper_repro.toml`: one family, one folder.
+        Command::Repro(_) => "run",
+        Command::Run(_) => "run",
+        Command::Real(_) => "real",
+        Command::Sample(_) => "sample",
+        Command::Fit(_) => "fit",
+        Command::Simulate(_) => "simulate",
     }
 }
 

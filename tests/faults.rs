@@ -101,7 +101,10 @@ fn assert_same(a: &BTreeMap<String, Vec<u8>>, b: &BTreeMap<String, Vec<u8>>, wha
 /// Asserts `dir` is a complete output folder: its manifest lists exactly its files.
 fn assert_complete(dir: &Path) {
     let manifest = std::fs::read_to_string(dir.join(".frfbayes-output")).unwrap();
-    let listed: Vec<&str> = manifest.lines().filter(|l| !l.contains('/')).collect();
+    let listed: Vec<&str> = manifest
+        .lines()
+        .filter(|l| !l.contains('/') && !l.starts_with('#'))
+        .collect();
     let mut present = names(dir);
     present.retain(|n| n != ".frfbayes-output");
     assert_eq!(listed, present, "{}", dir.display());
@@ -283,6 +286,14 @@ fn only_its_own_output_folders_are_replaced() {
     let o = run(frf(&mine));
     assert_fails(&o, &["thesis.tex", "choose another output folder"]);
     assert_eq!(snapshot(&mine).len(), 1);
+    // Another command's results are not replaced either (`frf` wiping `sample`'s).
+    std::fs::remove_file(out.join("hammer-floor1/my-notes.txt")).unwrap();
+    let o = run(diagnose(campaign(), &out, false));
+    assert_fails(
+        &o,
+        &["holds the results of `frfbayes frf`", "`frfbayes diagnose`"],
+    );
+    assert_same(&snapshot(&out), &first, "another command's folder");
     assert_eq!(names(tmp.path()), ["mine", "res"]);
 }
 

@@ -9,6 +9,8 @@
 //!   commits) lists every entry, or (folders written before the manifest existed) it
 //!   holds a `run.json` or `diagnosis.json`. A folder with anything else in it is refused, naming the
 //!   foreign entries, and left untouched;
+//! - a folder another command wrote is refused too (its manifest's first line names the
+//!   command: `frf --out` never wipes `sample`'s results);
 //! - one run at a time per folder: the claim holds an OS lock on the file
 //!   `.<name>.frfbayes.lock` beside the folder, with the holder's pid in it; a second
 //!   run refuses with that pid ([`OutputClaim::claim_waiting`] waits instead). The OS
@@ -28,6 +30,7 @@ use crate::error::{Error, Result};
 use std::fs::{File, OpenOptions};
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 /// The manifest file frfbayes writes into every folder it commits: one relative path
 /// (with `/`) per line, every file and folder it wrote.
@@ -41,6 +44,8 @@ const LEGACY_MARKERS: [&str; 2] = ["run.json", "diagnosis.json"];
 #[derive(Debug)]
 pub struct OutputClaim {
     target: PathBuf,
+    /// Refuse a folder another command wrote (user outputs; not caches).
+    strict: bool,
     _lock: OutputLock,
 }
 
@@ -69,16 +74,18 @@ impl OutputClaim {
                 "cannot be an output folder (it has no name); give a folder path",
             ));
         }
-        check_target(&target)?;
+        let strict = !wait;
+        check_target(&target, strict)?;
         let parent = parent_of(&target);
         std::fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
         let lock = OutputLock::acquire(&target, wait)?;
         let claim = OutputClaim {
             target,
+            strict,
             _lock: lock,
         };
         claim.recover_leftovers()?;
-        check_target(&claim.target)?;
+        check_target(&claim.target, claim.strict)?;
         Ok(claim)
     }
 
@@ -117,7 +124,7 @@ impl OutputClaim {
             return Ok(target.clone());
         }
         // The user may have added files while the run was going: check again.
-        check_target(target)?;
+        check_target(target, self.strict)?;
         let old = self.sibling(&format!("{}.frfbayes-old", std::process::id()));
         std::fs::rename(target, &old).map_err(|e| Error::io(target, e))?;
         if let Err(e) = std::fs::rename(built, target) {
@@ -190,8 +197,20 @@ fn name_of(target: &Path) -> String {
         .unwrap_or_else(|| "out".into())
 }
 
-/// Refuses a target that is not a folder frfbayes may replace (module docs).
-fn check_target(target: &Path) -> Result<()> {
+/// The command of this process (`frf`, `sample`, ...), recorded in the manifests it
+/// writes; set once by the binary.
+static COMMAND: OnceLock<String> = OnceLock::new();
+
+/// Records the command this process runs (the binary calls it once, first).
+pub fn set_command(name: &str) {
+    let _ = COMMAND.set(name.to_string());
+}
+
+const WRITTEN_BY: &str = "# written by frfbayes ";
+
+/// Refuses a target that is not a folder frfbayes may replace (module docs); `strict`:
+/// nor one another command wrote.
+fn check_target(target: &Path, strict: bool) -> Result<()> {
     let meta = match std::fs::symlink_metadata(target) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
@@ -215,7 +234,11 @@ fn check_target(target: &Path) -> Result<()> {
     }
     let foreign = foreign_entries(target)?;
     if foreign.is_empty() {
-        return Ok(());
+        return if strict {
+            check_same_command(target)
+        } else {
+            Ok(())
+        };
     }
     let shown: Vec<&str> = foreign.iter().take(5).map(String::as_str).collect();
     let more = foreign.len().saturating_sub(shown.len());
@@ -235,6 +258,29 @@ fn check_target(target: &Path) -> Result<()> {
     ))
 }
 
+/// Refuses a folder whose manifest says another command wrote it: `frf --out` must
+/// not wipe the hours of `sample` that happen to be there.
+fn check_same_command(target: &Path) -> Result<()> {
+    let Some(current) = COMMAND.get() else {
+        return Ok(());
+    };
+    let text = std::fs::read_to_string(target.join(MANIFEST)).unwrap_or_default();
+    let Some(previous) = text.lines().next().and_then(|l| l.strip_prefix(WRITTEN_BY)) else {
+        return Ok(());
+    };
+    if previous == current {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        target,
+        format!(
+            "holds the results of `frfbayes {previous}`; `frfbayes {current}` replaces only \
+             its own: choose another output folder, or delete that one first (nothing was \
+             changed)"
+        ),
+    ))
+}
+
 /// Entries of the folder `dir` not written by frfbayes (empty: it may be replaced).
 fn foreign_entries(dir: &Path) -> Result<Vec<String>> {
     let entries = relative_entries(dir)?;
@@ -244,7 +290,8 @@ fn foreign_entries(dir: &Path) -> Result<Vec<String>> {
     let manifest_path = dir.join(MANIFEST);
     match std::fs::read_to_string(&manifest_path) {
         Ok(text) => {
-            let listed: std::collections::BTreeSet<&str> = text.lines().collect();
+            let listed: std::collections::BTreeSet<&str> =
+                text.lines().filter(|l| !l.starts_with('#')).collect();
             Ok(entries
                 .into_iter()
                 .filter(|e| e != MANIFEST && !listed.contains(e.as_str()))
@@ -289,7 +336,10 @@ fn write_manifest(dir: &Path) -> Result<()> {
         .into_iter()
         .filter(|e| e != MANIFEST)
         .collect();
-    let mut text = String::new();
+    let mut text = match COMMAND.get() {
+        Some(c) => format!("{WRITTEN_BY}{c}\n"),
+        None => String::new(),
+    };
     for e in &entries {
         text.push_str(e);
         text.push('\n');
