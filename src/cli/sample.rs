@@ -55,7 +55,9 @@ pub struct Args {
     /// Output folder (posterior.json, draws, figures; checkpoint while running).
     #[arg(long)]
     pub out: PathBuf,
-    /// Continue the killed or stopped run in --out from its checkpoint, with its settings.
+    /// Continue the killed run of --out (its state is kept beside it, in
+    /// `.<out>.frfbayes-partial`) or extend a finished run that stopped unconverged, from
+    /// its checkpoint, with its settings.
     #[arg(long)]
     pub resume: bool,
     /// Step cap (default 20000; with --resume it may be raised).
