@@ -60,6 +60,7 @@ fn main() -> std::process::ExitCode {
             return std::process::ExitCode::FAILURE;
         }
     }
+    frfbayes::io::output::set_command(command_name(&cli.command));
     let result = match cli.command {
         Command::Check(a) => cli::check::run(a),
         Command::Diagnose(a) => cli::diagnose::run(a),
@@ -77,8 +78,67 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_text(&e));
+            if let Some(hint) = io_hint(&e) {
+                eprintln!("hint: {hint}");
+            }
             std::process::ExitCode::FAILURE
         }
     }
+}
+
+/// The subcommand's name as typed (recorded in the output folders' manifests).
+fn command_name(c: &Command) -> &'static str {
+    match c {
+        Command::Check(_) => "check",
+        Command::Diagnose(_) => "diagnose",
+        Command::DiagnoseBenchmark(_) => "diagnose-benchmark",
+        Command::Frf(_) => "frf",
+        Command::Modes(_) => "modes",
+        Command::Multistart(_) => "multistart",
+        // `repro` is `run experiments/paper_repro.toml`: one family, one folder.
+        Command::Repro(_) => "run",
+        Command::Run(_) => "run",
+        Command::Real(_) => "real",
+        Command::Sample(_) => "sample",
+        Command::Fit(_) => "fit",
+        Command::Simulate(_) => "simulate",
+    }
+}
+
+/// The error and its causes, each cause shown once (an I/O error is both in its
+/// parent's message and the parent's source).
+fn error_text(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let s = cause.to_string();
+        if !text.contains(&s) {
+            if !text.is_empty() {
+                text.push_str(": ");
+            }
+            text.push_str(&s);
+        }
+    }
+    text
+}
+
+/// What to do about an error of the file system (issue 16): outputs are built aside,
+/// so the previous results are as they were.
+fn io_hint(e: &anyhow::Error) -> Option<&'static str> {
+    use std::io::ErrorKind as K;
+    let kind = e
+        .chain()
+        .find_map(|c| c.downcast_ref::<std::io::Error>())?
+        .kind();
+    Some(match kind {
+        K::StorageFull | K::FileTooLarge | K::QuotaExceeded => {
+            "the disk (or a size limit) is full: free space or write elsewhere; nothing \
+             was replaced, previous results are as they were"
+        }
+        K::PermissionDenied | K::ReadOnlyFilesystem => {
+            "that folder is not writable: fix its permissions or choose another output \
+             folder; nothing was replaced, previous results are as they were"
+        }
+        _ => return None,
+    })
 }

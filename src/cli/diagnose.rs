@@ -2,11 +2,13 @@
 //! leaves out; and `frfbayes diagnose-benchmark`: the same on the simulated benchmark.
 
 use frfbayes::discrepancy::benchmark::{benchmark_markdown, read_cases, CaseOutcome};
-use frfbayes::discrepancy::diagnose::{diagnose, DiagnoseOptions, DiagnoseStage};
-use frfbayes::discrepancy::output::write_diagnosis;
+use frfbayes::discrepancy::diagnose::{diagnose_resumable, DiagnoseOptions, DiagnoseStage};
+use frfbayes::discrepancy::output::write_diagnosis_into;
 use frfbayes::discrepancy::report::record;
+use frfbayes::infer::evidence::EvidenceOptions;
 use frfbayes::infer::evidence::Stage;
-use frfbayes::io::{read_campaign, write_atomic, Campaign};
+use frfbayes::io::stages::{fingerprint_folder, fingerprint_setting, Stages};
+use frfbayes::io::{read_campaign, write_atomic, Campaign, OutputClaim, StagedDir};
 use frfbayes::simulate::{SimModel, Simulator};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
@@ -27,6 +29,15 @@ pub struct Args {
     /// Only these hypotheses (comma separated names); all by default.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
+    /// Continue an interrupted run into the same --out from its last complete stage
+    /// (the result is the same as an uninterrupted run's). Without it, an interrupted
+    /// run's stages are discarded.
+    #[arg(long)]
+    pub resume: bool,
+    /// Tiny settings (2 frame starts, 1 effect start, short evidence runs) for tests of
+    /// the command itself: the verdict is not meaningful.
+    #[arg(long, hide = true)]
+    pub quick: bool,
 }
 
 fn spinner() -> ProgressBar {
@@ -70,25 +81,64 @@ fn stage_message(stage: &DiagnoseStage<'_>) -> String {
     }
 }
 
-fn open_campaign(spec: &str) -> anyhow::Result<Campaign> {
+fn open_campaign(spec: &str) -> anyhow::Result<(Campaign, PathBuf)> {
     let path = frfbayes::io::resolve_data(spec)?;
     let c = read_campaign(&path)?;
     for w in &c.warnings {
         eprintln!("warning: {w}");
     }
-    Ok(c)
+    Ok((c, path))
 }
 
+/// The hidden `--quick` settings.
+fn quick_options(mut opts: DiagnoseOptions) -> DiagnoseOptions {
+    opts.n_frame_starts = 2;
+    opts.n_effect_starts = 1;
+    opts.map.trf.max_evaluations = Some(40);
+    opts.map.max_eta_rounds = 2;
+    opts.evidence = Some(EvidenceOptions {
+        n_replicates: 2,
+        min_steps_per_temperature: 1,
+        max_steps_per_temperature: 3,
+        final_steps: 10,
+        ..EvidenceOptions::new(1, 0)
+    });
+    opts
+}
+
+/// Diagnoses `campaign` (its folder `source`) into `out`: the folder is claimed first,
+/// every long stage is saved beside it (`.<out>.frfbayes-partial`) for `resume`, and the
+/// output replaces `out` only when complete.
 fn run_one(
     campaign: &Campaign,
+    source: &Path,
     opts: &DiagnoseOptions,
     out: &Path,
+    resume: bool,
 ) -> anyhow::Result<frfbayes::discrepancy::DiagnosisRecord> {
+    let claim = OutputClaim::claim(out)?;
+    let partial = claim.partial_path();
+    if partial.exists() && !resume {
+        eprintln!(
+            "note: discarding the stages of an interrupted run in {} (--resume continues it)",
+            partial.display()
+        );
+    }
+    let mut inputs = fingerprint_folder(source)?;
+    inputs.push(fingerprint_setting("settings", &format!("{opts:?}")));
+    inputs.push(fingerprint_setting("version", env!("CARGO_PKG_VERSION")));
+    let stages = Stages::open(&partial, resume, &inputs)?;
     let pb = spinner();
     let mut cb = |s: DiagnoseStage<'_>| pb.set_message(stage_message(&s));
-    let d = diagnose(campaign, opts, &mut cb)?;
+    let d = diagnose_resumable(campaign, opts, Some(&stages), &mut cb);
     pb.finish_and_clear();
-    let dir = write_diagnosis(&d, &campaign.title, out)?;
+    let d = d?;
+    let staged = StagedDir::in_claim(claim)?;
+    write_diagnosis_into(&d, &campaign.title, staged.path())?;
+    let dir = staged.commit()?;
+    if let Err(e) = std::fs::remove_dir_all(&partial) {
+        eprintln!("warning: {}: could not delete ({e})", partial.display());
+    }
     let rec = record(&d);
     println!(
         "{}: verdict {} at {} ({:.0} s); written to {}",
@@ -103,13 +153,16 @@ fn run_one(
 
 /// Runs `frfbayes diagnose`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let campaign = open_campaign(&args.campaign)?;
-    let opts = DiagnoseOptions {
+    let (campaign, source) = open_campaign(&args.campaign)?;
+    let mut opts = DiagnoseOptions {
         seed: args.seed,
         only: args.only,
         ..DiagnoseOptions::default()
     };
-    let rec = run_one(&campaign, &opts, &args.out)?;
+    if args.quick {
+        opts = quick_options(opts);
+    }
+    let rec = run_one(&campaign, &source, &opts, &args.out, args.resume)?;
     println!("{}", rec.explanation);
     Ok(())
 }
@@ -131,6 +184,13 @@ pub struct BenchArgs {
     pub only: Vec<String>,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Continue the case an interrupted run was diagnosing from its last complete stage
+    /// (cases already diagnosed are always read back).
+    #[arg(long)]
+    pub resume: bool,
+    /// `diagnose --quick` settings (tests of the command itself).
+    #[arg(long, hide = true)]
+    pub quick: bool,
 }
 
 /// Runs `frfbayes diagnose-benchmark`.
@@ -147,12 +207,7 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<()> {
             let model = SimModel::from_path(&case.model)?;
             let sim = Simulator::new(model)?;
             let campaign = sim.run(case.seed, &|_| {})?;
-            let tmp = args
-                .work
-                .join("campaigns")
-                .join(format!(".tmp-{}", case.id));
-            frfbayes::io::write_campaign(&campaign, &tmp)?;
-            std::fs::rename(&tmp, &campaign_dir)?;
+            frfbayes::io::write_campaign(&campaign, &campaign_dir)?;
         }
         let campaign = read_campaign(&campaign_dir)?;
         let channel_quantity: BTreeMap<String, String> = campaign
@@ -184,11 +239,14 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<()> {
             (record, seconds)
         } else {
             let t0 = Instant::now();
-            let opts = DiagnoseOptions {
+            let mut opts = DiagnoseOptions {
                 seed: args.seed,
                 ..DiagnoseOptions::default()
             };
-            let record = run_one(&campaign, &opts, &out_dir)?;
+            if args.quick {
+                opts = quick_options(opts);
+            }
+            let record = run_one(&campaign, &campaign_dir, &opts, &out_dir, args.resume)?;
             let seconds = t0.elapsed().as_secs_f64();
             write_atomic(
                 &out_dir.join("seconds.txt"),

@@ -1,11 +1,13 @@
 //! `frfbayes sample`: posterior sampling of the model given a campaign's FRFs.
 
 use frfbayes::bayes::run::{
-    resume_sample, run_sample, SampleOutcome, SampleSettings, TestSelection,
+    checkpoint_path, resume_sample, run_sample, SampleOutcome, SampleSettings, StageFn,
+    TestSelection,
 };
 use frfbayes::bayes::PriorKind;
 use frfbayes::frf::FrfKind;
-use frfbayes::mcmc::Progress;
+use frfbayes::io::{OutputClaim, StagedDir};
+use frfbayes::mcmc::{Progress, ProgressFn};
 use frfbayes::update::{DampingModel, ResidualForm};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::ops::ControlFlow;
@@ -53,7 +55,9 @@ pub struct Args {
     /// Output folder (posterior.json, draws, figures; checkpoint while running).
     #[arg(long)]
     pub out: PathBuf,
-    /// Continue the killed or stopped run in --out from its checkpoint, with its settings.
+    /// Continue the killed run of --out (its state is kept beside it, in
+    /// `.<out>.frfbayes-partial`) or extend a finished run that stopped unconverged, from
+    /// its checkpoint, with its settings.
     #[arg(long)]
     pub resume: bool,
     /// Step cap (default 20000; with --resume it may be raised).
@@ -344,8 +348,10 @@ pub fn fit(args: Args) -> anyhow::Result<()> {
         "fit has no --resume: it starts again in seconds"
     );
     let settings = args.settings()?;
-    let report = frfbayes::bayes::fit::run_fit(&settings, &args.out)?;
-    println!("wrote {}", args.out.join("fit.json").display());
+    let staged = StagedDir::new(&args.out)?;
+    let report = frfbayes::bayes::fit::run_fit(&settings, staged.path())?;
+    let out = staged.commit()?;
+    println!("wrote {}", out.join("fit.json").display());
     println!(
         "{} points ({} bins dropped for zero coherence), {} starts, {} at the best cost {:.6e}",
         report.n_points,
@@ -366,6 +372,70 @@ pub fn fit(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `sample --resume` into the claimed `--out`: a killed run continues aside and is
+/// swapped in when done; a finished run that stopped unconverged is extended in place
+/// (its outputs are rewritten only at the end; until then they stay as they were).
+fn resume_claimed(
+    args: &Args,
+    claim: OutputClaim,
+    stage: StageFn,
+    on_step: &mut ProgressFn<'_>,
+) -> anyhow::Result<SampleOutcome> {
+    let interrupted = checkpoint_path(&claim.partial_path()).exists();
+    let given = args.problem_flags_given();
+    anyhow::ensure!(
+        given.is_empty(),
+        "--resume continues with the run's own settings ({}); drop {}",
+        args.out.join("settings.toml").display(),
+        given.join(", ")
+    );
+    anyhow::ensure!(
+        interrupted || checkpoint_path(&args.out).exists(),
+        "{}: nothing to resume (no interrupted run beside it, no checkpoint in it: the \
+         run converged, or was stopped before its first checkpoint); start it again \
+         without --resume",
+        args.out.display()
+    );
+    if interrupted {
+        let (staged, _) = StagedDir::resumable(claim, true)?;
+        let mut o = resume_sample(staged.path(), args.max_steps, stage, Some(on_step))?;
+        o.out = staged.commit()?;
+        Ok(o)
+    } else {
+        let o = resume_sample(&args.out, args.max_steps, stage, Some(on_step))?;
+        claim.refresh_manifest()?;
+        Ok(o)
+    }
+}
+
+/// A fresh `sample` into the claimed `--out`, run aside in its partial folder (kept for
+/// `--resume` if the run is killed) and swapped in when done.
+fn fresh_claimed(
+    args: &Args,
+    claim: OutputClaim,
+    stage: StageFn,
+    on_step: &mut ProgressFn<'_>,
+) -> anyhow::Result<SampleOutcome> {
+    let partial = claim.partial_path();
+    anyhow::ensure!(
+        !checkpoint_path(&partial).exists(),
+        "{} holds the state of an interrupted run of {}: continue it with --resume, or \
+         delete that folder to start over",
+        partial.display(),
+        args.out.display()
+    );
+    anyhow::ensure!(
+        !checkpoint_path(&args.out).exists(),
+        "{} holds an unfinished run (checkpoint.mcmc); extend it with --resume or delete it",
+        args.out.display()
+    );
+    let settings = args.settings()?;
+    let (staged, _) = StagedDir::resumable(claim, false)?;
+    let mut o = run_sample(&settings, staged.path(), stage, Some(on_step))?;
+    o.out = staged.commit()?;
+    Ok(o)
+}
+
 /// Runs or resumes a sampling run.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let pb = progress_bar();
@@ -380,18 +450,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         pb.set_message(format!("acceptance {:.3}{tau}", p.acceptance));
         ControlFlow::Continue(())
     };
+    let claim = OutputClaim::claim(&args.out)?;
     let outcome = if args.resume {
-        let given = args.problem_flags_given();
-        anyhow::ensure!(
-            given.is_empty(),
-            "--resume continues with the run's own settings ({}); drop {}",
-            args.out.join("settings.toml").display(),
-            given.join(", ")
-        );
-        resume_sample(&args.out, args.max_steps, &stage, Some(&mut on_step))
+        resume_claimed(&args, claim, &stage, &mut on_step)
     } else {
-        let settings = args.settings()?;
-        run_sample(&settings, &args.out, &stage, Some(&mut on_step))
+        fresh_claimed(&args, claim, &stage, &mut on_step)
     };
     pb.finish_and_clear();
     print(&outcome?);

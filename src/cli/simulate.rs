@@ -1,6 +1,6 @@
 //! `frfbayes simulate`: writes a campaign with known truth from a simulation model file.
 
-use frfbayes::io::RunInfo;
+use frfbayes::io::{RunInfo, StagedDir};
 use frfbayes::simulate::{resolve_seed, SimModel, Simulator};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
@@ -23,6 +23,8 @@ pub struct Args {
 /// Simulates the campaign and writes it with its `truth.json` and `run.json`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let model = SimModel::from_path(&args.model)?;
+    // Claim the output folder first: a refusal comes before minutes of simulation.
+    let staged = StagedDir::new(&args.out)?;
     let seed = resolve_seed(&model, args.seed, &args.model)?;
     let mut info = RunInfo::start(
         seed,
@@ -43,11 +45,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let campaign = info.time("simulate", || sim.run(seed, &|n| bar.inc(n)))?;
     let simulated_s = start.elapsed().as_secs_f64();
     bar.set_message("writing");
-    let root = info.time("write", || {
-        frfbayes::io::write_campaign(&campaign, &args.out)
+    info.time("write", || {
+        frfbayes::io::write_campaign_files(&campaign, staged.path(), &args.out)
     })?;
-    sim.write_truth(&root, seed)?;
-    info.write(&root)?;
+    sim.write_truth(staged.path(), seed)?;
+    info.write(staged.path())?;
+    let root = staged.commit()?;
     bar.finish_and_clear();
     let rows: usize = campaign.tests.iter().map(|t| t.n_samples()).sum();
     println!(

@@ -28,6 +28,7 @@ use super::verdict::{decide, held_out_passes, Candidate, Decision, EffectSummary
 use crate::error::Result;
 use crate::infer::evidence::{stepping_stone, Evidence, EvidenceOptions, EvidenceProgress};
 use crate::infer::laplace::laplace;
+use crate::io::stages::{staged, Stages};
 use crate::io::Campaign;
 use crate::update::fdac;
 use num_complex::Complex64;
@@ -219,7 +220,18 @@ fn evidence_options(opts: &DiagnoseOptions, dim: usize, model_index: u64) -> Evi
     e
 }
 
-/// Evidence, draws and summaries of one model at its MAP.
+/// The resumable part of [`complete`]: the evidence run and what follows from its draws.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct Completion {
+    evidence: Evidence,
+    effect: Vec<(String, EffectSummary)>,
+    plausible: bool,
+    why: String,
+}
+
+/// Evidence, draws and summaries of one model at its MAP (read back from `stages` when
+/// an interrupted run finished it).
+#[allow(clippy::too_many_arguments)]
 fn complete(
     name: &str,
     location: Location,
@@ -227,26 +239,41 @@ fn complete(
     map: MapFit,
     opts: &DiagnoseOptions,
     model_index: u64,
+    stages: Option<&Stages>,
     progress: &mut dyn FnMut(DiagnoseStage<'_>),
 ) -> Result<ModelResult> {
-    let eopts = evidence_options(opts, post.dim(), model_index);
-    let mut cb = |p: EvidenceProgress| {
-        progress(DiagnoseStage::Evidence {
-            model: name,
-            progress: p,
+    let run = || -> Result<Completion> {
+        let eopts = evidence_options(opts, post.dim(), model_index);
+        let mut cb = |p: EvidenceProgress| {
+            progress(DiagnoseStage::Evidence {
+                model: name,
+                progress: p,
+            })
+        };
+        let evidence = stepping_stone(&post, &eopts, Some(&mut cb))?;
+        let draws: Vec<Vec<f64>> = match &evidence.posterior {
+            Some(p) => p
+                .draws
+                .values
+                .chunks_exact(p.draws.dim)
+                .map(<[f64]>::to_vec)
+                .collect(),
+            None => vec![map.z.clone()],
+        };
+        let (effect, plausible, why) = effect_summaries(&post, &draws)?;
+        Ok(Completion {
+            evidence,
+            effect,
+            plausible,
+            why,
         })
     };
-    let evidence = stepping_stone(&post, &eopts, Some(&mut cb))?;
-    let draws: Vec<Vec<f64>> = match &evidence.posterior {
-        Some(p) => p
-            .draws
-            .values
-            .chunks_exact(p.draws.dim)
-            .map(<[f64]>::to_vec)
-            .collect(),
-        None => vec![map.z.clone()],
-    };
-    let (effect, plausible, why) = effect_summaries(&post, &draws)?;
+    let Completion {
+        evidence,
+        effect,
+        plausible,
+        why,
+    } = staged(stages, &format!("evidence-{name}"), run)?;
     Ok(ModelResult {
         name: name.to_string(),
         location,
@@ -267,6 +294,18 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
     progress: &mut dyn FnMut(DiagnoseStage<'_>),
 ) -> Result<Diagnosis> {
+    diagnose_resumable(campaign, opts, None, progress)
+}
+
+/// [`diagnose`], saving the result of every long stage (nominal MAP, every evidence run,
+/// every location search) in `stages` and reading back those an interrupted run
+/// finished: the diagnosis is the same as an uninterrupted run's.
+pub fn diagnose_resumable(
+    campaign: &Campaign,
+    opts: &DiagnoseOptions,
+    stages: Option<&Stages>,
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<Diagnosis> {
     let t0 = Instant::now();
     progress(DiagnoseStage::Data);
     let data = Arc::new(DiagnosisData::from_campaign(campaign, &opts.data)?);
@@ -280,8 +319,10 @@ pub fn diagnose(
     mark("data", &mut timings);
     progress(DiagnoseStage::NominalFit);
     let post0 = ModelPosterior::new(data.clone(), None)?;
-    let starts = frame_starts(&post0, opts.n_frame_starts, 0.3, opts.seed)?;
-    let map0 = fit_map(&post0, &starts, &opts.map)?;
+    let map0 = staged(stages, "nominal-map", || {
+        let starts = frame_starts(&post0, opts.n_frame_starts, 0.3, opts.seed)?;
+        fit_map(&post0, &starts, &opts.map)
+    })?;
     mark("nominal MAP", &mut timings);
     let nominal = complete(
         "nominal",
@@ -290,6 +331,7 @@ pub fn diagnose(
         map0.clone(),
         opts,
         0,
+        stages,
         progress,
     )?;
     mark("nominal evidence", &mut timings);
@@ -312,7 +354,15 @@ pub fn diagnose(
                 location: loc,
             })
         };
-        searches.push((h.clone(), search(&data, h, &map0.z, &sopts, &mut cb)?));
+        let (tried, failed) = staged(stages, &format!("search-{}", h.name()), || {
+            search(&data, h, &map0.z, &sopts, &mut cb).map(|s| (s.tried, s.failed))
+        })?;
+        let found = HypothesisSearch {
+            name: h.name(),
+            tried,
+            failed,
+        };
+        searches.push((h.clone(), found));
         mark(&format!("search {}", h.name()), &mut timings);
     }
 
@@ -360,6 +410,7 @@ pub fn diagnose(
             best.map.clone(),
             opts,
             k as u64 + 1,
+            stages,
             progress,
         )?);
         mark(&format!("evidence {}", h.name()), &mut timings);

@@ -47,7 +47,7 @@ impl Default for MapOptions {
 }
 
 /// The result of one start.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StartResult {
     pub start: Vec<f64>,
     /// `None` when the start failed (error message in `error`).
@@ -58,7 +58,7 @@ pub struct StartResult {
 }
 
 /// A MAP fit.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct MapFit {
     /// The best point.
     pub z: Vec<f64>,

@@ -245,7 +245,13 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
 /// Writes the whole output folder `out` (replacing it only on success).
 pub fn write_diagnosis(d: &Diagnosis, title: &str, out: &Path) -> Result<PathBuf> {
     let staged = StagedDir::new(out)?;
-    let dir = staged.path().to_path_buf();
+    write_diagnosis_into(d, title, staged.path())?;
+    staged.commit()
+}
+
+/// Writes the output files into `dir` (a staging folder).
+pub fn write_diagnosis_into(d: &Diagnosis, title: &str, dir: &Path) -> Result<()> {
+    let dir = dir.to_path_buf();
     let mut figures = write_figures(d, &dir)?;
     use super::residual_map::MapValue;
     if let Ok(l) = &d.locate {
@@ -274,6 +280,5 @@ pub fn write_diagnosis(d: &Diagnosis, title: &str, out: &Path) -> Result<PathBuf
         .map_err(|e| Error::Numerical(format!("diagnosis.json: {e}")))?;
     write_atomic(&dir.join("diagnosis.json"), json.as_bytes())?;
     let md = markdown(d, title, &figures)?;
-    write_atomic(&dir.join("diagnosis.md"), md.as_bytes())?;
-    staged.commit()
+    write_atomic(&dir.join("diagnosis.md"), md.as_bytes())
 }

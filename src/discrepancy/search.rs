@@ -40,7 +40,7 @@ impl Default for SearchOptions {
 }
 
 /// One fitted location.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct LocationFit {
     pub location: Location,
     pub map: MapFit,

@@ -8,7 +8,9 @@ use super::pipeline::{run_variant, TableId, Variant, VariantRun};
 use super::report::comparison_markdown;
 use super::tables::{PaperTables, ParamTable};
 use crate::error::{Error, Result};
-use crate::io::{read_campaign, resolve_data, write_atomic, Campaign, RunInfo, StagedDir};
+use crate::io::{
+    read_campaign, resolve_data, write_atomic, Campaign, OutputClaim, RunInfo, StagedDir,
+};
 use crate::signal::{estimate_campaign, TestFrf};
 use crate::update::DampingModel;
 use std::path::{Path, PathBuf};
@@ -135,6 +137,8 @@ pub fn remove_sensor_low_pass(
 
 /// Runs the experiment and writes its output folder.
 pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outcome> {
+    // Claim the output folder first: a refusal comes before minutes of updating.
+    let claim = OutputClaim::claim(&cfg.out)?;
     let config_json = serde_json::to_value(cfg).map_err(|e| Error::Usage(e.to_string()))?;
     let mut info = RunInfo::start(cfg.seed, config_json, cfg.data.clone());
     let root = resolve_data(&cfg.data)?;
@@ -174,7 +178,7 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         None => Vec::new(),
     };
 
-    let staged = StagedDir::new(&cfg.out)?;
+    let staged = StagedDir::in_claim(claim)?;
     let dir = staged.path().to_path_buf();
     let paper = PaperTables::bundled()?;
     let t1 = table_from_runs(TableId::Table1, &runs, cfg, &campaign);

@@ -223,7 +223,7 @@ pub enum Stage {
 }
 
 /// Posterior draws at `beta = 1` from the replicates' final ensembles.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct PosteriorDraws {
     /// The draws: chains = replicate x walker; `ln_density` = `ln L + ln pi`.
     pub draws: Draws,
@@ -240,7 +240,7 @@ pub struct PosteriorDraws {
 }
 
 /// Result of [`stepping_stone`].
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct Evidence {
     /// Stepping-stone `ln Z`, mean over replicates.
     pub ln_z: f64,

@@ -59,7 +59,7 @@ impl<T: TemperedTarget> LogDensity for Tempered<'_, T> {
 }
 
 /// The ladder and estimates of one tempered run.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct TemperingRun {
     /// Stepping-stone estimate of `ln Z`: the sum of `ln_z_increments`.
     pub ln_z: f64,

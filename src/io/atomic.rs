@@ -2,6 +2,7 @@
 //! run. Files are written to a temporary sibling and renamed into place; directories are
 //! built in a temporary sibling and swapped in only when complete.
 
+use super::output::OutputClaim;
 use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -38,29 +39,58 @@ pub fn write_atomic_with(
     Ok(())
 }
 
-/// A folder being built: everything goes into a temporary sibling, and
-/// [`StagedDir::commit`] swaps it into place. Dropping without commit removes it and
-/// leaves any existing folder untouched.
+/// A folder being built: everything goes into a staging folder beside the target, and
+/// [`StagedDir::commit`] swaps it into place ([`OutputClaim::commit`]: the output policy
+/// of [`super::output`]). Dropping without commit removes the staging folder (unless it
+/// is the resumable one) and leaves any existing folder untouched.
 #[derive(Debug)]
 pub struct StagedDir {
-    target: PathBuf,
+    claim: OutputClaim,
     staging: PathBuf,
     committed: bool,
+    /// A resumable run's staging folder survives a failed run.
+    keep: bool,
 }
 
 impl StagedDir {
-    /// Starts building `target`.
+    /// Claims `target` ([`OutputClaim::claim`]) and starts building it.
     pub fn new(target: &Path) -> Result<Self> {
-        let staging = temp_sibling(target);
+        Self::in_claim(OutputClaim::claim(target)?)
+    }
+
+    /// Starts building the folder `claim` holds, in a staging folder of this process.
+    pub fn in_claim(claim: OutputClaim) -> Result<Self> {
+        let staging = claim.staging_path();
         if staging.exists() {
             std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
         }
         std::fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
         Ok(StagedDir {
-            target: target.to_path_buf(),
+            claim,
             staging,
             committed: false,
+            keep: false,
         })
+    }
+
+    /// Starts or continues building the folder `claim` holds in its resumable staging
+    /// folder ([`OutputClaim::partial_path`]), which a failed or killed run leaves for
+    /// `--resume`. With `resume` false, an earlier run's partial folder is discarded.
+    /// Returns whether an earlier partial folder was there.
+    pub fn resumable(claim: OutputClaim, resume: bool) -> Result<(Self, bool)> {
+        let staging = claim.partial_path();
+        let existed = staging.is_dir();
+        if existed && !resume {
+            std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        }
+        std::fs::create_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        let staged = StagedDir {
+            claim,
+            staging,
+            committed: false,
+            keep: true,
+        };
+        Ok((staged, existed))
     }
 
     /// Where to write the folder's content now.
@@ -68,33 +98,23 @@ impl StagedDir {
         &self.staging
     }
 
-    /// Replaces `target` with the staged folder. An existing `target` is moved aside first
-    /// and deleted only after the swap succeeded.
+    /// The folder being built.
+    pub fn target(&self) -> &Path {
+        self.claim.target()
+    }
+
+    /// Replaces the target with the staged folder (the previous one is deleted only
+    /// after the swap succeeded). Releases the claim.
     pub fn commit(mut self) -> Result<PathBuf> {
-        let backup = self.target.with_extension("frfbayes-old");
-        if self.target.exists() {
-            if backup.exists() {
-                std::fs::remove_dir_all(&backup).map_err(|e| Error::io(&backup, e))?;
-            }
-            std::fs::rename(&self.target, &backup).map_err(|e| Error::io(&self.target, e))?;
-        }
-        if let Err(e) = std::fs::rename(&self.staging, &self.target) {
-            if backup.exists() {
-                let _ = std::fs::rename(&backup, &self.target);
-            }
-            return Err(Error::io(&self.target, e));
-        }
-        if backup.exists() {
-            std::fs::remove_dir_all(&backup).map_err(|e| Error::io(&backup, e))?;
-        }
+        let out = self.claim.commit(&self.staging)?;
         self.committed = true;
-        Ok(self.target.clone())
+        Ok(out)
     }
 }
 
 impl Drop for StagedDir {
     fn drop(&mut self) {
-        if !self.committed {
+        if !self.committed && !self.keep {
             let _ = std::fs::remove_dir_all(&self.staging);
         }
     }
@@ -116,8 +136,9 @@ mod tests {
     fn staged_dir_keeps_old_content_until_commit() {
         let dir = tempfile::tempdir().unwrap();
         let target = dir.path().join("out");
-        std::fs::create_dir_all(&target).unwrap();
-        std::fs::write(target.join("a.txt"), "old").unwrap();
+        let first = StagedDir::new(&target).unwrap();
+        std::fs::write(first.path().join("a.txt"), "old").unwrap();
+        first.commit().unwrap();
         {
             let staged = StagedDir::new(&target).unwrap();
             std::fs::write(staged.path().join("a.txt"), "new").unwrap();
@@ -134,7 +155,9 @@ mod tests {
             std::fs::read_to_string(target.join("a.txt")).unwrap(),
             "new"
         );
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+        // Only the folder is left (no staging folder, no lock file).
+        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().flatten().collect();
+        assert_eq!(left.len(), 1, "{left:?}");
     }
 
     #[test]

@@ -24,6 +24,7 @@
 //! bundle is byte-identical to `../shared/data/four-story` when that folder exists.
 
 use super::atomic::StagedDir;
+use super::output::{OutputClaim, MANIFEST};
 use crate::error::{Error, Result};
 use flate2::read::MultiGzDecoder;
 use flate2::write::GzEncoder;
@@ -109,10 +110,12 @@ pub(crate) fn unpack_bundle(bundle: &Path, cache_parent: &Path, prefix: &str) ->
         return Ok(target);
     }
     let _guard = UNPACK_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    // Another process unpacking the same bundle: wait for it, then reuse its copy.
+    let claim = OutputClaim::claim_waiting(&target)?;
     if is_complete(&target, &entries) {
         return Ok(target);
     }
-    let staged = StagedDir::new(&target)?;
+    let staged = StagedDir::in_claim(claim)?;
     for e in &entries {
         let gz_path = bundle.join(format!("{}.gz", e.rel));
         let to = staged.path().join(&e.rel);
@@ -194,6 +197,8 @@ fn relative_files(root: &Path) -> Result<Vec<String>> {
             let file_type = entry.file_type().map_err(|e| Error::io(&path, e))?;
             if file_type.is_dir() {
                 walk(root, &path, out)?;
+            } else if dir == root && entry.file_name() == MANIFEST {
+                // frfbayes' own record of what it wrote, not content.
             } else {
                 let rel = path.strip_prefix(root).unwrap_or(&path);
                 let parts: Vec<String> = rel
@@ -264,14 +269,17 @@ mod tests {
         std::fs::write(out.join("marker"), "m").unwrap();
         assert_eq!(unpack_bundle(&bundle, &cache, "t").unwrap(), out);
         assert!(out.join("marker").exists());
-        // An incomplete copy is rebuilt.
+        // An incomplete copy is rebuilt, but not over a file frfbayes did not write.
         std::fs::remove_file(out.join("tests/a/data.csv")).unwrap();
+        let err = unpack_bundle(&bundle, &cache, "t").unwrap_err().to_string();
+        assert!(err.contains("marker"), "{err}");
+        assert!(out.join("marker").exists());
+        std::fs::remove_file(out.join("marker")).unwrap();
         assert_eq!(unpack_bundle(&bundle, &cache, "t").unwrap(), out);
         assert_eq!(
             std::fs::read(out.join("tests/a/data.csv")).unwrap(),
             std::fs::read(source.join("tests/a/data.csv")).unwrap()
         );
-        assert!(!out.join("marker").exists());
         // Only the copy is left in the cache folder (no staging or backup folders).
         assert_eq!(std::fs::read_dir(&cache).unwrap().count(), 1);
         // Packing is deterministic, and a changed bundle goes to a new folder.

@@ -4,15 +4,18 @@
 pub mod atomic;
 pub mod bundled;
 mod campaign;
+pub mod output;
 pub mod runinfo;
+pub mod stages;
 mod types;
 mod writer;
 
 pub use atomic::{write_atomic, write_atomic_with, StagedDir};
 pub use bundled::resolve_data;
 pub use campaign::{read_campaign, read_nominal};
+pub use output::{OutputClaim, MANIFEST};
 pub use runinfo::RunInfo;
 pub use types::{
     Campaign, Channel, GeneralModel, NominalModel, Quantity, Test, TestKind, GENERAL, SHEAR_FRAME,
 };
-pub use writer::write_campaign;
+pub use writer::{write_campaign, write_campaign_files};

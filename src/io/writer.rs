@@ -76,12 +76,19 @@ fn campaign_toml(campaign: &Campaign, root: &Path) -> Result<String> {
 /// exactly, and `time_s` is `i / sample_rate_hz`. On a general model, the manifest is
 /// named relative to `root`, impacts and channels by their DOF (`excited_dof`, `dof`).
 pub fn write_campaign(campaign: &Campaign, root: &Path) -> Result<PathBuf> {
-    let toml = campaign_toml(campaign, root)?;
     let staged = StagedDir::new(root)?;
-    write_atomic(&staged.path().join("campaign.toml"), toml.as_bytes())?;
+    write_campaign_files(campaign, staged.path(), root)?;
+    staged.commit()
+}
+
+/// Writes the files of `campaign` into the folder `dir` that will become `root` (a
+/// staging folder beside it: the manifest path is made relative to `root`).
+pub fn write_campaign_files(campaign: &Campaign, dir: &Path, root: &Path) -> Result<()> {
+    let toml = campaign_toml(campaign, root)?;
+    write_atomic(&dir.join("campaign.toml"), toml.as_bytes())?;
     let general = campaign.nominal.model.is_some();
     for test in &campaign.tests {
-        let dir = staged.path().join("tests").join(&test.name);
+        let dir = dir.join("tests").join(&test.name);
         let mut t = String::new();
         match test.kind {
             TestKind::Hammer { excited_floor } => {
@@ -141,5 +148,5 @@ pub fn write_campaign(campaign: &Campaign, root: &Path) -> Result<PathBuf> {
             Ok(())
         })?;
     }
-    staged.commit()
+    Ok(())
 }

@@ -20,7 +20,7 @@ use statrs::distribution::{ContinuousCDF, Normal};
 use super::autocorr::AcovPlan;
 
 /// R-hat and ESS of one quantity.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Diagnostics {
     /// `max(rhat_bulk, rhat_tail)`.
     pub rhat: f64,

@@ -16,7 +16,7 @@ use crate::error::{Error, Result};
 use crate::io::write_atomic_with;
 
 /// Draws of `n_chains` chains (every walker of every ensemble is a chain).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize, serde::Deserialize)]
 pub struct Draws {
     /// Chains (ensembles x walkers).
     pub n_chains: usize,
