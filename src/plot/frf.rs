@@ -91,9 +91,7 @@ impl Figure for FrfMagnitudesSpec {
         } else {
             &self.y_label
         };
-        let y_area = panel::y_area(&top, &y, y_desc, NORMAL).max(panel::y_area(
-            &top,
-            &coh,
+        let y_area = panel::y_area(&y, y_desc, NORMAL).max(panel::y_area(&coh,
             "Coherence",
             NORMAL,
         ));
@@ -281,7 +279,7 @@ impl Figure for FrfComparisonSpec {
             } else {
                 &p.y_label
             };
-            let y_area = panel::y_area(&cell, &y, y_desc, NORMAL);
+            let y_area = panel::y_area(&y, y_desc, NORMAL);
             let mut chart = panel::build(
                 &cell,
                 Panel {
