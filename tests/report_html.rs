@@ -174,7 +174,10 @@ fn reports(dir: &Path, out: &mut Vec<PathBuf>) {
 fn committed_reports_load_with_every_figure() {
     let Some(browser) = chromium() else { return };
     let mut pages = Vec::new();
-    reports(&Path::new(env!("CARGO_MANIFEST_DIR")).join("results"), &mut pages);
+    reports(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("results"),
+        &mut pages,
+    );
     for page in &pages {
         let (ok, total, errors) = markers(&dump_dom(&browser, page));
         assert!(

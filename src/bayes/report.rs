@@ -71,8 +71,8 @@ pub fn summary_markdown(s: &PosteriorSummary, settings_toml: &str) -> String {
 /// and `run.json`.
 pub fn write_report(s: &PosteriorSummary, out: &Path) -> Result<()> {
     let settings = super::run::settings_path(out);
-    let toml = std::fs::read_to_string(&settings)
-        .map_err(|e| crate::error::Error::io(&settings, e))?;
+    let toml =
+        std::fs::read_to_string(&settings).map_err(|e| crate::error::Error::io(&settings, e))?;
     write_atomic(
         &out.join("summary.md"),
         summary_markdown(s, &toml).as_bytes(),

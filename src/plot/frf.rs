@@ -91,10 +91,8 @@ impl Figure for FrfMagnitudesSpec {
         } else {
             &self.y_label
         };
-        let y_area = panel::y_area(&y, y_desc, NORMAL).max(panel::y_area(&coh,
-            "Coherence",
-            NORMAL,
-        ));
+        let y_area =
+            panel::y_area(&y, y_desc, NORMAL).max(panel::y_area(&coh, "Coherence", NORMAL));
         let width = if self.channels.len() <= 4 { 2 } else { 1 };
         let look = |i: usize| {
             let (color, dash) = style::series_look(i);

@@ -138,8 +138,7 @@ impl Figure for HeatmapSpec {
         // Main panel: label areas from the labels.
         let desc_px = |s: &str| panel::desc_height(s, NORMAL);
         let mut row_font = NORMAL.tick;
-        let y_area =
-            labels::y_width(&self.row_labels, row_font) + desc_px(&self.y_label) + 4;
+        let y_area = labels::y_width(&self.row_labels, row_font) + desc_px(&self.y_label) + 4;
         let (mw, _) = main.dim_in_pixel();
         let slot = (mw as f64 - y_area as f64 - 14.0) / n_cols.max(1) as f64;
         let layout = labels::x_layout(&main, &self.col_labels, slot, NORMAL.tick);

@@ -89,10 +89,7 @@ pub(crate) fn draw_x<DB: DrawingBackend>(
 }
 
 /// Width needed left of the plot for row labels.
-pub(crate) fn y_width(
-    labels: &[String],
-    font: f64,
-) -> u32 {
+pub(crate) fn y_width(labels: &[String], font: f64) -> u32 {
     labels
         .iter()
         .map(|l| text_width(l, font))

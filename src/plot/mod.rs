@@ -24,6 +24,7 @@ mod axis;
 mod bands;
 mod bars;
 mod corner;
+mod crisp;
 mod frf;
 mod heatmap;
 mod labels;

@@ -40,11 +40,7 @@ pub(crate) struct Panel<'s> {
 }
 
 /// Width the left label area needs for `axis`'s tick labels and `desc`.
-pub(crate) fn y_area(
-    axis: &NiceAxis,
-    desc: &str,
-    sizes: Sizes,
-) -> u32 {
+pub(crate) fn y_area(axis: &NiceAxis, desc: &str, sizes: Sizes) -> u32 {
     let widest = axis
         .labels()
         .iter()

@@ -1,5 +1,6 @@
 //! Rendering a figure: plotters draws it once, as SVG, in memory; the PNG is that SVG
-//! rasterised by resvg (`raster.rs`), so the two files show the same drawing. Both are
+//! rasterised by resvg (`raster.rs`), so the two files show the same drawing. Odd-width
+//! strokes are first put on pixel centres (`crisp.rs`) so thin lines stay sharp. Both are
 //! written with [`crate::io::write_atomic`]: a failed run leaves any previous figure
 //! untouched and no temporary file behind.
 
@@ -67,6 +68,7 @@ pub(crate) fn render(fig: &impl Figure, size_px: Option<(u32, u32)>, stem: &Path
         let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
         draw_on(&root, fig).map_err(|e| drawing_error(&svg_path, e))?;
     }
+    let svg = super::crisp::align_strokes(&svg);
     let png = super::raster::svg_to_png(&svg)?;
     crate::io::write_atomic(&png_path, &png)?;
     crate::io::write_atomic(&svg_path, svg.as_bytes())

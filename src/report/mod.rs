@@ -59,7 +59,11 @@ pub fn render_html(dir: &Path, spec: &HtmlReport) -> Result<String> {
         }
     }
     let (h1, sections) = split_sections(&texts, spec.lead, spec.tail, spec.title.is_none());
-    let title = spec.title.map(str::to_owned).or(h1).unwrap_or("Report".into());
+    let title = spec
+        .title
+        .map(str::to_owned)
+        .or(h1)
+        .unwrap_or("Report".into());
     let mut shown = BTreeSet::new();
     let mut body = String::new();
     let mut figures_at = None;
@@ -96,7 +100,9 @@ fn local_png(dir: &Path, url: &str) -> Option<PathBuf> {
     let inside = rel
         .components()
         .all(|c| matches!(c, std::path::Component::Normal(_)));
-    let png = rel.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    let png = rel
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
     let path = dir.join(rel);
     (plain && inside && png && path.is_file()).then_some(path)
 }

@@ -10,7 +10,11 @@ fn study() -> tempfile::TempDir {
     std::fs::write(t.path().join("report.md"), md).unwrap();
     std::fs::write(t.path().join("traces.png"), b"\x89PNG traces").unwrap();
     std::fs::write(t.path().join("corner.png"), b"\x89PNG corner").unwrap();
-    std::fs::write(t.path().join("run.json"), r#"{"seed": 7, "command": "a<b"}"#).unwrap();
+    std::fs::write(
+        t.path().join("run.json"),
+        r#"{"seed": 7, "command": "a<b"}"#,
+    )
+    .unwrap();
     t
 }
 
@@ -97,7 +101,13 @@ fn unshown_figures_go_under_the_markdowns_figures_section() {
     let html = render_html(t.path(), &spec()).unwrap();
     assert_eq!(html.matches("<h2>Figures</h2>").count(), 1);
     let corner = base64::engine::general_purpose::STANDARD.encode(b"\x89PNG corner");
-    let order = ["<h3>In short</h3>", "<h2>Figures</h2>", &corner, "<h2>Model</h2>", "<h3>Detail</h3>"];
+    let order = [
+        "<h3>In short</h3>",
+        "<h2>Figures</h2>",
+        &corner,
+        "<h2>Model</h2>",
+        "<h3>Detail</h3>",
+    ];
     let at: Vec<usize> = order.iter().map(|n| pos(&html, n)).collect();
     assert!(at.windows(2).all(|w| w[0] < w[1]), "{at:?}");
 }
