@@ -29,6 +29,7 @@
 //! - [`infer`]: one posterior (prior, likelihood blocks) for fits, sampling, evidence and
 //!   Laplace.
 //! - [`plot`]: figures (PNG and SVG) from results.
+//! - [`report`]: one self-contained `report.html` per study, from its Markdown and figures.
 //! - [`discrepancy`]: locating and explaining missing physics.
 
 pub mod bayes;
@@ -44,6 +45,7 @@ pub mod model;
 pub mod plot;
 pub mod predict;
 pub mod real;
+pub mod report;
 pub mod signal;
 pub mod simulate;
 pub mod update;

@@ -196,9 +196,20 @@ fn converge(damping: DampingModel, frf: FrfKind, tests: TestSelection) {
         "cv.png",
         "run.json",
         "start.json",
+        "summary.md",
+        "report.html",
     ] {
         assert!(tmp.path().join(f).exists(), "{f} missing");
     }
+    // The page: verdict first, the parameter table, figures inline, settings last.
+    let html = String::from_utf8(read(tmp.path(), "report.html")).unwrap();
+    let at = |n: &str| {
+        html.find(n)
+            .unwrap_or_else(|| panic!("report.html lacks {n:?}"))
+    };
+    assert!(at("<h2>Verdict</h2>") < at("<td>k1</td>"));
+    assert!(at("<td>k1</td>") < at("data:image/png;base64,"));
+    assert!(at("data:image/png;base64,") < at("<h2>Settings"));
     // draws.npy: (chain, draw, parameter), f8, C order.
     let npy = read(tmp.path(), "draws.npy");
     let header = String::from_utf8_lossy(&npy[10..128]);

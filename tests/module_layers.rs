@@ -19,7 +19,7 @@ const LAYERS: &[&[&str]] = &[
     &["frf"],
     &["predict"],
     &["io"],
-    &["signal", "plot"],
+    &["signal", "plot", "report"],
     &["simulate", "update", "mcmc"],
     &["infer"],
     &["bayes", "discrepancy"],

@@ -1,6 +1,7 @@
 //! Every figure on small synthetic data writes a PNG (magic bytes) and an SVG (with the
 //! title text), and edge cases (empty series, NaN, zeros and negatives on log axes,
-//! single points, constant data) draw without panicking.
+//! single points, constant data) draw without panicking. Every PNG is the rasterisation
+//! of its SVG (rendered again here and compared byte for byte).
 //!
 //! Set `FRFBAYES_PLOT_DIR=/some/dir` to keep the figures for viewing.
 
@@ -44,6 +45,15 @@ fn check(stem: &Path, title: &str, size: (u32, u32)) {
     let svg = std::fs::read_to_string(stem.with_extension("svg")).expect("svg written");
     assert!(svg.starts_with("<svg"), "{}", &svg[..40.min(svg.len())]);
     assert!(svg.contains(title), "svg lacks title {title:?}");
+    assert!(
+        svg.contains(r#"font-family="DejaVu Sans""#),
+        "svg text must name the bundled font"
+    );
+    assert!(
+        svg_to_png(&svg).unwrap() == png,
+        "{}: the PNG is not the rasterisation of the SVG",
+        stem.display()
+    );
     let dir = stem.parent().unwrap();
     let prefix = format!(".{}.", stem.file_name().unwrap().to_string_lossy());
     for e in std::fs::read_dir(dir).unwrap() {
@@ -113,6 +123,61 @@ fn frf_magnitudes_writes_png_and_svg() {
     let stem = out.dir.join("frf_magnitudes");
     frf_magnitudes(&spec, &stem).unwrap();
     check(&stem, "Hammer test 1", (1000, 760));
+}
+
+/// RGBA pixels and width of a PNG.
+fn decode_png(path: &Path) -> (Vec<u8>, usize) {
+    let p = resvg::tiny_skia::Pixmap::load_png(path).expect("PNG decodes");
+    (p.data().to_vec(), p.width() as usize)
+}
+
+/// Pixels in the box `x0..x1` by `y0..y1` whose red channel is below 128.
+fn dark_pixels(px: &[u8], w: usize, (x0, x1): (usize, usize), (y0, y1): (usize, usize)) -> usize {
+    (y0..y1)
+        .flat_map(|y| (x0..x1).map(move |x| 4 * (y * w + x)))
+        .filter(|&i| px[i] < 128)
+        .count()
+}
+
+#[test]
+fn png_is_anti_aliased_with_text_where_the_title_is() {
+    let out = out_dir();
+    let f = freq_grid(400, 20.0);
+    let spec = LineChartSpec {
+        title: "WWWWWWWW".into(),
+        x_label: "x".into(),
+        y_label: "y".into(),
+        series: vec![Series {
+            label: "diagonal".into(),
+            x: f.clone(),
+            y: f.clone(),
+            mark: Mark::Line,
+        }],
+        ..Default::default()
+    };
+    let stem = out.dir.join("aa");
+    line_chart(&spec, &stem).unwrap();
+    check(&stem, "WWWWWWWW", (1000, 700));
+    let (px, w) = decode_png(&stem.with_extension("png"));
+    // The title (28 px text, top 10 px, centred): ink inside its box, none beside it.
+    let half = 80; // 8 W's are about 8 * 0.99 em * 22.6 px = 179 px wide
+    assert!(dark_pixels(&px, w, (500 - half, 500 + half), (10, 40)) > 500);
+    assert_eq!(dark_pixels(&px, w, (0, 300), (0, 40)), 0);
+    assert_eq!(dark_pixels(&px, w, (700, 1000), (0, 40)), 0);
+    // Anti-aliasing: the glyph edges of the title are grey levels between the white
+    // background and the black ink (an aliased renderer leaves none).
+    let title_box = (10..40).flat_map(|y| (500 - half..500 + half).map(move |x| 4 * (y * w + x)));
+    let grey: Vec<u8> = title_box
+        .map(|i| px[i])
+        .filter(|&g| g > 10 && g < 245)
+        .collect();
+    let levels: std::collections::BTreeSet<u8> = grey.iter().copied().collect();
+    assert!(
+        grey.len() > 100 && levels.len() >= 8,
+        "{} grey pixels, {} levels",
+        grey.len(),
+        levels.len()
+    );
 }
 
 #[test]

@@ -56,9 +56,17 @@ fn repro_on_noise_free_simulation_recovers_truth_and_writes_everything() {
         "posterior_corner_table2_caughey_receptance.png",
         "posterior_correlation_table2_caughey_receptance.svg",
         "posterior_cv_table2.png",
+        "report.html",
     ] {
         assert!(outcome.out.join(f).is_file(), "missing {f}");
     }
+    let html = std::fs::read_to_string(outcome.out.join("report.html")).unwrap();
+    let at = |n: &str| {
+        html.find(n)
+            .unwrap_or_else(|| panic!("report.html lacks {n:?}"))
+    };
+    assert!(at("<h3>In short</h3>") < at("<h2>Table 1"));
+    assert!(at("<img src=\"data:image/png;base64,") < at("Settings of the run"));
     // The truth of four-story-truth-noise-free.toml.
     let mass_kg = [5.155, 4.953, 4.949, 5.090];
     let stiffness = [1090.0, 1258.0, 1378.0, 2666.0];

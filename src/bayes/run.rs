@@ -488,6 +488,7 @@ fn finish(
         write_figures(out, prep, sampler, &params, &draws, settings)
     })?;
     info.write(out)?;
+    super::report::write_report(&summary, out)?;
     // A converged run needs its checkpoint no more; an unconverged one keeps it, so that
     // `--resume --max-steps` can extend it.
     let cp = checkpoint_path(out);

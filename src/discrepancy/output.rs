@@ -1,4 +1,5 @@
-//! The output folder of `frfbayes diagnose`: `diagnosis.json`, `diagnosis.md`, figures,
+//! The output folder of `frfbayes diagnose`: `diagnosis.json`, `diagnosis.md` (and the
+//! same as a self-contained `report.html`), figures,
 //! `models.json` (every fit), written into a staging folder and swapped in only when
 //! complete, so a failed run never leaves a half-written folder or loses the last one.
 
@@ -280,5 +281,15 @@ pub fn write_diagnosis_into(d: &Diagnosis, title: &str, dir: &Path) -> Result<()
         .map_err(|e| Error::Numerical(format!("diagnosis.json: {e}")))?;
     write_atomic(&dir.join("diagnosis.json"), json.as_bytes())?;
     let md = markdown(d, title, &figures)?;
-    write_atomic(&dir.join("diagnosis.md"), md.as_bytes())
+    write_atomic(&dir.join("diagnosis.md"), md.as_bytes())?;
+    crate::report::write_html_report(
+        &dir,
+        &crate::report::HtmlReport {
+            markdown: &["diagnosis.md", "locate.md"],
+            lead: crate::report::LEAD,
+            tail: crate::report::TAIL,
+            title: None,
+        },
+    )?;
+    Ok(())
 }

@@ -242,6 +242,20 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         Ok(())
     })?;
     info.write(&dir)?;
+    crate::report::write_html_report(
+        &dir,
+        &crate::report::HtmlReport {
+            markdown: &[
+                "table1.md",
+                "table2.md",
+                "comparison.md",
+                "identifiability.md",
+            ],
+            lead: &["In short", "What this says about the paper"],
+            tail: crate::report::TAIL,
+            title: Some("Paper reproduction: FRF-based model updating of the four-story frame"),
+        },
+    )?;
     let out = staged.commit()?;
     Ok(Outcome {
         out,

@@ -174,7 +174,7 @@ impl Figure for BandOverlaySpec {
             let x_lim = limits(xr, Scale::Linear, 0.0);
             let x = NiceAxis::new(Scale::Linear, x_lim, panel::ticks_for(cw, 95, 8));
             let y = NiceAxis::new(sy, limits(yr, sy, 0.04), panel::ticks_for(ch, 60, 8));
-            let y_area = panel::y_area(&cell, &y, &p.y_label, NORMAL);
+            let y_area = panel::y_area(&y, &p.y_label, NORMAL);
             let mut chart = panel::build(
                 &cell,
                 Panel {

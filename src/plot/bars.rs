@@ -110,7 +110,7 @@ impl Figure for BarChartSpec {
         };
         let (_, body_h) = body.dim_in_pixel();
         let y = NiceAxis::new(scale, y_lim, panel::ticks_for(body_h, 70, 8));
-        let y_area = panel::y_area(&body, &y, &self.y_label, NORMAL);
+        let y_area = panel::y_area(&y, &self.y_label, NORMAL);
         let n = self.categories.len();
         let (w, _) = body.dim_in_pixel();
         let plot_w = w as f64 - y_area as f64 - 24.0;
@@ -171,7 +171,7 @@ impl Figure for BarChartSpec {
             let texts: Vec<String> = tops.iter().map(|t| value_text(t.1)).collect();
             let fits = texts
                 .iter()
-                .all(|t| text_width(&area, t, font) as f64 <= bar_px + 6.0);
+                .all(|t| text_width(t, font) as f64 <= bar_px + 6.0);
             if fits {
                 for (t, s) in tops.iter().zip(&texts) {
                     let (px, py) = chart.backend_coord(t);

@@ -126,7 +126,7 @@ impl Figure for CornerSpec {
             .collect();
         let texts: Vec<String> = self.params.iter().map(axis_text).collect();
         let left = (1..n)
-            .map(|i| panel::y_area(&body, &axes[i], &texts[i], SMALL))
+            .map(|i| panel::y_area(&axes[i], &texts[i], SMALL))
             .max()
             .unwrap_or(0)
             .max(panel::x_area(true, "", SMALL));
@@ -210,7 +210,7 @@ impl Figure for CornerSpec {
                 &self.reference_label
             };
             let y = 14 + (SMALL.legend * 1.6) as i32;
-            let tw = super::render::text_width(corner_cell, label, SMALL.legend) as i32;
+            let tw = super::render::text_width(label, SMALL.legend) as i32;
             corner_cell.draw(&PathElement::new(
                 vec![(x - tw - 34, y + 8), (x - tw - 8, y + 8)],
                 style::OI_VERMILLION.stroke_width(2),

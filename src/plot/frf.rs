@@ -91,12 +91,8 @@ impl Figure for FrfMagnitudesSpec {
         } else {
             &self.y_label
         };
-        let y_area = panel::y_area(&top, &y, y_desc, NORMAL).max(panel::y_area(
-            &top,
-            &coh,
-            "Coherence",
-            NORMAL,
-        ));
+        let y_area =
+            panel::y_area(&y, y_desc, NORMAL).max(panel::y_area(&coh, "Coherence", NORMAL));
         let width = if self.channels.len() <= 4 { 2 } else { 1 };
         let look = |i: usize| {
             let (color, dash) = style::series_look(i);
@@ -281,7 +277,7 @@ impl Figure for FrfComparisonSpec {
             } else {
                 &p.y_label
             };
-            let y_area = panel::y_area(&cell, &y, y_desc, NORMAL);
+            let y_area = panel::y_area(&y, y_desc, NORMAL);
             let mut chart = panel::build(
                 &cell,
                 Panel {

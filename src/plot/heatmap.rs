@@ -123,7 +123,7 @@ impl Figure for HeatmapSpec {
         let bar_labels_px = bar_axis
             .labels()
             .iter()
-            .map(|l| text_width(&body, l, NORMAL.tick))
+            .map(|l| text_width(l, NORMAL.tick))
             .max()
             .unwrap_or(0);
         let bar_desc_px = if self.colour_label.is_empty() {
@@ -138,8 +138,7 @@ impl Figure for HeatmapSpec {
         // Main panel: label areas from the labels.
         let desc_px = |s: &str| panel::desc_height(s, NORMAL);
         let mut row_font = NORMAL.tick;
-        let y_area =
-            labels::y_width(&main, &self.row_labels, row_font) + desc_px(&self.y_label) + 4;
+        let y_area = labels::y_width(&self.row_labels, row_font) + desc_px(&self.y_label) + 4;
         let (mw, _) = main.dim_in_pixel();
         let slot = (mw as f64 - y_area as f64 - 14.0) / n_cols.max(1) as f64;
         let layout = labels::x_layout(&main, &self.col_labels, slot, NORMAL.tick);
@@ -207,7 +206,7 @@ impl Figure for HeatmapSpec {
                         continue;
                     }
                     let s = cell_text(v, limit);
-                    if text_width(&area, &s, font) as f64 > cell_w - 4.0 {
+                    if text_width(&s, font) as f64 > cell_w - 4.0 {
                         continue;
                     }
                     let (px, py) = chart.backend_coord(&(c as f64, y));

@@ -33,7 +33,7 @@ pub(crate) fn x_layout<DB: DrawingBackend>(
 ) -> XLayout {
     let widest = labels
         .iter()
-        .map(|l| text_width(area, l, font))
+        .map(|l| text_width(l, font))
         .max()
         .unwrap_or(0) as f64;
     let line_px = font * 1.25;
@@ -89,14 +89,10 @@ pub(crate) fn draw_x<DB: DrawingBackend>(
 }
 
 /// Width needed left of the plot for row labels.
-pub(crate) fn y_width<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    labels: &[String],
-    font: f64,
-) -> u32 {
+pub(crate) fn y_width(labels: &[String], font: f64) -> u32 {
     labels
         .iter()
-        .map(|l| text_width(area, l, font))
+        .map(|l| text_width(l, font))
         .max()
         .unwrap_or(0)
         + GAP_PX as u32

@@ -85,7 +85,7 @@ pub(crate) fn legend_strip<DB: DrawingBackend>(
     let (w, _) = area.dim_in_pixel();
     let widths: Vec<i32> = entries
         .iter()
-        .map(|e| SWATCH_PX + 4 + text_width(area, &e.label, font) as i32)
+        .map(|e| SWATCH_PX + 4 + text_width(&e.label, font) as i32)
         .collect();
     // Greedy rows that fit the width.
     let mut rows: Vec<Vec<usize>> = vec![Vec::new()];
@@ -145,7 +145,7 @@ pub(crate) fn legend<DB: DrawingBackend>(
                 .iter()
                 .skip(c * rows)
                 .take(rows)
-                .map(|e| text_width(&area, &e.label, font) as i32)
+                .map(|e| text_width(&e.label, font) as i32)
                 .max()
                 .unwrap_or(0)
                 + swatch

@@ -94,7 +94,7 @@ impl Figure for LineChartSpec {
         let x = NiceAxis::new(self.x_scale, x_lim, panel::ticks_for(bw, 95, 10));
         let y_lim = limits(yr, self.y_scale, 0.04);
         let y = NiceAxis::new(self.y_scale, y_lim, panel::ticks_for(bh, 60, 8));
-        let y_area = panel::y_area(&body, &y, &self.y_label, NORMAL);
+        let y_area = panel::y_area(&y, &self.y_label, NORMAL);
         let mut chart = panel::build(
             &body,
             Panel {

@@ -11,8 +11,8 @@
 //!   with nothing to draw says "no data".
 //! - Lengths that must match (a frequency grid and its values) are checked, and a
 //!   mismatch is an [`Error::Usage`] naming the series.
-//! - PNG text, lines, bands and markers are anti-aliased (`smooth.rs`); PNG and SVG
-//!   share one text layout.
+//! - The PNG is the SVG rasterised by resvg (`raster.rs`): the same drawing, anti-aliased,
+//!   with text in the bundled font only (no system fonts), so it is reproducible.
 //! - Text uses the bundled DejaVu Sans (`src/plot/fonts/`, Bitstream Vera licence beside
 //!   it); colours are Okabe-Ito for lines, ColorBrewer RdBu for signed maps and Blues for
 //!   densities, all safe for the common colour-vision deficiencies.
@@ -24,15 +24,15 @@ mod axis;
 mod bands;
 mod bars;
 mod corner;
+mod crisp;
 mod frf;
-mod glyphs;
 mod heatmap;
 mod labels;
 mod legend;
 mod lines;
 mod panel;
+mod raster;
 mod render;
-mod smooth;
 mod style;
 mod traces;
 
@@ -45,6 +45,7 @@ pub use frf::{
 };
 pub use heatmap::{heatmap, HeatmapSpec};
 pub use lines::{line_chart, LineChartSpec, Mark, RefLine, Series};
+pub use raster::svg_to_png;
 pub use traces::{traces, TraceParam, TracesSpec};
 
 use crate::error::{Error, Result};

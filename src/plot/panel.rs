@@ -40,16 +40,11 @@ pub(crate) struct Panel<'s> {
 }
 
 /// Width the left label area needs for `axis`'s tick labels and `desc`.
-pub(crate) fn y_area<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    axis: &NiceAxis,
-    desc: &str,
-    sizes: Sizes,
-) -> u32 {
+pub(crate) fn y_area(axis: &NiceAxis, desc: &str, sizes: Sizes) -> u32 {
     let widest = axis
         .labels()
         .iter()
-        .map(|l| text_width(area, l, sizes.tick))
+        .map(|l| text_width(l, sizes.tick))
         .max()
         .unwrap_or(0);
     let desc_px = if desc.is_empty() {

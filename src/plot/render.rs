@@ -1,19 +1,18 @@
-//! Rendering a figure twice, to PNG and SVG, each written atomically: the SVG is built in
-//! memory and written with [`crate::io::write_atomic`]; the PNG is rendered by plotters
-//! into a temporary sibling file and renamed into place. A failed run leaves any previous
-//! figure untouched and no temporary file behind.
+//! Rendering a figure: plotters draws it once, as SVG, in memory; the PNG is that SVG
+//! rasterised by resvg (`raster.rs`), so the two files show the same drawing. Odd-width
+//! strokes are first put on pixel centres (`crisp.rs`) so thin lines stay sharp. Both are
+//! written with [`crate::io::write_atomic`]: a failed run leaves any previous figure
+//! untouched and no temporary file behind.
 
-use super::smooth::Smooth;
 use super::style::{self, text, Sizes};
 use crate::error::{Error, Result};
-use plotters::backend::{BitMapBackend, DrawingBackend, SVGBackend};
+use plotters::backend::{DrawingBackend, SVGBackend};
 use plotters::coord::Shift;
 use plotters::drawing::{DrawingArea, DrawingAreaErrorKind, IntoDrawingArea};
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::TextStyle;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Result of drawing on backend `DB`.
 pub(crate) type DResult<T, DB> =
@@ -66,34 +65,12 @@ pub(crate) fn render(fig: &impl Figure, size_px: Option<(u32, u32)>, stem: &Path
 
     let mut svg = String::new();
     {
-        let root = Smooth {
-            inner: SVGBackend::with_string(&mut svg, (w, h)),
-            rasterise: false,
-        }
-        .into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (w, h)).into_drawing_area();
         draw_on(&root, fig).map_err(|e| drawing_error(&svg_path, e))?;
     }
-
-    let dir = png_path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let tmp = temp_png(&png_path);
-    let drawn = {
-        let root = Smooth {
-            inner: BitMapBackend::new(&tmp, (w, h)),
-            rasterise: true,
-        }
-        .into_drawing_area();
-        draw_on(&root, fig).map_err(|e| drawing_error(&png_path, e))
-    };
-    let renamed =
-        drawn.and_then(|()| std::fs::rename(&tmp, &png_path).map_err(|e| Error::io(&png_path, e)));
-    if let Err(e) = renamed {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e);
-    }
+    let svg = super::crisp::align_strokes(&svg);
+    let png = super::raster::svg_to_png(&svg)?;
+    crate::io::write_atomic(&png_path, &png)?;
     crate::io::write_atomic(&svg_path, svg.as_bytes())
 }
 
@@ -106,29 +83,9 @@ fn draw_on<DB: DrawingBackend>(
     root.present()
 }
 
-/// A unique temporary sibling ending in `.png` (plotters picks the encoder from it).
-fn temp_png(path: &Path) -> PathBuf {
-    static COUNTER: AtomicUsize = AtomicUsize::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "figure".into());
-    path.with_file_name(format!(".{name}.{}.{n}.tmp.png", std::process::id()))
-}
-
-/// Estimated width of `s` in pixels.
-pub(crate) fn text_width<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    s: &str,
-    size: f64,
-) -> u32 {
-    if s.is_empty() {
-        return 0;
-    }
-    area.estimate_text_size(s, &text(size))
-        .map(|(w, _)| w)
-        .unwrap_or((0.6 * size * s.chars().count() as f64) as u32)
+/// Width of `s` in whole pixels (rounded up) at text size `size`.
+pub(crate) fn text_width(s: &str, size: f64) -> u32 {
+    style::text_width(s, size).ceil() as u32
 }
 
 /// Draws `s` anchored at `pos` (pixels relative to `area`).
@@ -157,7 +114,7 @@ pub(crate) fn title_area<DB: DrawingBackend>(
     }
     let (w, _) = area.dim_in_pixel();
     let mut size = sizes.title;
-    while size > 10.0 && text_width(area, title, size) + 20 > w {
+    while size > 10.0 && text_width(title, size) + 20 > w {
         size -= 1.0;
     }
     let pad = 10;

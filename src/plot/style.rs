@@ -1,23 +1,53 @@
 //! Look of every figure: the bundled font, text sizes, the colour-blind-safe palette and
 //! the colour maps. One place, so all figures look alike.
 
+use ab_glyph::{Font, FontRef};
 use plotters::style::{Color, FontStyle, RGBAColor, RGBColor, TextStyle};
-use std::sync::Once;
+use std::sync::{Once, OnceLock};
 
-/// Family name under which the bundled DejaVu Sans is registered.
-pub(crate) const FONT: &str = "sans-serif";
+/// The bundled DejaVu Sans (licence beside it in `src/plot/fonts/`).
+pub(crate) const FONT_BYTES: &[u8] = include_bytes!("fonts/DejaVuSans.ttf");
+
+/// The bundled font's family name: written into every SVG, and the only font the PNG
+/// rasteriser knows (`raster.rs`).
+pub(crate) const FONT: &str = "DejaVu Sans";
+
+/// plotters' SVG backend writes `font-size = size / 1.24` for a text style of size `size`.
+const EM_PER_SIZE: f32 = 1.0 / 1.24;
 
 static FONT_ONCE: Once = Once::new();
 
-/// Registers the bundled DejaVu Sans (licence beside it in `src/plot/fonts/`) as
-/// `sans-serif`, exactly once per process. plotters has no system font lookup here (no
-/// fontconfig), so every figure calls this before drawing text.
+/// Registers the bundled font with plotters under [`FONT`], exactly once per process.
+/// plotters has no system font lookup here (no fontconfig) and measures tick labels with
+/// it, so every figure calls this before drawing text.
 pub(crate) fn ensure_font() {
     FONT_ONCE.call_once(|| {
         // The font is compiled in; failing to parse it is a build defect, caught by the
         // tests (every figure then fails with a font error rather than panicking).
-        let _ = plotters::style::register_font(FONT, FontStyle::Normal, super::glyphs::FONT_BYTES);
+        let _ = plotters::style::register_font(FONT, FontStyle::Normal, FONT_BYTES);
     });
+}
+
+/// Width in pixels of `s` set at text size `size` as the SVG shows it (advances and
+/// kerning of the bundled font at an em of `size / 1.24` px). Zero if the font fails to
+/// parse (a build defect the tests catch).
+pub(crate) fn text_width(s: &str, size: f64) -> f64 {
+    static PARSED: OnceLock<Option<FontRef<'static>>> = OnceLock::new();
+    let Some(font) = PARSED.get_or_init(|| FontRef::try_from_slice(FONT_BYTES).ok()) else {
+        return 0.0;
+    };
+    let units = font.units_per_em().unwrap_or(2048.0);
+    let em = size as f32 * EM_PER_SIZE;
+    let (mut caret, mut prev) = (0.0f32, None);
+    for c in s.chars() {
+        let id = font.glyph_id(c);
+        if let Some(p) = prev {
+            caret += font.kern_unscaled(p, id);
+        }
+        caret += font.h_advance_unscaled(id);
+        prev = Some(id);
+    }
+    (caret * em / units) as f64
 }
 
 /// Text sizes for a figure of about 1000 x 700 px (the em is `size / 1.24` pixels).
@@ -200,6 +230,15 @@ mod tests {
                 assert_ne!(looks[i], looks[j], "{i} {j}");
             }
         }
+    }
+
+    #[test]
+    fn text_width_matches_the_svg_em() {
+        // DejaVu Sans: "H" advances 1540/2048 em (hmtx, read with fontTools); em = size / 1.24 px.
+        let w = text_width("H", 24.8);
+        assert!((w - 20.0 * 1540.0 / 2048.0).abs() < 1e-4, "{w}");
+        assert!((text_width("HzHz", 24.8) - 2.0 * text_width("Hz", 24.8)).abs() < 1e-6);
+        assert_eq!(text_width("", 24.8), 0.0);
     }
 
     #[test]

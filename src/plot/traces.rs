@@ -115,7 +115,7 @@ impl Figure for TracesSpec {
             })
             .collect();
         let y_area = (0..n)
-            .map(|i| panel::y_area(&body, &y_axes[i], &texts[i], SMALL))
+            .map(|i| panel::y_area(&y_axes[i], &texts[i], SMALL))
             .max()
             .unwrap_or(0);
         // Only the bottom row carries the step axis text; it gets that much more height

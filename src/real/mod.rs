@@ -19,7 +19,8 @@
 //!   channel gains, and where its fit fails, per mode and per floor
 //!   ([`tower_residuals::shear_model_residuals`]) (`tower-hmd`).
 //!
-//! Each study writes `report.md`, `posterior.json`, `run.json` and figures (PNG + SVG)
+//! Each study writes `report.md` (and the same as a self-contained `report.html`),
+//! `posterior.json`, `run.json` and figures (PNG + SVG)
 //! into its output folder.
 
 pub mod bridge;
@@ -169,6 +170,15 @@ pub fn run(
         }
     }
     info.write(&out)?;
+    crate::report::write_html_report(
+        &out,
+        &crate::report::HtmlReport {
+            markdown: &["report.md"],
+            lead: crate::report::LEAD,
+            tail: crate::report::TAIL,
+            title: None,
+        },
+    )?;
     staged.commit()?;
     Ok(info.timings_s)
 }
