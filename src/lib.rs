@@ -30,6 +30,7 @@
 //!   Laplace.
 //! - [`plot`]: figures (PNG and SVG) from results.
 //! - [`discrepancy`]: locating and explaining missing physics.
+//! - [`uff`]: Universal File Format dataset 58 / 58b (measured FRFs in and out).
 
 pub mod bayes;
 pub mod discrepancy;
@@ -46,6 +47,7 @@ pub mod predict;
 pub mod real;
 pub mod signal;
 pub mod simulate;
+pub mod uff;
 pub mod update;
 
 pub use error::{Error, Result};

@@ -49,6 +49,7 @@ mod estimate;
 pub mod frf_csv;
 pub mod hammer;
 pub mod input_noise;
+pub mod measured;
 pub mod noise;
 mod settings;
 pub mod spectra;
