@@ -272,7 +272,10 @@ pub fn run_sample(
     let mut info = RunInfo::start(
         settings.seed,
         toml_value(settings)?,
-        settings.frfs.clone().unwrap_or_else(|| settings.campaign.clone()),
+        settings
+            .frfs
+            .clone()
+            .unwrap_or_else(|| settings.campaign.clone()),
     );
     write_atomic(&settings_path(out), settings.to_toml()?.as_bytes())?;
     stage("estimating FRFs");
@@ -328,7 +331,10 @@ pub fn resume_sample(
     let mut info = RunInfo::start(
         settings.seed,
         toml_value(&settings)?,
-        settings.frfs.clone().unwrap_or_else(|| settings.campaign.clone()),
+        settings
+            .frfs
+            .clone()
+            .unwrap_or_else(|| settings.campaign.clone()),
     );
     stage("estimating FRFs");
     let prep = info.time("estimate_frfs", || prepare(&settings))?;

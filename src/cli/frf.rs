@@ -59,7 +59,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let dir = staged.path().join(&test.name);
         frfbayes::signal::frf_csv::write_frf_csv(&dir.join("frf.csv"), &frf)?;
         let encoding = if args.uff_binary {
-            Encoding::Binary { little_endian: true }
+            Encoding::Binary {
+                little_endian: true,
+            }
         } else {
             Encoding::Ascii
         };

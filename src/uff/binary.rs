@@ -32,17 +32,18 @@ impl BinaryHeader {
                     )
                 })
         };
-        let little_endian = match int(0, "byte order")? {
-            1 => true,
-            2 => false,
-            v => {
-                return Err(cur.cell(
+        let little_endian =
+            match int(0, "byte order")? {
+                1 => true,
+                2 => false,
+                v => return Err(cur.cell(
                     line,
                     8,
-                    format!("58b header: byte order {v}; expected 1 (little-endian) or 2 (big-endian)"),
-                ))
-            }
-        };
+                    format!(
+                        "58b header: byte order {v}; expected 1 (little-endian) or 2 (big-endian)"
+                    ),
+                )),
+            };
         let fp = int(1, "floating-point format")?;
         if fp != 2 {
             return Err(cur.cell(
@@ -59,12 +60,18 @@ impl BinaryHeader {
             return Err(cur.cell(
                 line,
                 20,
-                format!("58b header: {n_lines} ASCII lines announced; dataset 58 has 11 (records 1-11)"),
+                format!(
+                    "58b header: {n_lines} ASCII lines announced; dataset 58 has 11 (records 1-11)"
+                ),
             ));
         }
         let n_bytes = int(3, "number of bytes")?;
         let n_bytes = usize::try_from(n_bytes).map_err(|_| {
-            cur.cell(line, 32, format!("58b header: number of bytes {n_bytes} is negative"))
+            cur.cell(
+                line,
+                32,
+                format!("58b header: number of bytes {n_bytes} is negative"),
+            )
         })?;
         Ok(BinaryHeader {
             little_endian,
@@ -94,7 +101,9 @@ pub(super) fn binary_block(
     };
     let start = cur.pos;
     let invalid = |what: String| Error::invalid(cur.path, what);
-    let expected = n_values.checked_mul(width).filter(|&n| n <= cur.bytes.len() - start);
+    let expected = n_values
+        .checked_mul(width)
+        .filter(|&n| n <= cur.bytes.len() - start);
     let Some(expected) = expected else {
         return Err(invalid(format!(
             "byte offset {start}: dataset 58b (line {}) needs {} x {width} bytes of data for \
@@ -145,7 +154,10 @@ pub(super) fn binary_block(
         values.push(v);
     }
     cur.line += block.iter().filter(|&&b| b == b'\n').count();
-    cur.line += cur.bytes[start + expected..next].iter().filter(|&&b| b == b'\n').count();
+    cur.line += cur.bytes[start + expected..next]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count();
     cur.pos = next;
     Ok(values)
 }

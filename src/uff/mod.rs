@@ -240,9 +240,9 @@ impl Function58 {
     /// The abscissa value of every point.
     pub fn abscissa_values(&self) -> Vec<f64> {
         match &self.abscissa {
-            Abscissa::Even { min, step } => (0..self.len())
-                .map(|k| min + k as f64 * step)
-                .collect(),
+            Abscissa::Even { min, step } => {
+                (0..self.len()).map(|k| min + k as f64 * step).collect()
+            }
             Abscissa::Uneven(x) => x.clone(),
         }
     }

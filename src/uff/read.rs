@@ -28,7 +28,10 @@ pub fn read_uff_bytes(path: &Path, bytes: &[u8]) -> Result<UffFile> {
             .ok_or_else(|| cur.cell(start.line, 1, "the file ends after a `-1` marker"))?;
         let head = String::from_utf8_lossy(head);
         let number = head.get(..6.min(head.len())).unwrap_or("").trim();
-        let binary = head.as_bytes().get(6).is_some_and(|c| c.eq_ignore_ascii_case(&b'b'));
+        let binary = head
+            .as_bytes()
+            .get(6)
+            .is_some_and(|c| c.eq_ignore_ascii_case(&b'b'));
         if number != "58" {
             let name = if number.is_empty() {
                 head.trim().to_string()
@@ -168,9 +171,8 @@ impl<'a> Cursor<'a> {
                 }
             }
         }
-        let id_lines = std::array::from_fn(|k| {
-            String::from_utf8_lossy(lines[k].0).trim_end().to_string()
-        });
+        let id_lines =
+            std::array::from_fn(|k| String::from_utf8_lossy(lines[k].0).trim_end().to_string());
         let (function_type, ids, response, reference) = self.record6(lines[5])?;
         let form = self.record7(lines[6])?;
         let mut axes: [Axis; 4] = Default::default();
@@ -191,7 +193,10 @@ impl<'a> Cursor<'a> {
 
     /// Record 6, Format(2(I5,I10),2(1X,10A1,I10,I4)).
     #[allow(clippy::type_complexity)]
-    fn record6(&self, (text, line): (&[u8], usize)) -> Result<(FunctionType, [i32; 3], NodeDof, NodeDof)> {
+    fn record6(
+        &self,
+        (text, line): (&[u8], usize),
+    ) -> Result<(FunctionType, [i32; 3], NodeDof, NodeDof)> {
         let int = |from: usize, to: usize, what: &str| -> Result<i64> {
             let s = column_text(text, from, to);
             let s = s.trim();
@@ -202,12 +207,21 @@ impl<'a> Cursor<'a> {
                 self.cell(
                     line,
                     from + 1,
-                    format!("record 6: {what} (columns {}-{to}) is {s:?}, not an integer", from + 1),
+                    format!(
+                        "record 6: {what} (columns {}-{to}) is {s:?}, not an integer",
+                        from + 1
+                    ),
                 )
             })
         };
         let small = |v: i64, from: usize, what: &str| -> Result<i32> {
-            i32::try_from(v).map_err(|_| self.cell(line, from + 1, format!("record 6: {what} {v} is out of range")))
+            i32::try_from(v).map_err(|_| {
+                self.cell(
+                    line,
+                    from + 1,
+                    format!("record 6: {what} {v} is out of range"),
+                )
+            })
         };
         let function_type = small(int(0, 5, "the function type")?, 0, "the function type")?;
         let ids = [
@@ -216,7 +230,11 @@ impl<'a> Cursor<'a> {
             small(int(20, 30, "the load case")?, 20, "the load case")?,
         ];
         let dof = |e: usize, n: usize, d: usize, which: &str| -> Result<NodeDof> {
-            let direction = small(int(d, d + 4, &format!("the {which} direction"))?, d, "direction")?;
+            let direction = small(
+                int(d, d + 4, &format!("the {which} direction"))?,
+                d,
+                "direction",
+            )?;
             if !(-6..=6).contains(&direction) {
                 return Err(self.cell(
                     line,
@@ -232,7 +250,12 @@ impl<'a> Cursor<'a> {
         };
         let response = dof(31, 41, 51, "response")?;
         let reference = dof(56, 66, 76, "reference")?;
-        Ok((FunctionType::from_code(function_type), ids, response, reference))
+        Ok((
+            FunctionType::from_code(function_type),
+            ids,
+            response,
+            reference,
+        ))
     }
 
     /// Record 7, Format(3I10,3E13.5), read by fields separated by blanks.
@@ -252,7 +275,11 @@ impl<'a> Cursor<'a> {
         }
         let int = |k: usize, what: &str| -> Result<i64> {
             fields[k].parse::<i64>().map_err(|_| {
-                self.cell(line, 1, format!("record 7: {what} is {:?}, not an integer", fields[k]))
+                self.cell(
+                    line,
+                    1,
+                    format!("record 7: {what} is {:?}, not an integer", fields[k]),
+                )
             })
         };
         let real = |k: usize, what: &str| -> Result<f64> {
@@ -260,7 +287,11 @@ impl<'a> Cursor<'a> {
                 return Ok(0.0);
             };
             parse_real(f).filter(|v| v.is_finite()).ok_or_else(|| {
-                self.cell(line, 1, format!("record 7: {what} is {f:?}, not a finite number"))
+                self.cell(
+                    line,
+                    1,
+                    format!("record 7: {what} is {f:?}, not a finite number"),
+                )
             })
         };
         let data_type = int(0, "the ordinate data type")?;
@@ -282,7 +313,11 @@ impl<'a> Cursor<'a> {
         };
         let n_points = int(1, "the number of points")?;
         let n_points = usize::try_from(n_points).map_err(|_| {
-            self.cell(line, 1, format!("record 7: number of points {n_points} is negative"))
+            self.cell(
+                line,
+                1,
+                format!("record 7: number of points {n_points} is negative"),
+            )
         })?;
         let even = match int(2, "the abscissa spacing")? {
             0 => false,
@@ -353,9 +388,17 @@ impl<'a> Cursor<'a> {
             if is_marker(text) {
                 break;
             }
-            parse_numbers(text, |column, token| {
-                self.cell(line, column, format!("record 12: {token:?} is not a finite number"))
-            }, &mut values)?;
+            parse_numbers(
+                text,
+                |column, token| {
+                    self.cell(
+                        line,
+                        column,
+                        format!("record 12: {token:?} is not a finite number"),
+                    )
+                },
+                &mut values,
+            )?;
             if values.len() > n_values {
                 return Err(self.cell(
                     line,
@@ -519,14 +562,20 @@ pub(super) fn parse_numbers(
         }
         let b = token.as_bytes();
         let cuts: Vec<usize> = (1..b.len())
-            .filter(|&i| matches!(b[i], b'+' | b'-') && (b[i - 1].is_ascii_digit() || b[i - 1] == b'.'))
+            .filter(|&i| {
+                matches!(b[i], b'+' | b'-') && (b[i - 1].is_ascii_digit() || b[i - 1] == b'.')
+            })
             .collect();
         let bounds: Vec<usize> = std::iter::once(0).chain(cuts).chain([b.len()]).collect();
         let parts: Vec<&str> = bounds.windows(2).map(|w| &token[w[0]..w[1]]).collect();
-        let ok = parts.len() > 1
-            && parts.iter().all(|p| p.contains(['E', 'e', 'D', 'd']));
+        let ok = parts.len() > 1 && parts.iter().all(|p| p.contains(['E', 'e', 'D', 'd']));
         let values: Option<Vec<f64>> = ok
-            .then(|| parts.iter().map(|p| parse_real(p).filter(|v| v.is_finite())).collect())
+            .then(|| {
+                parts
+                    .iter()
+                    .map(|p| parse_real(p).filter(|v| v.is_finite()))
+                    .collect()
+            })
             .flatten();
         match values {
             Some(v) => out.extend(v),

@@ -4,7 +4,9 @@ use rand::{RngExt, SeedableRng};
 use std::path::{Path, PathBuf};
 
 fn frf(n: usize, precision: Precision, even: bool, complex: bool) -> Function58 {
-    let x: Vec<f64> = (0..n).map(|k| 0.5 + 0.25 * k as f64 + 1e-3 * (k * k) as f64).collect();
+    let x: Vec<f64> = (0..n)
+        .map(|k| 0.5 + 0.25 * k as f64 + 1e-3 * (k * k) as f64)
+        .collect();
     let ordinate = if complex {
         Ordinate::Complex(
             (0..n)
@@ -15,20 +17,62 @@ fn frf(n: usize, precision: Precision, even: bool, complex: bool) -> Function58 
         Ordinate::Real((0..n).map(|k| (k as f64 * 0.7).sin() * 1e3).collect())
     };
     Function58 {
-        id_lines: ["H1 acc2 / force".into(), "hammer-1".into(), "NONE".into(), "frfbayes".into(), "NONE".into()],
+        id_lines: [
+            "H1 acc2 / force".into(),
+            "hammer-1".into(),
+            "NONE".into(),
+            "frfbayes".into(),
+            "NONE".into(),
+        ],
         function_type: FunctionType::Frf,
         function_id: 3,
         version: 0,
         load_case: 0,
-        response: NodeDof { entity: "acc2".into(), node: 2, direction: -1 },
-        reference: NodeDof { entity: "force".into(), node: 1, direction: 1 },
-        abscissa: if even { Abscissa::Even { min: 0.0, step: 0.0625 } } else { Abscissa::Uneven(x) },
+        response: NodeDof {
+            entity: "acc2".into(),
+            node: 2,
+            direction: -1,
+        },
+        reference: NodeDof {
+            entity: "force".into(),
+            node: 1,
+            direction: 1,
+        },
+        abscissa: if even {
+            Abscissa::Even {
+                min: 0.0,
+                step: 0.0625,
+            }
+        } else {
+            Abscissa::Uneven(x)
+        },
         z_axis_value: 0.0,
         axes: [
-            Axis { data_type: 18, label: "Frequency".into(), units: "Hz".into(), ..Default::default() },
-            Axis { data_type: 12, length_exp: 1, label: "Acceleration".into(), units: "m/s^2".into(), ..Default::default() },
-            Axis { data_type: 13, force_exp: 1, label: "Force".into(), units: "N".into(), ..Default::default() },
-            Axis { label: "NONE".into(), units: "NONE".into(), ..Default::default() },
+            Axis {
+                data_type: 18,
+                label: "Frequency".into(),
+                units: "Hz".into(),
+                ..Default::default()
+            },
+            Axis {
+                data_type: 12,
+                length_exp: 1,
+                label: "Acceleration".into(),
+                units: "m/s^2".into(),
+                ..Default::default()
+            },
+            Axis {
+                data_type: 13,
+                force_exp: 1,
+                label: "Force".into(),
+                units: "N".into(),
+                ..Default::default()
+            },
+            Axis {
+                label: "NONE".into(),
+                units: "NONE".into(),
+                ..Default::default()
+            },
         ],
         ordinate,
         precision,
@@ -41,7 +85,10 @@ fn rel_close(a: f64, b: f64, tol: f64) -> bool {
 
 fn assert_same(a: &Function58, b: &Function58, tol: f64) {
     assert_eq!(a.id_lines, b.id_lines);
-    assert_eq!((a.function_type, a.function_id, a.version, a.load_case), (b.function_type, b.function_id, b.version, b.load_case));
+    assert_eq!(
+        (a.function_type, a.function_id, a.version, a.load_case),
+        (b.function_type, b.function_id, b.version, b.load_case)
+    );
     assert_eq!((&a.response, &a.reference), (&b.response, &b.reference));
     assert_eq!(a.axes, b.axes);
     assert_eq!(a.precision, b.precision);
@@ -52,7 +99,10 @@ fn assert_same(a: &Function58, b: &Function58, tol: f64) {
     }
     let (ya, yb) = (a.ordinate.to_complex(), b.ordinate.to_complex());
     for (p, q) in ya.iter().zip(&yb) {
-        assert!(rel_close(p.re, q.re, tol) && rel_close(p.im, q.im, tol), "{p} vs {q}");
+        assert!(
+            rel_close(p.re, q.re, tol) && rel_close(p.im, q.im, tol),
+            "{p} vs {q}"
+        );
     }
 }
 
@@ -60,8 +110,12 @@ fn assert_same(a: &Function58, b: &Function58, tol: f64) {
 fn every_form_round_trips() {
     let encodings = [
         Encoding::Ascii,
-        Encoding::Binary { little_endian: true },
-        Encoding::Binary { little_endian: false },
+        Encoding::Binary {
+            little_endian: true,
+        },
+        Encoding::Binary {
+            little_endian: false,
+        },
     ];
     for precision in [Precision::Single, Precision::Double] {
         for even in [true, false] {
@@ -100,7 +154,15 @@ fn several_datasets_and_other_datasets_skipped() {
     b.function_type = FunctionType::Coherence;
     let prefix = b"    -1\n   164\n         1SI - mks (Newton)  2\n    -1\n";
     let mut bytes = prefix.to_vec();
-    bytes.extend(write_uff_bytes(std::slice::from_ref(&a), Encoding::Binary { little_endian: true }).unwrap());
+    bytes.extend(
+        write_uff_bytes(
+            std::slice::from_ref(&a),
+            Encoding::Binary {
+                little_endian: true,
+            },
+        )
+        .unwrap(),
+    );
     bytes.extend(write_uff_bytes(std::slice::from_ref(&b), Encoding::Ascii).unwrap());
     bytes.extend(b"\n");
     let file = read_uff_bytes(Path::new("t.uff"), &bytes).unwrap();
@@ -109,11 +171,24 @@ fn several_datasets_and_other_datasets_skipped() {
     assert_eq!(file.functions.len(), 2);
     assert_eq!(file.functions[0].0.ordinate, a.ordinate);
     assert_eq!(file.functions[1].0.function_type, FunctionType::Coherence);
-    assert_eq!(file.functions[1].1.byte, prefix.len() + write_uff_bytes(&[a], Encoding::Binary { little_endian: true }).unwrap().len());
+    assert_eq!(
+        file.functions[1].1.byte,
+        prefix.len()
+            + write_uff_bytes(
+                &[a],
+                Encoding::Binary {
+                    little_endian: true
+                }
+            )
+            .unwrap()
+            .len()
+    );
 }
 
 fn fixture(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/uff").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures/uff")
+        .join(name)
 }
 
 /// An analyser's FRF export (pyuff's `non_ascii_header.uff`): complex single precision,
@@ -126,14 +201,24 @@ fn analyser_frf_with_non_ascii_units() {
     assert_eq!(f.function_type, FunctionType::Frf);
     assert_eq!(f.precision, Precision::Single);
     assert_eq!(f.id_lines[4], "H1 : #  2 / #  1");
-    assert_eq!(f.abscissa, Abscissa::Even { min: 0.0, step: 1.95313e-1 });
+    assert_eq!(
+        f.abscissa,
+        Abscissa::Even {
+            min: 0.0,
+            step: 1.95313e-1
+        }
+    );
     let y = f.ordinate.to_complex();
     assert_eq!(y.len(), 6);
     assert_eq!(y[0], Complex64::new(4.07994e-1, 0.0));
     assert_eq!(y[5], Complex64::new(3.75037, 2.93363));
     assert_eq!(f.ordinate_axis().units, "(1/N)*(m/s²)");
-    let (num, den) = units::frf_units(&f.ordinate_axis().units, &f.denominator_axis().units).unwrap();
-    assert_eq!((num.dimension, den.dimension), (units::Dimension::Acceleration, units::Dimension::Force));
+    let (num, den) =
+        units::frf_units(&f.ordinate_axis().units, &f.denominator_axis().units).unwrap();
+    assert_eq!(
+        (num.dimension, den.dimension),
+        (units::Dimension::Acceleration, units::Dimension::Force)
+    );
 }
 
 /// HBM catman's time history: the last data line holds one value, every line padded.
@@ -143,11 +228,20 @@ fn catman_time_history_last_line_partly_filled() {
     let f = &file.functions[0].0;
     assert_eq!(f.function_type, FunctionType::TimeResponse);
     assert_eq!(f.len(), 13);
-    assert_eq!(f.ordinate, Ordinate::Real(vec![
-        -3.81956, -3.56616, -2.98987, -2.62207, -3.22879, -3.63712, -3.90210, -3.69214,
-        -3.42426, -3.48508, -4.03966, -3.46046, -5.84096,
-    ]));
-    assert_eq!(f.abscissa, Abscissa::Even { min: 0.0, step: 5e-5 });
+    assert_eq!(
+        f.ordinate,
+        Ordinate::Real(vec![
+            -3.81956, -3.56616, -2.98987, -2.62207, -3.22879, -3.63712, -3.90210, -3.69214,
+            -3.42426, -3.48508, -4.03966, -3.46046, -5.84096,
+        ])
+    );
+    assert_eq!(
+        f.abscissa,
+        Abscissa::Even {
+            min: 0.0,
+            step: 5e-5
+        }
+    );
     assert_eq!(f.id_lines[1], "UFF58 file created by HBM catman");
 }
 
@@ -158,13 +252,18 @@ fn announced_points_beyond_the_file_is_an_error() {
     let err = read_uff(&fixture("dataset_milestone_in_header.uff")).unwrap_err();
     let msg = err.to_string();
     assert!(matches!(err, Error::Cell { line: 9, .. }), "{msg}");
-    assert!(msg.contains("dataset_milestone_in_header.uff") && msg.contains("2508876"), "{msg}");
+    assert!(
+        msg.contains("dataset_milestone_in_header.uff") && msg.contains("2508876"),
+        "{msg}"
+    );
 }
 
 #[test]
 fn errors_name_the_line_or_byte() {
     let f = frf(4, Precision::Double, true, true);
-    let good = String::from_utf8(write_uff_bytes(std::slice::from_ref(&f), Encoding::Ascii).unwrap()).unwrap();
+    let good =
+        String::from_utf8(write_uff_bytes(std::slice::from_ref(&f), Encoding::Ascii).unwrap())
+            .unwrap();
     let case = |text: String| read_uff_bytes(Path::new("bad.uff"), text.as_bytes()).unwrap_err();
     // a bad number in record 12 (line 14, third field)
     let lines: Vec<&str> = good.lines().collect();
@@ -179,29 +278,54 @@ fn errors_name_the_line_or_byte() {
     let row = format!("{}  9{}", &lines[7][..51], &lines[7][54..]);
     bad[7] = &row;
     let err = case(bad.join("\n")).to_string();
-    assert!(err.contains("bad.uff:8:") && err.contains("response direction 9"), "{err}");
+    assert!(
+        err.contains("bad.uff:8:") && err.contains("response direction 9"),
+        "{err}"
+    );
     // an unknown data type in record 7
     let mut bad = lines.clone();
     let row = format!("         3{}", &lines[8][10..]);
     bad[8] = &row;
     let err = case(bad.join("\n")).to_string();
-    assert!(err.contains("bad.uff:9:") && err.contains("ordinate data type 3"), "{err}");
+    assert!(
+        err.contains("bad.uff:9:") && err.contains("ordinate data type 3"),
+        "{err}"
+    );
     // one value too few
     let mut bad = lines.clone();
     let row = lines[14][..60].to_string();
     bad[14] = &row;
     let err = case(bad.join("\n")).to_string();
-    assert!(err.contains("record 12 holds 7 values, record 7 announces 8"), "{err}");
+    assert!(
+        err.contains("record 12 holds 7 values, record 7 announces 8"),
+        "{err}"
+    );
     // binary: DEC floats, and a header byte count that matches nothing
-    let bin = write_uff_bytes(std::slice::from_ref(&f), Encoding::Binary { little_endian: true }).unwrap();
+    let bin = write_uff_bytes(
+        std::slice::from_ref(&f),
+        Encoding::Binary {
+            little_endian: true,
+        },
+    )
+    .unwrap();
     let text = String::from_utf8_lossy(&bin).into_owned();
     let dec = text.replacen("     1     2          11", "     1     1          11", 1);
-    let err = read_uff_bytes(Path::new("b.uff"), dec.as_bytes()).unwrap_err().to_string();
-    assert!(err.contains("b.uff:2:") && err.contains("floating-point format 1"), "{err}");
+    let err = read_uff_bytes(Path::new("b.uff"), dec.as_bytes())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("b.uff:2:") && err.contains("floating-point format 1"),
+        "{err}"
+    );
     let mut cut = bin.clone();
     cut.truncate(bin.len() - 12);
-    let err = read_uff_bytes(Path::new("b.uff"), &cut).unwrap_err().to_string();
-    assert!(err.contains("b.uff: byte offset") && err.contains("only"), "{err}");
+    let err = read_uff_bytes(Path::new("b.uff"), &cut)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("b.uff: byte offset") && err.contains("only"),
+        "{err}"
+    );
 }
 
 /// pyuff writes `num_pts x 8` as the byte count of complex data (half the true size);
@@ -209,7 +333,13 @@ fn errors_name_the_line_or_byte() {
 #[test]
 fn binary_byte_count_of_pyuff_is_tolerated() {
     let f = frf(6, Precision::Double, true, true);
-    let bin = write_uff_bytes(std::slice::from_ref(&f), Encoding::Binary { little_endian: true }).unwrap();
+    let bin = write_uff_bytes(
+        std::slice::from_ref(&f),
+        Encoding::Binary {
+            little_endian: true,
+        },
+    )
+    .unwrap();
     let text = String::from_utf8_lossy(&bin[..120]).into_owned();
     assert!(text.contains("          96"), "{text}");
     let mut wrong = bin.clone();
@@ -223,9 +353,20 @@ fn binary_byte_count_of_pyuff_is_tolerated() {
 /// into a dataset is an error.
 #[test]
 fn truncations_and_corruptions_never_panic() {
-    let funcs = [frf(9, Precision::Double, true, true), frf(5, Precision::Single, false, false)];
+    let funcs = [
+        frf(9, Precision::Double, true, true),
+        frf(5, Precision::Single, false, false),
+    ];
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
-    for enc in [Encoding::Ascii, Encoding::Binary { little_endian: true }, Encoding::Binary { little_endian: false }] {
+    for enc in [
+        Encoding::Ascii,
+        Encoding::Binary {
+            little_endian: true,
+        },
+        Encoding::Binary {
+            little_endian: false,
+        },
+    ] {
         let bytes = write_uff_bytes(&funcs, enc).unwrap();
         let first_end = write_uff_bytes(&funcs[..1], enc).unwrap().len();
         for n in 0..bytes.len() {

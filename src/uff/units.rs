@@ -122,15 +122,29 @@ mod tests {
 
     #[test]
     fn analyser_labels() {
-        let acc = |l: &str, d: &str| frf_units(l, d).map(|(n, d)| (n.dimension, n.to_si, d.dimension, d.to_si));
+        let acc = |l: &str, d: &str| {
+            frf_units(l, d).map(|(n, d)| (n.dimension, n.to_si, d.dimension, d.to_si))
+        };
         use Dimension::*;
         assert_eq!(acc("m/s^2", "N"), Some((Acceleration, 1.0, Force, 1.0)));
-        assert_eq!(acc("(1/N)*(m/s²)", "NONE"), Some((Acceleration, 1.0, Force, 1.0)));
+        assert_eq!(
+            acc("(1/N)*(m/s²)", "NONE"),
+            Some((Acceleration, 1.0, Force, 1.0))
+        );
         assert_eq!(acc("m/s²/N", ""), Some((Acceleration, 1.0, Force, 1.0)));
-        assert_eq!(acc("(m/s2)/N", "NONE"), Some((Acceleration, 1.0, Force, 1.0)));
-        assert_eq!(acc("g/N", "NONE"), Some((Acceleration, STANDARD_GRAVITY_M_S2, Force, 1.0)));
+        assert_eq!(
+            acc("(m/s2)/N", "NONE"),
+            Some((Acceleration, 1.0, Force, 1.0))
+        );
+        assert_eq!(
+            acc("g/N", "NONE"),
+            Some((Acceleration, STANDARD_GRAVITY_M_S2, Force, 1.0))
+        );
         assert_eq!(acc("mm/N", "NONE"), Some((Displacement, 1e-3, Force, 1.0)));
-        assert_eq!(acc("(m/s^2)/(m/s^2)", "NONE"), Some((Acceleration, 1.0, Acceleration, 1.0)));
+        assert_eq!(
+            acc("(m/s^2)/(m/s^2)", "NONE"),
+            Some((Acceleration, 1.0, Acceleration, 1.0))
+        );
         assert_eq!(acc("m", "kN"), Some((Displacement, 1.0, Force, 1e3)));
         assert_eq!(acc("Pa", "NONE"), None);
         assert_eq!(acc("m/s^2", "furlong"), None);

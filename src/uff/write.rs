@@ -28,7 +28,11 @@ pub fn write_uff_bytes(functions: &[Function58], encoding: Encoding) -> Result<V
 fn check(f: &Function58) -> std::result::Result<(), String> {
     if let Abscissa::Uneven(x) = &f.abscissa {
         if x.len() != f.len() {
-            return Err(format!("{} abscissa values for {} points", x.len(), f.len()));
+            return Err(format!(
+                "{} abscissa values for {} points",
+                x.len(),
+                f.len()
+            ));
         }
         if x.iter().any(|v| !v.is_finite()) {
             return Err("an abscissa value is not finite".into());
@@ -36,7 +40,9 @@ fn check(f: &Function58) -> std::result::Result<(), String> {
     }
     if let Abscissa::Even { min, step } = f.abscissa {
         if !(min.is_finite() && step.is_finite() && (step > 0.0 || f.len() <= 1)) {
-            return Err(format!("even abscissa {min} + k {step}: needs a positive increment"));
+            return Err(format!(
+                "even abscissa {min} + k {step}: needs a positive increment"
+            ));
         }
     }
     let finite = match &f.ordinate {
@@ -46,13 +52,22 @@ fn check(f: &Function58) -> std::result::Result<(), String> {
     if !finite {
         return Err("an ordinate value is not finite".into());
     }
-    let texts = f.id_lines.iter().chain(f.axes.iter().flat_map(|a| [&a.label, &a.units]));
-    if texts.chain([&f.response.entity, &f.reference.entity]).any(|s| s.contains(['\n', '\r'])) {
+    let texts = f
+        .id_lines
+        .iter()
+        .chain(f.axes.iter().flat_map(|a| [&a.label, &a.units]));
+    if texts
+        .chain([&f.response.entity, &f.reference.entity])
+        .any(|s| s.contains(['\n', '\r']))
+    {
         return Err("a label or ID line contains a line break".into());
     }
     for d in [&f.response, &f.reference] {
         if !(-6..=6).contains(&d.direction) || d.node.to_string().len() > 10 {
-            return Err(format!("node {} direction {} does not fit record 6", d.node, d.direction));
+            return Err(format!(
+                "node {} direction {} does not fit record 6",
+                d.node, d.direction
+            ));
         }
     }
     Ok(())
@@ -72,7 +87,11 @@ fn write_one(out: &mut Vec<u8>, f: &Function58, encoding: Encoding) -> Result<()
         Encoding::Binary { little_endian } => {
             let order = if little_endian { 1 } else { 2 };
             let n_bytes = values.len() * width;
-            let _ = writeln!(head, "{:6}b{order:6}{:6}{:12}{n_bytes:12}{:6}{:6}{:12}{:12}", 58, 2, 11, 0, 0, 0, 0);
+            let _ = writeln!(
+                head,
+                "{:6}b{order:6}{:6}{:12}{n_bytes:12}{:6}{:6}{:12}{:12}",
+                58, 2, 11, 0, 0, 0, 0
+            );
         }
     }
     for id in &f.id_lines {
@@ -80,7 +99,11 @@ fn write_one(out: &mut Vec<u8>, f: &Function58, encoding: Encoding) -> Result<()
         let _ = writeln!(head, "{}", clip(id, 80));
     }
     let dof = |d: &NodeDof| {
-        let e = if d.entity.trim().is_empty() { "NONE" } else { &d.entity };
+        let e = if d.entity.trim().is_empty() {
+            "NONE"
+        } else {
+            &d.entity
+        };
         format!(" {:<10}{:10}{:4}", clip(e, 10), d.node, d.direction)
     };
     let _ = writeln!(
@@ -118,7 +141,9 @@ fn write_one(out: &mut Vec<u8>, f: &Function58, encoding: Encoding) -> Result<()
     }
     out.extend_from_slice(head.as_bytes());
     match encoding {
-        Encoding::Ascii => out.extend_from_slice(ascii_data(&values, f.precision, even, complex).as_bytes()),
+        Encoding::Ascii => {
+            out.extend_from_slice(ascii_data(&values, f.precision, even, complex).as_bytes())
+        }
         Encoding::Binary { little_endian } => {
             for v in &values {
                 match (f.precision, little_endian) {
@@ -174,7 +199,13 @@ fn ascii_data(values: &[f64], precision: Precision, even: bool, complex: bool) -
 }
 
 fn axis_line(a: &Axis) -> String {
-    let text = |s: &str| if s.trim().is_empty() { "NONE".to_string() } else { clip(s, 20) };
+    let text = |s: &str| {
+        if s.trim().is_empty() {
+            "NONE".to_string()
+        } else {
+            clip(s, 20)
+        }
+    };
     format!(
         "{:10}{:5}{:5}{:5} {:<20} {:<20}\n",
         a.data_type,

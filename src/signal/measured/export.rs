@@ -27,7 +27,9 @@ fn axis(data_type: i32, length_exp: i32, force_exp: i32, label: &str, units: &st
 /// when the grid is even to 1e-9, uneven otherwise).
 pub fn test_frf_datasets(frf: &TestFrf) -> Vec<Function58> {
     let (ref_node, denominator, input_name) = match &frf.input {
-        InputKind::Force { floor, channel } => (*floor as i64, axis(13, 0, 1, "Force", "N"), channel),
+        InputKind::Force { floor, channel } => {
+            (*floor as i64, axis(13, 0, 1, "Force", "N"), channel)
+        }
         InputKind::Ground { channel } => (0, axis(12, 1, 0, "Acceleration", "m/s^2"), channel),
     };
     let f = &frf.freq_hz;
@@ -100,10 +102,18 @@ pub fn manifest_for(frfs: &[TestFrf], model: &Path, file_name: &str) -> Result<S
     let mut m = String::from("# Measured-FRF manifest written by `frfbayes frf`; use: frfbayes sample --frfs <this file>\n");
     let _ = writeln!(m, "model = {}", q(&model.to_string_lossy()));
     for t in frfs {
-        let _ = writeln!(m, "\n[[test]]\nname = {}\nfile = {}", q(&t.test), q(&format!("{}/{file_name}", t.test)));
+        let _ = writeln!(
+            m,
+            "\n[[test]]\nname = {}\nfile = {}",
+            q(&t.test),
+            q(&format!("{}/{file_name}", t.test))
+        );
         match &t.input {
             InputKind::Force { floor, .. } => {
-                let _ = writeln!(m, "excitation = \"force\"\nexcited_dof = {floor}\nreference = \"{floor}+X\"");
+                let _ = writeln!(
+                    m,
+                    "excitation = \"force\"\nexcited_dof = {floor}\nreference = \"{floor}+X\""
+                );
             }
             InputKind::Ground { .. } => {
                 let _ = writeln!(m, "excitation = \"ground\"\nreference = \"0+X\"");

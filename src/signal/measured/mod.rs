@@ -191,9 +191,8 @@ pub fn read_measured(path: &Path, opts: &EstimateOptions) -> Result<MeasuredFrfs
     } else {
         dir.join(&manifest.model)
     };
-    let nominal = read_nominal(&model_root).map_err(|e| {
-        Error::invalid(path, format!("model = {:?}: {e}", manifest.model))
-    })?;
+    let nominal = read_nominal(&model_root)
+        .map_err(|e| Error::invalid(path, format!("model = {:?}: {e}", manifest.model)))?;
     if manifest.tests.is_empty() {
         return Err(Error::invalid(path, "no [[test]]: add one per excitation"));
     }
@@ -202,13 +201,18 @@ pub fn read_measured(path: &Path, opts: &EstimateOptions) -> Result<MeasuredFrfs
     let mut warnings = Vec::new();
     let mut tests = Vec::new();
     for spec in &manifest.tests {
-        let test = build_test(&manifest, spec, dir, nominal.n_floors(), &opts, &mut warnings)
-            .map_err(|e| match e {
-                Error::Usage(what) => {
-                    Error::invalid(path, format!("[[test]] {:?}: {what}", spec.name))
-                }
-                other => other,
-            })?;
+        let test = build_test(
+            &manifest,
+            spec,
+            dir,
+            nominal.n_floors(),
+            &opts,
+            &mut warnings,
+        )
+        .map_err(|e| match e {
+            Error::Usage(what) => Error::invalid(path, format!("[[test]] {:?}: {what}", spec.name)),
+            other => other,
+        })?;
         tests.push(test);
     }
     Ok(MeasuredFrfs {
@@ -230,7 +234,9 @@ fn build_test(
     warnings: &mut Vec<String>,
 ) -> Result<TestFrf> {
     if spec.channels.is_empty() {
-        return Err(Error::Usage("no [[test.channel]]: map at least one response to a DOF".into()));
+        return Err(Error::Usage(
+            "no [[test.channel]]: map at least one response to a DOF".into(),
+        ));
     }
     for c in &spec.channels {
         if c.dof == 0 || c.dof > n_dof {
@@ -254,14 +260,21 @@ fn build_test(
             channel: spec.reference.clone().unwrap_or_else(|| "ground".into()),
         },
         (Excitation::Ground, Some(_)) => {
-            return Err(Error::Usage("a ground test has no excited_dof: remove it".into()))
+            return Err(Error::Usage(
+                "a ground test has no excited_dof: remove it".into(),
+            ))
         }
     };
     let columns = read_columns(spec, &dir.join(&spec.file), warnings)?;
     let n_averages = spec.n_averages.or(manifest.n_averages);
-    let rel_sigma = spec.rel_sigma.or(manifest.rel_sigma).unwrap_or(DEFAULT_REL_SIGMA);
+    let rel_sigma = spec
+        .rel_sigma
+        .or(manifest.rel_sigma)
+        .unwrap_or(DEFAULT_REL_SIGMA);
     if !(rel_sigma.is_finite() && rel_sigma > 0.0) {
-        return Err(Error::Usage(format!("rel_sigma = {rel_sigma}: it must be positive")));
+        return Err(Error::Usage(format!(
+            "rel_sigma = {rel_sigma}: it must be positive"
+        )));
     }
     if columns.iter().any(|c| c.coherence.is_some()) && n_averages.is_none() {
         return Err(Error::Usage(
@@ -286,7 +299,10 @@ fn common_grid(columns: &[Column], freq_max_hz: Option<f64>) -> Result<Vec<f64>>
     let first = &columns[0].freq_hz;
     for c in columns {
         let same = c.freq_hz.len() == first.len()
-            && c.freq_hz.iter().zip(first).all(|(a, b)| (a - b).abs() <= 1e-9 * b.abs().max(1.0));
+            && c.freq_hz
+                .iter()
+                .zip(first)
+                .all(|(a, b)| (a - b).abs() <= 1e-9 * b.abs().max(1.0));
         if !same {
             return Err(Error::Usage(format!(
                 "{} and {} are on different frequency grids; one test needs one grid",
@@ -352,7 +368,8 @@ fn response(
         )));
     }
     let scale = col.sign * num.to_si / den.to_si;
-    let absolute = spec.excitation == Excitation::Ground && spec.ground_response == GroundResponse::Absolute;
+    let absolute =
+        spec.excitation == Excitation::Ground && spec.ground_response == GroundResponse::Absolute;
     if absolute && kind == FrfKind::Receptance {
         return Err(Error::Usage(format!(
             "{}: absolute displacements of a ground test are not supported; give them \
@@ -362,19 +379,29 @@ fn response(
     }
     let h1: Vec<Complex64> = col.h[..nk]
         .iter()
-        .map(|&h| h * scale - if absolute { Complex64::new(1.0, 0.0) } else { Complex64::new(0.0, 0.0) })
+        .map(|&h| {
+            h * scale
+                - if absolute {
+                    Complex64::new(1.0, 0.0)
+                } else {
+                    Complex64::new(0.0, 0.0)
+                }
+        })
         .collect();
     let coherence: Vec<f64> = match &col.coherence {
         Some(g) => g[..nk].to_vec(),
         None => vec![1.0 / (1.0 + 2.0 * n as f64 * rel_sigma * rel_sigma); nk],
     };
-    if let Some(k) = coherence.iter().position(|g| !(0.0..=1.0 + 1e-9).contains(g)) {
+    if let Some(k) = coherence
+        .iter()
+        .position(|g| !(0.0..=1.0 + 1e-9).contains(g))
+    {
         return Err(Error::Usage(format!(
             "{}: coherence {} at {} Hz; it must be within 0..1",
             col.label, coherence[k], freq_hz[k]
         )));
     }
-    let name = c.name.clone().unwrap_or_else(|| col.label.clone());
+    let name = c.name.clone().unwrap_or_else(|| col.name.clone());
     Ok(ResponseFrf {
         channel: Channel {
             name,
@@ -401,7 +428,9 @@ fn finish_test(
     opts: &EstimateOptions,
 ) -> Result<TestFrf> {
     if tau.is_some_and(|t| !(t.is_finite() && t > 0.0)) {
-        return Err(Error::Usage(format!("exp_window_tau_s = {tau:?}: it must be positive")));
+        return Err(Error::Usage(format!(
+            "exp_window_tau_s = {tau:?}: it must be positive"
+        )));
     }
     let nk = freq_hz.len();
     let h_refs: Vec<&[Complex64]> = responses.iter().map(|r| r.h1.as_slice()).collect();
@@ -410,8 +439,14 @@ fn finish_test(
         .collect();
     let input_power = vec![1.0; nk];
     let n_peaks = opts.bands.n_peaks.unwrap_or(1);
-    let (bands, selected) =
-        select_bands(&freq_hz, &h_refs, &input_power, &mean_coherence, &opts.bands, n_peaks)?;
+    let (bands, selected) = select_bands(
+        &freq_hz,
+        &h_refs,
+        &input_power,
+        &mean_coherence,
+        &opts.bands,
+        n_peaks,
+    )?;
     let df = freq_hz[1] - freq_hz[0];
     Ok(TestFrf {
         test: spec.name.clone(),

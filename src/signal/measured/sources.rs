@@ -15,6 +15,8 @@ use std::path::Path;
 pub(super) struct Column {
     /// Names the column in messages: `file: response 2+X / reference 1+X`.
     pub label: String,
+    /// Short name of the response (the channel name unless the manifest gives one).
+    pub name: String,
     pub freq_hz: Vec<f64>,
     pub h: Vec<Complex64>,
     pub coherence: Option<Vec<f64>>,
@@ -95,17 +97,30 @@ fn node_dir(text: &str, what: &str) -> Result<(i64, i32)> {
 
 /// The sign of `file` against `want` on the same axis; `None` on another axis or node.
 fn matches(file: &NodeDof, (node, dir): (i64, i32)) -> Option<f64> {
-    (file.node == node && file.direction.abs() == dir.abs())
-        .then(|| if file.direction.signum() == dir.signum() { 1.0 } else { -1.0 })
+    (file.node == node && file.direction.abs() == dir.abs()).then(|| {
+        if file.direction.signum() == dir.signum() {
+            1.0
+        } else {
+            -1.0
+        }
+    })
 }
 
 fn uff_columns(spec: &TestSpec, path: &Path, warnings: &mut Vec<String>) -> Result<Vec<Column>> {
     let file = read_uff(path)?;
     let disp = path.display();
     let is_frf = |f: &Function58| {
-        matches!(f.function_type, FunctionType::Frf | FunctionType::Transmissibility)
+        matches!(
+            f.function_type,
+            FunctionType::Frf | FunctionType::Transmissibility
+        )
     };
-    let frfs: Vec<&Function58> = file.functions.iter().map(|f| &f.0).filter(|f| is_frf(f)).collect();
+    let frfs: Vec<&Function58> = file
+        .functions
+        .iter()
+        .map(|f| &f.0)
+        .filter(|f| is_frf(f))
+        .collect();
     let mut refs: Vec<String> = frfs.iter().map(|f| f.reference.label()).collect();
     refs.sort();
     refs.dedup();
@@ -136,10 +151,15 @@ fn uff_columns(spec: &TestSpec, path: &Path, warnings: &mut Vec<String>) -> Resu
     let mut columns = Vec::new();
     for c in &spec.channels {
         let node = c.node.as_deref().ok_or_else(|| {
-            Error::Usage(format!("channel dof = {}: add node = \"<node><direction>\", e.g. \"{}+X\"", c.dof, c.dof))
+            Error::Usage(format!(
+                "channel dof = {}: add node = \"<node><direction>\", e.g. \"{}+X\"",
+                c.dof, c.dof
+            ))
         })?;
         let want = node_dir(node, "node")?;
-        let mut hits: Vec<usize> = (0..ours.len()).filter(|&k| matches(&ours[k].0.response, want).is_some()).collect();
+        let mut hits: Vec<usize> = (0..ours.len())
+            .filter(|&k| matches(&ours[k].0.response, want).is_some())
+            .collect();
         // several at one node and direction (an accelerometer and a displacement sensor):
         // the response entity name (record 6) chooses
         if let (true, Some(name)) = (hits.len() > 1, &c.name) {
@@ -179,9 +199,15 @@ fn uff_column(
     all: &[(Function58, crate::uff::Location, crate::uff::Encoding)],
     path: &Path,
 ) -> Result<Column> {
-    let label = format!("{}: response {} / reference {}", path.display(), f.response.label(), f.reference.label());
+    let label = format!(
+        "{}: response {} / reference {}",
+        path.display(),
+        f.response.label(),
+        f.reference.label()
+    );
     let x = &f.axes[0];
-    let hz = x.units.trim().eq_ignore_ascii_case("hz") || (x.data_type == 18 && x.units.trim().eq_ignore_ascii_case("none"));
+    let hz = x.units.trim().eq_ignore_ascii_case("hz")
+        || (x.data_type == 18 && x.units.trim().eq_ignore_ascii_case("none"));
     if !hz {
         return Err(Error::Usage(format!(
             "{label}: the abscissa is {:?} in {:?} (specific data type {}); FRFs need frequency in Hz",
@@ -190,32 +216,57 @@ fn uff_column(
     }
     let units = match manifest_units(c, spec)? {
         Some(u) => u,
-        None => frf_units(&f.ordinate_axis().units, &f.denominator_axis().units).ok_or_else(|| {
-            Error::Usage(format!(
+        None => {
+            frf_units(&f.ordinate_axis().units, &f.denominator_axis().units).ok_or_else(|| {
+                Error::Usage(format!(
                 "{label}: units {:?} / {:?} not understood; give unit = \"...\" (e.g. \"m/s^2/N\") \
                  in this [[test.channel]]",
                 f.ordinate_axis().units,
                 f.denominator_axis().units
             ))
-        })?,
+            })?
+        }
     };
-    let same = |d: &NodeDof, e: &NodeDof| d.node == e.node && d.direction.abs() == e.direction.abs();
+    let same =
+        |d: &NodeDof, e: &NodeDof| d.node == e.node && d.direction.abs() == e.direction.abs();
     let mut coherence: Vec<&Function58> = all
         .iter()
         .map(|a| &a.0)
-        .filter(|g| g.function_type == FunctionType::Coherence && same(&g.response, &f.response) && same(&g.reference, &f.reference))
+        .filter(|g| {
+            g.function_type == FunctionType::Coherence
+                && same(&g.response, &f.response)
+                && same(&g.reference, &f.reference)
+        })
         .collect();
     if coherence.len() > 1 {
         coherence.retain(|g| g.response.entity == f.response.entity);
     }
     let coherence = match coherence.as_slice() {
         [] => None,
-        [g] if g.abscissa_values() == f.abscissa_values() => Some(g.ordinate.to_complex().iter().map(|v| v.re).collect()),
-        [_] => return Err(Error::Usage(format!("{label}: its coherence is on another frequency grid"))),
-        _ => return Err(Error::Usage(format!("{label}: {} coherences for it; keep one", coherence.len()))),
+        [g] if g.abscissa_values() == f.abscissa_values() => {
+            Some(g.ordinate.to_complex().iter().map(|v| v.re).collect())
+        }
+        [_] => {
+            return Err(Error::Usage(format!(
+                "{label}: its coherence is on another frequency grid"
+            )))
+        }
+        _ => {
+            return Err(Error::Usage(format!(
+                "{label}: {} coherences for it; keep one",
+                coherence.len()
+            )))
+        }
+    };
+    let entity = f.response.entity.trim();
+    let name = if entity.is_empty() || entity.eq_ignore_ascii_case("none") {
+        f.response.label()
+    } else {
+        entity.to_string()
     };
     Ok(Column {
         label,
+        name,
         freq_hz: f.abscissa_values(),
         h: f.ordinate.to_complex(),
         coherence,
@@ -241,13 +292,26 @@ fn csv_columns(spec: &TestSpec, path: &Path) -> Result<Vec<Column>> {
         .iter()
         .map(|c| {
             let name = c.name.as_deref().ok_or_else(|| {
-                Error::Usage(format!("channel dof = {}: add name = \"<column prefix>\" (have {})", c.dof, names.join(", ")))
+                Error::Usage(format!(
+                    "channel dof = {}: add name = \"<column prefix>\" (have {})",
+                    c.dof,
+                    names.join(", ")
+                ))
             })?;
-            let col = table.columns.iter().find(|t| t.name == name).ok_or_else(|| {
-                Error::Usage(format!("{}: no columns {name}_re/_im/_coherence (have {})", path.display(), names.join(", ")))
-            })?;
+            let col = table
+                .columns
+                .iter()
+                .find(|t| t.name == name)
+                .ok_or_else(|| {
+                    Error::Usage(format!(
+                        "{}: no columns {name}_re/_im/_coherence (have {})",
+                        path.display(),
+                        names.join(", ")
+                    ))
+                })?;
             Ok(Column {
                 label: format!("{}: {name}", path.display()),
+                name: name.to_string(),
                 freq_hz: table.freq_hz.clone(),
                 h: col.h1.clone(),
                 coherence: Some(col.coherence.clone()),
@@ -270,16 +334,31 @@ fn mat_columns(spec: &TestSpec, path: &Path) -> Result<Vec<Column>> {
     if !by_column && frf.cols != nf {
         return Err(Error::invalid(
             path,
-            format!("`{}` is {} x {}; one of its sizes must be the {nf} frequencies of `{}`", spec.mat.frf, frf.rows, frf.cols, spec.mat.freq),
+            format!(
+                "`{}` is {} x {}; one of its sizes must be the {nf} frequencies of `{}`",
+                spec.mat.frf, frf.rows, frf.cols, spec.mat.freq
+            ),
         ));
     }
     if let Some(g) = &coh {
         if (g.rows, g.cols) != (frf.rows, frf.cols) {
-            return Err(Error::invalid(path, format!("`{}` and `{}` differ in shape", spec.mat.coherence, spec.mat.frf)));
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "`{}` and `{}` differ in shape",
+                    spec.mat.coherence, spec.mat.frf
+                ),
+            ));
         }
     }
     let n_resp = if by_column { frf.cols } else { frf.rows };
-    let pick = |k: usize, j: usize| if by_column { k + frf.rows * j } else { j + frf.rows * k };
+    let pick = |k: usize, j: usize| {
+        if by_column {
+            k + frf.rows * j
+        } else {
+            j + frf.rows * k
+        }
+    };
     spec.channels
         .iter()
         .map(|c| {
@@ -294,9 +373,12 @@ fn mat_columns(spec: &TestSpec, path: &Path) -> Result<Vec<Column>> {
             };
             Ok(Column {
                 label: format!("{}: {} response {}", path.display(), spec.mat.frf, j + 1),
+                name: format!("{}{}", spec.mat.frf, j + 1),
                 freq_hz: freq.clone(),
                 h: (0..nf).map(|k| frf.data[pick(k, j)]).collect(),
-                coherence: coh.as_ref().map(|g| (0..nf).map(|k| g.data[pick(k, j)]).collect()),
+                coherence: coh
+                    .as_ref()
+                    .map(|g| (0..nf).map(|k| g.data[pick(k, j)]).collect()),
                 units: si_units(c, spec)?,
                 sign: 1.0,
             })

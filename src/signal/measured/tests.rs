@@ -1,6 +1,8 @@
 use super::*;
 use crate::frf::direct::receptance_matrix;
-use crate::uff::{write_uff, Abscissa, Axis, Encoding, Function58, FunctionType, NodeDof, Ordinate, Precision};
+use crate::uff::{
+    write_uff, Abscissa, Axis, Encoding, Function58, FunctionType, NodeDof, Ordinate, Precision,
+};
 use nalgebra::DMatrix;
 
 const G: f64 = crate::uff::units::STANDARD_GRAVITY_M_S2;
@@ -19,19 +21,52 @@ fn accelerance(r: usize, j: usize, freq_hz: &[f64]) -> Vec<Complex64> {
         .collect()
 }
 
-fn function(resp: (i64, i32), refr: (i64, i32), ty: FunctionType, y: Vec<Complex64>, units: &str) -> Function58 {
-    let axis = |data_type, units: &str| Axis { data_type, units: units.into(), label: "NONE".into(), ..Default::default() };
+fn function(
+    resp: (i64, i32),
+    refr: (i64, i32),
+    ty: FunctionType,
+    y: Vec<Complex64>,
+    units: &str,
+) -> Function58 {
+    let axis = |data_type, units: &str| Axis {
+        data_type,
+        units: units.into(),
+        label: "NONE".into(),
+        ..Default::default()
+    };
     Function58 {
-        id_lines: ["t".into(), "NONE".into(), "NONE".into(), "NONE".into(), "NONE".into()],
+        id_lines: [
+            "t".into(),
+            "NONE".into(),
+            "NONE".into(),
+            "NONE".into(),
+            "NONE".into(),
+        ],
         function_type: ty,
         function_id: 0,
         version: 0,
         load_case: 0,
-        response: NodeDof { entity: "NONE".into(), node: resp.0, direction: resp.1 },
-        reference: NodeDof { entity: "NONE".into(), node: refr.0, direction: refr.1 },
-        abscissa: Abscissa::Even { min: 0.0, step: 0.002 },
+        response: NodeDof {
+            entity: "NONE".into(),
+            node: resp.0,
+            direction: resp.1,
+        },
+        reference: NodeDof {
+            entity: "NONE".into(),
+            node: refr.0,
+            direction: refr.1,
+        },
+        abscissa: Abscissa::Even {
+            min: 0.0,
+            step: 0.002,
+        },
         z_axis_value: 0.0,
-        axes: [axis(18, "Hz"), axis(12, units), axis(13, if ty == FunctionType::Frf { "N" } else { "NONE" }), axis(0, "NONE")],
+        axes: [
+            axis(18, "Hz"),
+            axis(12, units),
+            axis(13, if ty == FunctionType::Frf { "N" } else { "NONE" }),
+            axis(0, "NONE"),
+        ],
         ordinate: Ordinate::Complex(y),
         precision: Precision::Double,
     }
@@ -45,7 +80,14 @@ fn setup(manifest: &str, funcs: &[Function58]) -> (tempfile::TempDir, PathBuf) {
         "title = \"t\"\n[nominal]\nstructure = \"shear_frame\"\nfloor_mass_kg = [1.5, 2.0]\nstory_stiffness_n_per_m = [100.0, 200.0]\n",
     )
     .unwrap();
-    write_uff(&dir.path().join("h.uff"), funcs, Encoding::Binary { little_endian: true }).unwrap();
+    write_uff(
+        &dir.path().join("h.uff"),
+        funcs,
+        Encoding::Binary {
+            little_endian: true,
+        },
+    )
+    .unwrap();
     let m = dir.path().join("frfs.toml");
     std::fs::write(&m, manifest).unwrap();
     (dir, m)
@@ -76,12 +118,20 @@ fn uff_frfs_map_to_model_dofs_with_units_and_signs() {
     let a11: Vec<Complex64> = accelerance(0, 0, &f);
     let a21: Vec<Complex64> = accelerance(1, 0, &f);
     let in_g = |v: &[Complex64], s: f64| v.iter().map(|h| h * s / G).collect::<Vec<_>>();
-    let coh: Vec<Complex64> = (0..2500).map(|k| Complex64::new(0.9 + (1e-4 * k as f64) % 0.09, 0.0)).collect();
+    let coh: Vec<Complex64> = (0..2500)
+        .map(|k| Complex64::new(0.9 + (1e-4 * k as f64) % 0.09, 0.0))
+        .collect();
     let funcs = [
         // reference recorded at 1-X: both FRFs flip sign; response 2 at 2-X flips back
         function((1, 1), (1, -1), FunctionType::Frf, in_g(&a11, -1.0), "g"),
         function((2, -1), (1, -1), FunctionType::Frf, in_g(&a21, 1.0), "g"),
-        function((2, -1), (1, -1), FunctionType::Coherence, coh.clone(), "NONE"),
+        function(
+            (2, -1),
+            (1, -1),
+            FunctionType::Coherence,
+            coh.clone(),
+            "NONE",
+        ),
         function((3, 2), (1, -1), FunctionType::Frf, in_g(&a21, 1.0), "g"),
     ];
     let (_dir, path) = setup(MANIFEST, &funcs);
@@ -94,12 +144,21 @@ fn uff_frfs_map_to_model_dofs_with_units_and_signs() {
     let t = &m.tests[0];
     let nk = t.freq_hz.len();
     assert!(nk > 1900 && nk < 2500 && t.freq_hz[nk - 1] <= 4.0, "{nk}");
-    assert_eq!(t.input, InputKind::Force { floor: 1, channel: "force".into() });
+    assert_eq!(
+        t.input,
+        InputKind::Force {
+            floor: 1,
+            channel: "force".into()
+        }
+    );
     assert_eq!((t.n_averages, t.exp_window_tau_s), (8, Some(10.0)));
     for (r, truth) in t.responses.iter().zip([&a11, &a21]) {
         assert_eq!(r.kind, FrfKind::Accelerance);
         for k in 1..nk {
-            assert!((r.h1[k] - truth[k]).norm() <= 1e-12 * truth[k].norm(), "{k}");
+            assert!(
+                (r.h1[k] - truth[k]).norm() <= 1e-12 * truth[k].norm(),
+                "{k}"
+            );
         }
     }
     assert_eq!(t.responses[1].coherence[7], coh[7].re);
@@ -113,16 +172,35 @@ fn manifest_errors_say_what_to_write() {
     let f: Vec<f64> = (0..1501).map(|k| 0.002 * k as f64).collect();
     let coh = vec![Complex64::new(0.95, 0.0); 1501];
     let funcs = [
-        function((1, 1), (1, 1), FunctionType::Frf, accelerance(0, 0, &f), "m/s^2"),
+        function(
+            (1, 1),
+            (1, 1),
+            FunctionType::Frf,
+            accelerance(0, 0, &f),
+            "m/s^2",
+        ),
         function((1, 1), (1, 1), FunctionType::Coherence, coh, "NONE"),
-        function((2, 1), (1, 1), FunctionType::Frf, accelerance(1, 0, &f), "furlong"),
+        function(
+            (2, 1),
+            (1, 1),
+            FunctionType::Frf,
+            accelerance(1, 0, &f),
+            "furlong",
+        ),
     ];
     let err = |m: &str| {
         let (_d, p) = setup(m, &funcs);
-        read_measured(&p, &EstimateOptions::default()).unwrap_err().to_string()
+        read_measured(&p, &EstimateOptions::default())
+            .unwrap_err()
+            .to_string()
     };
-    let e = err(&MANIFEST.replace("n_averages = 8\n", "").replace("node = \"2+X\"", "node = \"2+X\"\nunit = \"m/s^2/N\""));
-    assert!(e.contains("frfs.toml") && e.contains("hammer-1") && e.contains("add n_averages"), "{e}");
+    let e = err(&MANIFEST
+        .replace("n_averages = 8\n", "")
+        .replace("node = \"2+X\"", "node = \"2+X\"\nunit = \"m/s^2/N\""));
+    assert!(
+        e.contains("frfs.toml") && e.contains("hammer-1") && e.contains("add n_averages"),
+        "{e}"
+    );
     let e = err(MANIFEST);
     assert!(e.contains("\"furlong\"") && e.contains("give unit"), "{e}");
     let e = err(&MANIFEST.replace("node = \"2+X\"", "node = \"2+Y\""));
@@ -131,7 +209,10 @@ fn manifest_errors_say_what_to_write() {
     assert!(e.contains("dof = 3") && e.contains("1..=2"), "{e}");
     let e = err(&MANIFEST.replace("excited_dof = 1\n", ""));
     assert!(e.contains("needs excited_dof"), "{e}");
-    let e = err(&MANIFEST.replace("node = \"2+X\"", "node = \"2+X\"\nunit = \"m/s^2/N\"\nsurprise = 1"));
+    let e = err(&MANIFEST.replace(
+        "node = \"2+X\"",
+        "node = \"2+X\"\nunit = \"m/s^2/N\"\nsurprise = 1",
+    ));
     assert!(e.contains("surprise"), "{e}");
     let e = err(&MANIFEST.replace("model = \"model\"", "model = \"nowhere\""));
     assert!(e.contains("model = \"nowhere\""), "{e}");
@@ -151,6 +232,9 @@ fn csv_table_in() {
     std::fs::write(dir.path().join("f.csv"), text).unwrap();
     let m = read_measured(&p, &EstimateOptions::default()).unwrap();
     let r = &m.tests[0].responses[0];
-    assert_eq!((r.channel.floor, r.kind, r.h1[50]), (2, FrfKind::Accelerance, a[50]));
+    assert_eq!(
+        (r.channel.floor, r.kind, r.h1[50]),
+        (2, FrfKind::Accelerance, a[50])
+    );
     assert_eq!(r.coherence[3], 0.99);
 }
