@@ -32,18 +32,19 @@ impl BinaryHeader {
                     )
                 })
         };
-        let little_endian =
-            match int(0, "byte order")? {
-                1 => true,
-                2 => false,
-                v => return Err(cur.cell(
+        let little_endian = match int(0, "byte order")? {
+            1 => true,
+            2 => false,
+            v => {
+                return Err(cur.cell(
                     line,
                     8,
                     format!(
                         "58b header: byte order {v}; expected 1 (little-endian) or 2 (big-endian)"
                     ),
-                )),
-            };
+                ))
+            }
+        };
         let fp = int(1, "floating-point format")?;
         if fp != 2 {
             return Err(cur.cell(

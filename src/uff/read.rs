@@ -475,7 +475,7 @@ impl Header {
     fn assemble(self, cur: &Cursor, values: Vec<f64>) -> Result<Function58> {
         let per = self.values_per_point();
         let abscissa = if self.form.even {
-            if self.form.n_points > 1 && !(self.form.step > 0.0) {
+            if self.form.n_points > 1 && self.form.step <= 0.0 {
                 return Err(cur.cell(
                     self.form.line,
                     1,

@@ -310,7 +310,7 @@ fn common_grid(columns: &[Column], freq_max_hz: Option<f64>) -> Result<Vec<f64>>
             )));
         }
     }
-    if first.windows(2).any(|w| !(w[1] > w[0])) || first.first().is_some_and(|f| *f < 0.0) {
+    if first.windows(2).any(|w| w[1] <= w[0]) || first.first().is_some_and(|f| *f < 0.0) {
         return Err(Error::Usage(format!(
             "{}: frequencies must be non-negative and increasing",
             columns[0].label
