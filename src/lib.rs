@@ -31,6 +31,7 @@
 //! - [`plot`]: figures (PNG and SVG) from results.
 //! - [`report`]: one self-contained `report.html` per study, from its Markdown and figures.
 //! - [`discrepancy`]: locating and explaining missing physics.
+//! - [`uff`]: Universal File Format dataset 58 / 58b (measured FRFs in and out).
 
 pub mod bayes;
 pub mod discrepancy;
@@ -48,6 +49,7 @@ pub mod real;
 pub mod report;
 pub mod signal;
 pub mod simulate;
+pub mod uff;
 pub mod update;
 
 pub use error::{Error, Result};

@@ -19,6 +19,7 @@ const LAYERS: &[&[&str]] = &[
     &["frf"],
     &["predict"],
     &["io"],
+    &["uff"],
     &["signal", "plot", "report"],
     &["simulate", "update", "mcmc"],
     &["infer"],

@@ -31,6 +31,7 @@ use crate::mcmc::{
     Burn, CheckpointConfig, Draws, LogDensity, Moves, ProgressFn, RunSummary, Sampler,
     SamplerConfig, Start, StopReason, WeightedMove,
 };
+use crate::signal::measured::read_measured;
 use crate::signal::{estimate_campaign, EstimateSection, InputKind, TestFrf};
 use crate::update::{DampingModel, MultistartOptions, ResidualForm, VariablesConfig};
 use serde::{Deserialize, Serialize};
@@ -67,6 +68,11 @@ impl TestSelection {
 pub struct SampleSettings {
     /// Campaign folder or `bundled:four-story`.
     pub campaign: String,
+    /// Measured FRFs instead of the campaign's recordings: the path of a measured-FRF
+    /// manifest ([`crate::signal::measured`]; UFF 58/58b, `.mat` or CSV files mapped to
+    /// model DOFs). The campaign is then not read; the manifest names the model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frfs: Option<String>,
     pub damping: DampingModel,
     pub frf: FrfKind,
     pub tests: TestSelection,
@@ -116,6 +122,7 @@ impl SampleSettings {
     ) -> Result<Self> {
         Ok(SampleSettings {
             campaign,
+            frfs: None,
             damping,
             frf,
             tests,
@@ -157,11 +164,26 @@ pub struct Prepared {
     pub posterior: FrfPosterior,
 }
 
-/// Reads the campaign, estimates its FRFs and builds the posterior.
+/// Reads the campaign, estimates its FRFs and builds the posterior; or, with
+/// `settings.frfs`, reads the measured FRFs and their model ([`prepare_measured`]).
 pub fn prepare(settings: &SampleSettings) -> Result<Prepared> {
+    if let Some(manifest) = &settings.frfs {
+        return prepare_measured(Path::new(manifest), settings);
+    }
     let root = resolve_data(&settings.campaign)?;
     let campaign = read_campaign(&root)?;
     prepare_campaign(&campaign, settings)
+}
+
+/// The posterior of measured FRFs: the manifest at `manifest` names the files, the DOFs
+/// and the model; bands are selected as `settings.estimate` says (band factor, highest
+/// frequency). What the likelihood assumes without a campaign's recordings:
+/// [`crate::signal::measured`] ("Noise").
+pub fn prepare_measured(manifest: &Path, settings: &SampleSettings) -> Result<Prepared> {
+    let measured = read_measured(manifest, &settings.estimate.options())?;
+    let model = measured.nominal.structural_model()?;
+    let where_ = format!("the measured FRFs of {}", manifest.display());
+    posterior_of(model, measured.tests, settings, &where_)
 }
 
 /// [`prepare`] for a campaign already in memory (e.g. simulated): estimates its FRFs
@@ -169,11 +191,21 @@ pub fn prepare(settings: &SampleSettings) -> Result<Prepared> {
 pub fn prepare_campaign(campaign: &Campaign, settings: &SampleSettings) -> Result<Prepared> {
     let model = campaign.nominal.structural_model()?;
     let frfs = estimate_campaign(campaign, &settings.estimate.options())?;
+    let where_ = format!("the campaign at {}", campaign.root.display());
+    posterior_of(model, frfs, settings, &where_)
+}
+
+/// The posterior of the `settings.tests` among `frfs` (`where_` names them in errors).
+fn posterior_of(
+    model: crate::model::StructuralModel,
+    frfs: Vec<TestFrf>,
+    settings: &SampleSettings,
+    where_: &str,
+) -> Result<Prepared> {
     let chosen: Vec<&TestFrf> = frfs.iter().filter(|f| settings.tests.includes(f)).collect();
     if chosen.is_empty() {
         return Err(Error::Usage(format!(
-            "the campaign at {} has no {:?} tests",
-            campaign.root.display(),
+            "{where_} has no {:?} tests (hammer: force-excited; shake_table: ground-excited)",
             settings.tests
         )));
     }
@@ -240,7 +272,10 @@ pub fn run_sample(
     let mut info = RunInfo::start(
         settings.seed,
         toml_value(settings)?,
-        settings.campaign.clone(),
+        settings
+            .frfs
+            .clone()
+            .unwrap_or_else(|| settings.campaign.clone()),
     );
     write_atomic(&settings_path(out), settings.to_toml()?.as_bytes())?;
     stage("estimating FRFs");
@@ -296,7 +331,10 @@ pub fn resume_sample(
     let mut info = RunInfo::start(
         settings.seed,
         toml_value(&settings)?,
-        settings.campaign.clone(),
+        settings
+            .frfs
+            .clone()
+            .unwrap_or_else(|| settings.campaign.clone()),
     );
     stage("estimating FRFs");
     let prep = info.time("estimate_frfs", || prepare(&settings))?;

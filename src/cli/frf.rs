@@ -1,8 +1,11 @@
-//! `frfbayes frf`: FRF estimates of every test of a campaign, as CSV and plots.
+//! `frfbayes frf`: FRF estimates of every test of a campaign, as CSV, UFF dataset 58 and
+//! plots, with a measured-FRF manifest (`frfs.toml`) that `sample --frfs` reads.
 
 use frfbayes::experiment::figures::estimate_figures;
 use frfbayes::io::{read_campaign, StagedDir};
+use frfbayes::signal::measured::export::{manifest_for, test_frf_datasets};
 use frfbayes::signal::{estimate_test, EstimateOptions, ExpWindow};
+use frfbayes::uff::{write_uff, Encoding};
 use indicatif::ProgressBar;
 use std::path::PathBuf;
 
@@ -23,6 +26,9 @@ pub struct Args {
     /// Highest frequency kept, Hz.
     #[arg(long, default_value_t = 25.0)]
     pub freq_max_hz: f64,
+    /// Write `frf.uff` as binary dataset 58b (exact doubles) instead of ASCII 58.
+    #[arg(long)]
+    pub uff_binary: bool,
 }
 
 /// Estimates, writes and plots.
@@ -46,11 +52,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let staged = StagedDir::new(&args.out)?;
     let pb = ProgressBar::new(campaign.tests.len() as u64);
+    let mut frfs = Vec::new();
     for test in &campaign.tests {
         pb.set_message(test.name.clone());
         let frf = estimate_test(test, &opts)?;
         let dir = staged.path().join(&test.name);
         frfbayes::signal::frf_csv::write_frf_csv(&dir.join("frf.csv"), &frf)?;
+        let encoding = if args.uff_binary {
+            Encoding::Binary {
+                little_endian: true,
+            }
+        } else {
+            Encoding::Ascii
+        };
+        write_uff(&dir.join("frf.uff"), &test_frf_datasets(&frf), encoding)?;
         estimate_figures(&frf, &dir)?;
         let peaks: Vec<String> = frf
             .bands
@@ -68,8 +83,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
         });
         pb.inc(1);
+        frfs.push(frf);
     }
     pb.finish_and_clear();
+    let model = std::path::absolute(&args.campaign)?;
+    let manifest = manifest_for(&frfs, &model, "frf.uff")?;
+    frfbayes::io::write_atomic(&staged.path().join("frfs.toml"), manifest.as_bytes())?;
     let out = staged.commit()?;
     println!("wrote {}", out.display());
     Ok(())

@@ -66,6 +66,10 @@ pub struct Args {
     /// Campaign folder, or bundled:four-story (the default).
     #[arg(long)]
     pub campaign: Option<String>,
+    /// Measured FRFs instead of a campaign: a manifest (TOML) mapping UFF 58/58b, .mat or
+    /// CSV FRFs to model DOFs and naming the model (see the README, "Measured FRFs in").
+    #[arg(long, value_name = "MANIFEST", conflicts_with = "campaign")]
+    pub frfs: Option<PathBuf>,
     /// Damping model [default: caughey].
     #[arg(long, value_enum)]
     pub damping: Option<DampingArg>,
@@ -157,6 +161,7 @@ impl Args {
     fn problem_flags_given(&self) -> Vec<&'static str> {
         let flags = [
             ("--campaign", self.campaign.is_some()),
+            ("--frfs", self.frfs.is_some()),
             ("--damping", self.damping.is_some()),
             ("--frf", self.frf.is_some()),
             ("--tests", self.tests.is_some()),
@@ -191,6 +196,12 @@ impl Args {
         };
         if let Some(c) = &self.campaign {
             s.campaign = c.clone();
+            s.frfs = None;
+        }
+        if let Some(m) = &self.frfs {
+            // absolute, so that --resume finds it from anywhere
+            let m = std::path::absolute(m).unwrap_or_else(|_| m.clone());
+            s.frfs = Some(m.to_string_lossy().into_owned());
         }
         if let Some(d) = self.damping {
             s.damping = match d {

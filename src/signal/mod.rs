@@ -24,6 +24,10 @@
 //! Piersol error of `|H1|`.
 //! Conventions of the transforms: [`spectra`].
 //!
+//! Measured FRFs (an analyser's UFF 58/58b, `.mat` or CSV export) become the same
+//! [`TestFrf`]s through [`measured`], without estimation; [`measured::export`] writes
+//! ours as UFF 58.
+//!
 //! ## Handing over to model updating
 //! - `TestFrf::frf_block()` / `selected_magnitudes()` / `selected_rel_std()`: one
 //!   [`crate::frf::FrfBlock`] per test (selected frequencies, one pair per response), the
@@ -49,6 +53,7 @@ mod estimate;
 pub mod frf_csv;
 pub mod hammer;
 pub mod input_noise;
+pub mod measured;
 pub mod noise;
 mod settings;
 pub mod spectra;
