@@ -8,7 +8,9 @@
 //!       -- --ignored --nocapture bridge_speed
 
 use frfbayes::modal::{mac, Modes, PartialOptions, PartialSolver};
-use frfbayes::model::condense::condense;
+#[path = "oracle/condense.rs"]
+mod condense_oracle;
+use condense_oracle::condense;
 use frfbayes::model::sparse::SparsePencil;
 use frfbayes::model::{shared_root, ModelManifest, Parameter, StructuralModel};
 use frfbayes::predict::{ModalPredictor, Parametrisation, PartialModes, Predict};

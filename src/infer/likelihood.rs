@@ -21,16 +21,20 @@
 //! - [`BlockKind::ShapeDifference`]: the eigenvector difference of SMU (Wang's
 //!   Structural Model Updating toolbox): both shapes scaled so that a reference entry is
 //!   1, then `r_j = w_j (phi_j / phi_ref - psi_j / psi_ref)` for every other entry.
-//! - [`BlockKind::ComplexGain`]: complex values `y_k` (an FRF of one channel, real and
-//!   imaginary parts interleaved) with complex variances `E|e_k|^2 = sigma^2 v_k`, against
-//!   `g h_k` with an unknown real gain `g` (a channel calibration) integrated out under a
-//!   flat prior on the real line. Whitened real parts `y~ = sqrt(2 / v) (Re y, Im y)` and
-//!   `h~` likewise; the residual is `(I - P_h~) y~` with `2n - 1` degrees of freedom, and the
-//!   integral leaves the factor `sqrt(2 pi sigma^2 / ||h~||^2)`, whose `-ln ||h~||` depends
-//!   on the model ([`Block::ln_marginal`]). The gain given the rest is Gaussian with mean
-//!   `h~.y~ / ||h~||^2` and variance `sigma^2 / ||h~||^2` ([`Block::conditional_gain`]).
+//! - [`BlockKind::LinearMarginal`]: observations linear in `k` unknown coefficients,
+//!   the predictions being their `k` columns, integrated out under a flat prior
+//!   ([`linear`]: residual `(I - P_G~) y~` with `m - k` degrees of freedom and the
+//!   model-dependent `-ln det(G~^T G~) / 2`, [`Block::ln_marginal`]). Complex values
+//!   `y_k` (an FRF of one channel, real and imaginary parts interleaved) with complex
+//!   variances `E|e_k|^2 = sigma^2 v_k` are whitened as `y~ = sqrt(2 / v) (Re y, Im y)`.
+//!   A real channel gain ([`Block::complex_gain`], one column: the prediction itself,
+//!   `-ln ||h~||`) and complex modal residues ([`Block::complex_linear`], two columns
+//!   `g`, `j g` per unknown) are its two uses.
 
 use std::ops::Range;
+
+pub mod linear;
+pub use linear::LinearFit;
 
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -85,11 +89,14 @@ pub enum BlockKind {
         reference: usize,
         weight: Vec<f64>,
     },
-    ComplexGain {
-        /// Whitened observations `y~` (real, imaginary interleaved).
+    LinearMarginal {
+        /// Whitened observations `y~` (`m` entries).
         observed: Vec<f64>,
-        /// `sqrt(2 / v_k)`, repeated for both parts.
+        /// Whitening weights `w_i` (`sqrt(2 / v_k)`, repeated for both parts, for complex
+        /// values).
         inv_sd: Vec<f64>,
+        /// Columns `k`; the block's predictions are `k x m`, column-major.
+        n_columns: usize,
     },
 }
 
@@ -221,11 +228,27 @@ impl Block {
         sd_complex: &[f64],
         scale: NoiseScale,
     ) -> Result<Self> {
+        Self::complex_linear(name, predictions, observed, sd_complex, 1, scale)
+    }
+
+    /// Complex values as in [`Self::complex_gain`] against `n_columns` real columns of
+    /// predictions (`n_columns x 2n`, column-major) with unknown coefficients integrated
+    /// out (see [`linear`]).
+    pub fn complex_linear(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        sd_complex: &[f64],
+        n_columns: usize,
+        scale: NoiseScale,
+    ) -> Result<Self> {
         check_finite(name, "observed", observed)?;
         let n = sd_complex.len();
-        if observed.len() != 2 * n || predictions.len() != 2 * n || n < 1 {
+        if observed.len() != 2 * n || predictions.len() != 2 * n * n_columns || 2 * n <= n_columns
+        {
             return Err(Error::Usage(format!(
-                "{name}: {} predictions and {} observed parts for {n} complex values",
+                "{name}: {} predictions and {} observed parts for {n} complex values and \
+                 {n_columns} columns (need 2n > columns)",
                 predictions.len(),
                 observed.len()
             )));
@@ -241,41 +264,43 @@ impl Block {
             .flat_map(|s| [2f64.sqrt() / s; 2])
             .collect();
         let observed = observed.iter().zip(&inv_sd).map(|(y, w)| y * w).collect();
-        Self::checked(
-            name,
-            predictions,
-            BlockKind::ComplexGain { observed, inv_sd },
-            scale,
-        )
+        let kind = BlockKind::LinearMarginal {
+            observed,
+            inv_sd,
+            n_columns,
+        };
+        Self::checked(name, predictions, kind, scale)
     }
 
     /// The model-dependent part of the likelihood that the residuals do not carry:
-    /// `-ln ||h~||` of a [`BlockKind::ComplexGain`] block (the gain integral), 0 for the
-    /// other kinds.
+    /// `-ln det(G~^T G~) / 2` of a [`BlockKind::LinearMarginal`] block (the coefficient
+    /// integral; `-inf` when `G~` is rank-deficient), 0 for the other kinds.
     pub fn ln_marginal(&self, pred: &[f64]) -> f64 {
-        match &self.kind {
-            BlockKind::ComplexGain { inv_sd, .. } => {
-                let p = &pred[self.predictions.clone()];
-                let hh: f64 = p.iter().zip(inv_sd).map(|(h, w)| (h * w).powi(2)).sum();
-                -0.5 * hh.ln()
-            }
-            _ => 0.0,
-        }
+        let mut r = vec![0.0; self.n_residuals()];
+        self.residuals_and_marginal(pred, &mut r)
     }
 
-    /// Mean and standard deviation of the gain of a [`BlockKind::ComplexGain`] block
-    /// given the predictions and `sigma`; `None` for the other kinds.
-    pub fn conditional_gain(&self, pred: &[f64], sigma: f64) -> Option<(f64, f64)> {
-        let BlockKind::ComplexGain { observed, inv_sd } = &self.kind else {
+    /// The weighted least-squares solution of a [`BlockKind::LinearMarginal`] block at
+    /// the predictions `pred`; `None` for the other kinds or a rank-deficient design.
+    pub fn linear_fit(&self, pred: &[f64]) -> Option<LinearFit> {
+        let BlockKind::LinearMarginal {
+            observed,
+            inv_sd,
+            n_columns,
+        } = &self.kind
+        else {
             return None;
         };
-        let p = &pred[self.predictions.clone()];
-        let (mut hh, mut hy) = (0.0, 0.0);
-        for ((h, w), y) in p.iter().zip(inv_sd).zip(observed) {
-            hh += (h * w).powi(2);
-            hy += h * w * y;
-        }
-        Some((hy / hh, sigma / hh.sqrt()))
+        linear::fit(&pred[self.predictions.clone()], inv_sd, observed, *n_columns)
+    }
+
+    /// Mean and standard deviation of the gain of a one-column
+    /// [`BlockKind::LinearMarginal`] block given the predictions and `sigma`; `None`
+    /// otherwise.
+    pub fn conditional_gain(&self, pred: &[f64], sigma: f64) -> Option<(f64, f64)> {
+        let f = self.linear_fit(pred)?;
+        (f.coefficients.len() == 1)
+            .then(|| (f.coefficients[0], sigma / f.normal.l_dirty()[(0, 0)]))
     }
 
     fn checked(
@@ -303,6 +328,7 @@ impl Block {
     pub fn n_residuals(&self) -> usize {
         match &self.kind {
             BlockKind::ShapeDifference { .. } => self.predictions.len() - 1,
+            BlockKind::LinearMarginal { observed, .. } => observed.len(),
             _ => self.predictions.len(),
         }
     }
@@ -311,6 +337,11 @@ impl Block {
     pub fn dof(&self) -> f64 {
         match &self.kind {
             BlockKind::Values { .. } => self.predictions.len() as f64,
+            BlockKind::LinearMarginal {
+                observed,
+                n_columns,
+                ..
+            } => (observed.len() - n_columns) as f64,
             _ => (self.predictions.len() - 1) as f64,
         }
     }
@@ -321,7 +352,7 @@ impl Block {
         match &self.kind {
             BlockKind::Values { inv_sd, .. } => base + inv_sd.iter().map(|w| w.ln()).sum::<f64>(),
             BlockKind::ShapeMac { .. } => base,
-            BlockKind::ComplexGain { inv_sd, .. } => {
+            BlockKind::LinearMarginal { inv_sd, .. } => {
                 base + inv_sd.iter().map(|w| w.ln()).sum::<f64>()
             }
             BlockKind::ShapeDifference {
@@ -336,7 +367,23 @@ impl Block {
     /// Residuals (before division by `sigma`) of the whole prediction vector `pred`
     /// into `out` (length [`Self::n_residuals`]).
     pub fn residuals(&self, pred: &[f64], out: &mut [f64]) {
+        self.residuals_and_marginal(pred, out);
+    }
+
+    /// [`Self::residuals`], returning [`Self::ln_marginal`] from the same solve.
+    pub fn residuals_and_marginal(&self, pred: &[f64], out: &mut [f64]) -> f64 {
         let p = &pred[self.predictions.clone()];
+        if let BlockKind::LinearMarginal {
+            observed,
+            inv_sd,
+            n_columns,
+        } = &self.kind
+        {
+            return match linear::residuals(p, inv_sd, observed, *n_columns, out) {
+                Some(ln_det) => -0.5 * ln_det,
+                None => f64::NEG_INFINITY,
+            };
+        }
         match &self.kind {
             BlockKind::Values {
                 observed,
@@ -365,18 +412,9 @@ impl Block {
                     out[k] = weight[j] * (p[j] / pref - observed[j]);
                 }
             }
-            BlockKind::ComplexGain { observed, inv_sd } => {
-                let (mut hh, mut hy) = (0.0, 0.0);
-                for ((h, w), y) in p.iter().zip(inv_sd).zip(observed) {
-                    hh += (h * w).powi(2);
-                    hy += h * w * y;
-                }
-                let g = if hh > 0.0 { hy / hh } else { 0.0 };
-                for i in 0..p.len() {
-                    out[i] = observed[i] - g * p[i] * inv_sd[i];
-                }
-            }
+            BlockKind::LinearMarginal { .. } => unreachable!("handled above"),
         }
+        0.0
     }
 
     /// Rows `row0..row0 + n_residuals` of the residual Jacobian, `scale * d r / d theta`,
@@ -429,32 +467,19 @@ impl Block {
                     }
                 }
             }
-            BlockKind::ComplexGain {
-                observed: y,
+            BlockKind::LinearMarginal {
+                observed,
                 inv_sd,
-            } => {
-                // r = y - g h, h = w p, g = (h.y) / (h.h).
-                let h: Vec<f64> = p.iter().zip(inv_sd).map(|(a, w)| a * w).collect();
-                let hh: f64 = h.iter().map(|v| v * v).sum();
-                let hy: f64 = h.iter().zip(y).map(|(a, b)| a * b).sum();
-                let g = if hh > 0.0 { hy / hh } else { 0.0 };
-                for t in 0..n_par {
-                    let dh = |i: usize| inv_sd[i] * dpred[(off + i, t)];
-                    let (mut y_dh, mut h_dh) = (0.0, 0.0);
-                    for i in 0..h.len() {
-                        y_dh += y[i] * dh(i);
-                        h_dh += h[i] * dh(i);
-                    }
-                    let dg = if hh > 0.0 {
-                        y_dh / hh - 2.0 * hy * h_dh / (hh * hh)
-                    } else {
-                        0.0
-                    };
-                    for i in 0..h.len() {
-                        jac[(row0 + i, t)] = -scale * (dg * h[i] + g * dh(i));
-                    }
-                }
-            }
+                n_columns,
+            } => linear::residual_jacobian(
+                p,
+                inv_sd,
+                observed,
+                *n_columns,
+                (dpred, off),
+                scale,
+                (row0, jac),
+            ),
             BlockKind::ShapeDifference {
                 reference, weight, ..
             } => {

@@ -30,7 +30,7 @@ pub use evidence::{
 };
 pub use fit::{fit_multistart, FitOptions, FitResult};
 pub use laplace::{laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION};
-pub use likelihood::{Block, BlockKind, NoiseScale};
+pub use likelihood::{Block, BlockKind, LinearFit, NoiseScale};
 pub use posterior::Posterior;
 pub use prior::BoxPrior;
 pub use sample::{sample_to_targets, Sampled, Sampling, Targets};

@@ -29,6 +29,8 @@ pub struct Scratch<W> {
     res: Vec<f64>,
     /// `d pred / d theta`, when the predictor has an analytic Jacobian.
     dpred: DMatrix<f64>,
+    /// Per block: [`Block::ln_marginal`] from the residuals' solve.
+    marginal: Vec<f64>,
 }
 
 /// See the module docs.
@@ -120,6 +122,29 @@ impl<P: Predict> Posterior<P> {
         })
     }
 
+    /// The same prior and blocks over another predictor with the same coordinates and
+    /// outputs (a different solver, or a constraint lifted for a fit).
+    pub fn with_predictor<Q: Predict>(&self, predictor: Q) -> Result<Posterior<Q>> {
+        let p = &self.predictor;
+        if predictor.n_params() != p.n_params() || predictor.n_outputs() != p.n_outputs() {
+            return Err(Error::Usage(format!(
+                "a predictor of {} coordinates and {} outputs cannot replace one of {} and {}",
+                predictor.n_params(),
+                predictor.n_outputs(),
+                p.n_params(),
+                p.n_outputs()
+            )));
+        }
+        Ok(Posterior {
+            predictor,
+            prior: self.prior.clone(),
+            blocks: self.blocks.clone(),
+            offsets: self.offsets.clone(),
+            n_residuals: self.n_residuals,
+            scratch: ThreadLocal::new(),
+        })
+    }
+
     pub fn predictor(&self) -> &P {
         &self.predictor
     }
@@ -155,6 +180,7 @@ impl<P: Predict> Posterior<P> {
             pred: vec![0.0; self.predictor.n_outputs()],
             res: vec![0.0; self.n_residuals],
             dpred: DMatrix::zeros(0, 0),
+            marginal: vec![0.0; self.blocks.len()],
         }
     }
 
@@ -181,8 +207,8 @@ impl<P: Predict> Posterior<P> {
 
     fn fill_residuals(&self, theta: &[f64], s: &mut Scratch<P::Workspace>) -> Result<()> {
         self.predictor.predict(theta, &mut s.ws, &mut s.pred)?;
-        for (b, &o) in self.blocks.iter().zip(&self.offsets) {
-            b.residuals(&s.pred, &mut s.res[o..o + b.n_residuals()]);
+        for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
+            s.marginal[i] = b.residuals_and_marginal(&s.pred, &mut s.res[o..o + b.n_residuals()]);
         }
         Ok(())
     }
@@ -207,7 +233,7 @@ impl<P: Predict> Posterior<P> {
             let mut total = 0.0;
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
                 let l = b.ln_likelihood(&s.res[o..o + b.n_residuals()], self.sigma(b, z))
-                    + b.ln_marginal(&s.pred);
+                    + s.marginal[i];
                 if !terms.is_empty() {
                     terms[i] = l;
                 }

@@ -7,6 +7,10 @@
 //! `K_c = K_mm - K_ms K_ss^-1 K_sm`, `M_c = M_mm`, gives exactly those eigenvalues, with
 //! the massless part of each mode `phi_s = -K_ss^-1 K_sm phi_m` (Guyan reduction, exact
 //! when `M_ss = 0` and `M_sm = 0`).
+//!
+//! This module finds the massless DOFs and checks that the condensation is well posed;
+//! the condensed pencil is formed in one place, `crate::modal::condensed` (faer), and
+//! the tests check it against an independent nalgebra oracle (`tests/oracle`).
 
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -18,49 +22,32 @@ pub fn massless_dofs(m: &DMatrix<f64>) -> Vec<usize> {
         .collect()
 }
 
-/// A pencil with its massless DOFs condensed out.
-#[derive(Debug, Clone)]
-pub struct Condensed {
-    /// `K_mm - K_ms K_ss^-1 K_sm`.
-    pub k: DMatrix<f64>,
-    /// `M_mm`.
-    pub m: DMatrix<f64>,
-    /// The DOFs kept (with mass), ascending.
-    pub kept: Vec<usize>,
-    /// The DOFs condensed out (massless), ascending.
-    pub massless: Vec<usize>,
-}
-
 fn sub(a: &DMatrix<f64>, rows: &[usize], cols: &[usize]) -> DMatrix<f64> {
     DMatrix::from_fn(rows.len(), cols.len(), |i, j| a[(rows[i], cols[j])])
 }
 
-/// Condenses the massless DOFs of `(k, m)`. Errors when `K` is singular on them (a
-/// massless mechanism: the condensation, and the model, are then ill-posed).
-pub fn condense(k: &DMatrix<f64>, m: &DMatrix<f64>) -> Result<Condensed> {
+/// Checks that `(k, m)` can be condensed and solved: `K` positive definite on the
+/// massless DOFs (else a massless mechanism makes the condensation, and the model,
+/// ill-posed) and `M` positive definite on the others. The condensed pencil itself is
+/// formed by the eigensolver that needs it ([`crate::modal`]'s condensed solve).
+pub fn check_condensable(k: &DMatrix<f64>, m: &DMatrix<f64>) -> Result<()> {
     let massless = massless_dofs(m);
     let kept: Vec<usize> = (0..m.nrows())
         .filter(|i| massless.binary_search(i).is_err())
         .collect();
-    let mut kc = sub(k, &kept, &kept);
-    if !massless.is_empty() {
-        let kss = sub(k, &massless, &massless);
-        let chol = kss.cholesky().ok_or_else(|| {
-            Error::Model(format!(
-                "K is not positive definite on the {} massless DOFs (zero rows of M, e.g. DOF \
-                 {}): they cannot be condensed; give them mass or stiffness",
-                massless.len(),
-                massless[0] + 1
-            ))
-        })?;
-        let ksm = sub(k, &massless, &kept);
-        kc -= ksm.transpose() * chol.solve(&ksm);
-        kc = (&kc + kc.transpose()) * 0.5;
+    if !massless.is_empty() && sub(k, &massless, &massless).cholesky().is_none() {
+        return Err(Error::Model(format!(
+            "K is not positive definite on the {} massless DOFs (zero rows of M, e.g. DOF \
+             {}): they cannot be condensed; give them mass or stiffness",
+            massless.len(),
+            massless[0] + 1
+        )));
     }
-    Ok(Condensed {
-        m: sub(m, &kept, &kept),
-        k: kc,
-        kept,
-        massless,
-    })
+    if sub(m, &kept, &kept).cholesky().is_none() {
+        return Err(Error::Model(format!(
+            "M is not positive definite on its {} DOFs with mass",
+            kept.len()
+        )));
+    }
+    Ok(())
 }

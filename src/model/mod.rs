@@ -262,13 +262,7 @@ impl StructuralModel {
         let (k, m) = (self.stiffness(alpha), self.mass(beta));
         check_symmetric("K", &k)?;
         check_symmetric("M", &m)?;
-        let c = condense::condense(&k, &m)?;
-        if c.m.cholesky().is_none() {
-            return Err(Error::Model(format!(
-                "M is not positive definite on its {} DOFs with mass",
-                c.kept.len()
-            )));
-        }
+        condense::check_condensable(&k, &m)?;
         let eig = k.symmetric_eigenvalues();
         let max = eig.iter().fold(0.0_f64, |a, &b| a.max(b.abs()));
         let min = eig.iter().fold(f64::INFINITY, |a, &b| a.min(b));

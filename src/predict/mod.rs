@@ -12,10 +12,12 @@
 
 pub mod frf;
 pub mod modal;
+pub mod poles;
 pub mod reduced;
 
 pub use frf::{FrfDamping, FrfOptions, FrfOutput, FrfPredictor, FrfWorkspace};
 pub use modal::{DenseModes, ModalPredictor, ModeSolver, PartialModes};
+pub use poles::PoleResidue;
 
 use crate::error::{Error, Result};
 use crate::model::StructuralModel;

@@ -23,6 +23,12 @@
 //! `RSS_c` the weighted least-squares residual. The sampler then explores only the poles
 //! and `s`; the residues given the poles are complex Gaussian with mean `theta^_c` and
 //! covariance `s^2 (G~^H G~)^-1`, drawn exactly for every posterior draw.
+//!
+//! This is the inference layer's posterior: the basis is [`PoleResidue`]'s prediction,
+//! each channel a [`Block::complex_linear`] (each complex unknown as two real
+//! coefficients, for which `ln det` of the real normal matrix is twice the complex one,
+//! so the density above is the block's up to a constant), `ln s` its one sampled noise
+//! scale.
 
 use std::path::Path;
 
@@ -30,7 +36,8 @@ use num_complex::Complex64;
 
 use super::mat::MatData;
 use crate::error::{Error, Result};
-use crate::mcmc::LogDensity;
+use crate::infer::{Block, LinearFit, NoiseScale, Posterior};
+use crate::predict::{PoleResidue, Predict};
 
 /// File name in the dataset folder.
 pub const FILE: &str = "LRV_wheel_FRF.mat";
@@ -156,78 +163,28 @@ impl BandData {
     }
 }
 
-/// Accelerance mode term `g(w) = -w^2 / (w_n^2 - w^2 + 2 j xi w_n w)`.
-pub fn mode_term(omega: f64, omega_n: f64, xi: f64) -> Complex64 {
-    -omega * omega
-        / Complex64::new(
-            omega_n * omega_n - omega * omega,
-            2.0 * xi * omega_n * omega,
-        )
-}
+pub use crate::predict::poles::mode_term;
 
-/// The weighted least-squares solution of one channel.
+/// The weighted least-squares solution of one channel at given poles.
 #[derive(Debug, Clone)]
 pub struct ChannelFit {
     /// `theta^ = (A_1.., B, D)`.
     pub theta: Vec<Complex64>,
-    /// Lower Cholesky factor `L` of `G~^H G~ = L L^H` (row-major, p x p).
-    pub chol: Vec<Complex64>,
+    /// `sum_k |y_k - model_k|^2 / v_k`.
     pub rss: f64,
-    /// `ln det(G~^H G~) = 2 sum ln L_ii`.
-    pub ln_det: f64,
+    /// The block's solution in its real coordinates (for conditional draws).
+    pub linear: LinearFit,
 }
 
-/// Complex Cholesky `A = L L^H` of a Hermitian positive definite `p x p` (row-major).
-pub fn cholesky(a: &[Complex64], p: usize) -> Option<Vec<Complex64>> {
-    let mut l = vec![Complex64::new(0.0, 0.0); p * p];
-    for i in 0..p {
-        for j in 0..=i {
-            let mut s = a[i * p + j];
-            for k in 0..j {
-                s -= l[i * p + k] * l[j * p + k].conj();
-            }
-            if i == j {
-                if !(s.re > 0.0 && s.re.is_finite()) {
-                    return None;
-                }
-                l[i * p + i] = Complex64::new(s.re.sqrt(), 0.0);
-            } else {
-                l[i * p + j] = s / l[j * p + j].re;
-            }
-        }
-    }
-    Some(l)
-}
-
-/// Solves `L L^H x = b`.
-pub fn chol_solve(l: &[Complex64], p: usize, b: &[Complex64]) -> Vec<Complex64> {
-    let mut z = b.to_vec();
-    for i in 0..p {
-        for k in 0..i {
-            let t = l[i * p + k] * z[k];
-            z[i] -= t;
-        }
-        z[i] /= l[i * p + i].re;
-    }
-    for i in (0..p).rev() {
-        for k in i + 1..p {
-            let t = l[k * p + i].conj() * z[k];
-            z[i] -= t;
-        }
-        z[i] /= l[i * p + i].re;
-    }
-    z
-}
-
-/// The band likelihood. Coordinates: `f_1, ln xi_1, ..., f_m, ln xi_m, ln s` (Hz,
+/// The band posterior. Coordinates: `f_1, ln xi_1, ..., f_m, ln xi_m, ln s` (Hz,
 /// dimensionless); prior uniform in them within [`BandLikelihood::bounds`], with the
 /// natural frequencies in ascending order (no label switching within a close pair).
+/// One [`Block::complex_linear`] per channel integrates its residues out.
 #[derive(Debug, Clone)]
 pub struct BandLikelihood {
     pub spec: BandSpec,
     pub data: BandData,
-    omega0: f64,
-    bounds: Vec<(f64, f64)>,
+    pub posterior: Posterior<PoleResidue>,
 }
 
 /// Prior range of the damping ratio.
@@ -240,26 +197,45 @@ impl BandLikelihood {
     /// band.
     pub fn new(data: &WheelData, spec: BandSpec) -> Result<Self> {
         let band = BandData::extract(data, spec.lo_hz, spec.hi_hz)?;
+        Self::from_band(spec, band)
+    }
+
+    fn from_band(spec: BandSpec, data: BandData) -> Result<Self> {
+        let omega0 = std::f64::consts::PI * (spec.lo_hz + spec.hi_hz);
+        let model = PoleResidue::new(data.freq_hz.clone(), omega0, spec.f_guess_hz.len(), true)?;
+        let (n_out, k) = (model.n_outputs(), 2 * model.n_complex());
+        let blocks = data
+            .y
+            .iter()
+            .zip(&data.v)
+            .enumerate()
+            .map(|(c, (y, v))| {
+                let observed: Vec<f64> = y.iter().flat_map(|h| [h.re, h.im]).collect();
+                let sd: Vec<f64> = v.iter().map(|x| x.sqrt()).collect();
+                let name = format!("ch{}", c + 1);
+                Block::complex_linear(&name, 0..n_out, &observed, &sd, k, NoiseScale::Sampled(0))
+            })
+            .collect::<Result<Vec<_>>>()?;
         let mut bounds = Vec::new();
         for _ in &spec.f_guess_hz {
             bounds.push((spec.lo_hz, spec.hi_hz));
             bounds.push((XI_RANGE.0.ln(), XI_RANGE.1.ln()));
         }
-        bounds.push((S_RANGE.0.ln(), S_RANGE.1.ln()));
+        let scale = ("ln_s".to_string(), (S_RANGE.0.ln(), S_RANGE.1.ln()));
+        let posterior = Posterior::new(model, &bounds, &[scale], blocks)?;
         Ok(BandLikelihood {
-            omega0: std::f64::consts::PI * (spec.lo_hz + spec.hi_hz),
             spec,
-            data: band,
-            bounds,
+            data,
+            posterior,
         })
     }
 
     /// The same band restricted to the given channels (0-based).
-    pub fn with_channels(&self, channels: &[usize]) -> BandLikelihood {
-        let mut out = self.clone();
-        out.data.y = channels.iter().map(|&c| self.data.y[c].clone()).collect();
-        out.data.v = channels.iter().map(|&c| self.data.v[c].clone()).collect();
-        out
+    pub fn with_channels(&self, channels: &[usize]) -> Result<BandLikelihood> {
+        let mut data = self.data.clone();
+        data.y = channels.iter().map(|&c| self.data.y[c].clone()).collect();
+        data.v = channels.iter().map(|&c| self.data.v[c].clone()).collect();
+        Self::from_band(self.spec.clone(), data)
     }
 
     /// Modes in the band.
@@ -272,132 +248,57 @@ impl BandLikelihood {
         self.n_modes() + 2
     }
 
+    /// Sampled coordinates.
+    pub fn dim(&self) -> usize {
+        2 * self.n_modes() + 1
+    }
+
     /// Prior box of the coordinates.
-    pub fn bounds(&self) -> &[(f64, f64)] {
-        &self.bounds
+    pub fn bounds(&self) -> Vec<(f64, f64)> {
+        (0..self.dim())
+            .map(|i| self.posterior.prior().bound(i))
+            .collect()
     }
 
     /// The basis at bin `k` for poles `(f_hz, xi)`.
     pub fn basis_row(&self, k: usize, poles: &[(f64, f64)], row: &mut [Complex64]) {
-        let two_pi = 2.0 * std::f64::consts::PI;
-        let w = two_pi * self.data.freq_hz[k];
-        for (r, &(f, xi)) in poles.iter().enumerate() {
-            row[r] = mode_term(w, two_pi * f, xi);
-        }
-        let m = poles.len();
-        row[m] = Complex64::new(1.0, 0.0);
-        row[m + 1] = Complex64::new((w / self.omega0).powi(2), 0.0);
-    }
-
-    /// Weighted least squares of every channel at the given poles; `None` when the
-    /// basis is rank-deficient.
-    pub fn fit_channels(&self, poles: &[(f64, f64)]) -> Option<Vec<ChannelFit>> {
-        let p = poles.len() + 2;
-        let n = self.data.freq_hz.len();
-        let mut rows = vec![Complex64::new(0.0, 0.0); n * p];
-        for k in 0..n {
-            self.basis_row(k, poles, &mut rows[k * p..(k + 1) * p]);
-        }
-        let mut fits = Vec::with_capacity(self.data.y.len());
-        for (y, v) in self.data.y.iter().zip(&self.data.v) {
-            let mut a = vec![Complex64::new(0.0, 0.0); p * p];
-            let mut b = vec![Complex64::new(0.0, 0.0); p];
-            for k in 0..n {
-                let w = 1.0 / v[k];
-                let g = &rows[k * p..(k + 1) * p];
-                for i in 0..p {
-                    let gi = g[i].conj() * w;
-                    b[i] += gi * y[k];
-                    for j in 0..=i {
-                        a[i * p + j] += gi * g[j];
-                    }
-                }
-            }
-            for i in 0..p {
-                for j in 0..i {
-                    a[j * p + i] = a[i * p + j].conj();
-                }
-            }
-            let l = cholesky(&a, p)?;
-            let theta = chol_solve(&l, p, &b);
-            let mut rss = 0.0;
-            for k in 0..n {
-                let g = &rows[k * p..(k + 1) * p];
-                let model: Complex64 = g.iter().zip(&theta).map(|(g, t)| g * t).sum();
-                rss += (y[k] - model).norm_sqr() / v[k];
-            }
-            let ln_det = (0..p).map(|i| 2.0 * l[i * p + i].re.ln()).sum();
-            fits.push(ChannelFit {
-                theta,
-                chol: l,
-                rss,
-                ln_det,
-            });
-        }
-        Some(fits)
+        self.posterior.predictor().basis_row(k, poles, row)
     }
 
     /// Poles `(f_hz, xi)` of a coordinate vector.
     pub fn poles(&self, theta: &[f64]) -> Vec<(f64, f64)> {
-        (0..self.n_modes())
-            .map(|r| (theta[2 * r], theta[2 * r + 1].exp()))
-            .collect()
+        self.posterior.predictor().poles(theta)
     }
 
-    fn in_support(&self, theta: &[f64]) -> bool {
-        let inside = theta
+    /// Weighted least squares of every channel at the poles of `theta` (in any order);
+    /// `None` when the basis is rank-deficient.
+    pub fn fit_channels(&self, theta: &[f64]) -> Option<Vec<ChannelFit>> {
+        let model = self.posterior.predictor().with_ordering(false);
+        let mut pred = vec![0.0; model.n_outputs()];
+        model
+            .predict(&theta[..model.n_params()], &mut model.workspace(), &mut pred)
+            .ok()?;
+        self.posterior
+            .blocks()
             .iter()
-            .zip(&self.bounds)
-            .all(|(t, (lo, hi))| *t >= *lo && *t <= *hi);
-        let ordered = (1..self.n_modes()).all(|r| theta[2 * r] > theta[2 * r - 2]);
-        inside && ordered
-    }
-
-    /// Log marginal likelihood from channel fits and `s`.
-    pub fn ln_marginal(&self, fits: &[ChannelFit], s: f64) -> f64 {
-        let n = self.data.freq_hz.len() as f64;
-        let p = self.n_linear() as f64;
-        let ln_pi_s2 = (std::f64::consts::PI * s * s).ln();
-        fits.iter()
-            .map(|f| -(n - p) * ln_pi_s2 - f.ln_det - f.rss / (s * s))
-            .sum()
-    }
-}
-
-impl LogDensity for BandLikelihood {
-    fn dim(&self) -> usize {
-        2 * self.n_modes() + 1
-    }
-
-    fn ln_density(&self, theta: &[f64]) -> Result<f64> {
-        if !self.in_support(theta) {
-            return Ok(f64::NEG_INFINITY);
-        }
-        let s = theta[2 * self.n_modes()].exp();
-        match self.fit_channels(&self.poles(theta)) {
-            Some(fits) => Ok(self.ln_marginal(&fits, s)),
-            None => Ok(f64::NEG_INFINITY),
-        }
+            .map(|b| {
+                let linear = b.linear_fit(&pred)?;
+                let theta = linear
+                    .coefficients
+                    .chunks(2)
+                    .map(|c| Complex64::new(c[0], c[1]))
+                    .collect();
+                // Whitened by sqrt(2 / v): the real residual norm is twice the complex one.
+                let rss = 0.5 * linear.rss;
+                Some(ChannelFit { theta, rss, linear })
+            })
+            .collect()
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn complex_cholesky_solves_a_hermitian_system() {
-        let c = |re, im| Complex64::new(re, im);
-        let a = vec![c(4.0, 0.0), c(1.0, -1.0), c(1.0, 1.0), c(3.0, 0.0)];
-        let l = cholesky(&a, 2).unwrap();
-        let x = [c(1.0, 2.0), c(-0.5, 0.25)];
-        let b = [a[0] * x[0] + a[1] * x[1], a[2] * x[0] + a[3] * x[1]];
-        let y = chol_solve(&l, 2, &b);
-        for (u, v) in y.iter().zip(&x) {
-            assert!((u - v).norm() < 1e-14);
-        }
-        assert!(cholesky(&[c(-1.0, 0.0)], 1).is_none());
-    }
 
     /// The real file (skipped without ../shared): shapes, grid, and the strongest
     /// resonance near 667 Hz with its n = 2 node at channel 4 (45 degrees).

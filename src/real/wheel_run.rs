@@ -34,9 +34,8 @@ use super::posterior::{
 };
 use super::wheel::{BandLikelihood, BandSpec, WheelData, N_CHANNELS};
 use crate::error::{Error, Result};
-use crate::mcmc::{Ball, LogDensity, Start};
-use crate::update::lsq::{fd_jacobian, Bounds, FdScheme, LeastSquaresProblem, Trf, TrfOptions};
-use nalgebra::DMatrix;
+use crate::mcmc::{Ball, Start};
+use crate::update::lsq::{LeastSquaresProblem, Trf, TrfOptions};
 
 pub use super::wheel_scatter::{
     channel_scatter, cov_comparison, ChannelScatter, CovComparison, SCATTER_MIN_RESIDUE,
@@ -96,57 +95,6 @@ pub fn bands() -> Vec<BandSpec> {
     ]
 }
 
-/// Whitened residuals (real and imaginary parts, all channels) at poles given as
-/// `(f_hz, ln xi)` pairs, for the variable-projection start; central finite-difference
-/// Jacobian ([`fd_jacobian`]) inside `bounds`, the box of the solve.
-struct VarPro<'a> {
-    lik: &'a BandLikelihood,
-    bounds: &'a Bounds,
-}
-
-impl VarPro<'_> {
-    fn poles(&self, x: &[f64]) -> Vec<(f64, f64)> {
-        x.chunks(2).map(|c| (c[0], c[1].exp())).collect()
-    }
-}
-
-impl LeastSquaresProblem for VarPro<'_> {
-    type Workspace = ();
-    fn n_params(&self) -> usize {
-        2 * self.lik.n_modes()
-    }
-    fn n_residuals(&self) -> usize {
-        2 * self.lik.data.n_points()
-    }
-    fn workspace(&self) {}
-    fn residuals(&self, x: &[f64], _: &mut (), r: &mut [f64]) -> Result<()> {
-        let poles = self.poles(x);
-        let fits = self
-            .lik
-            .fit_channels(&poles)
-            .ok_or_else(|| Error::Numerical("rank-deficient modal basis".into()))?;
-        let p = self.lik.n_linear();
-        let n = self.lik.data.freq_hz.len();
-        let mut row = vec![Complex64::new(0.0, 0.0); p];
-        let mut i = 0;
-        for (c, fit) in fits.iter().enumerate() {
-            for k in 0..n {
-                self.lik.basis_row(k, &poles, &mut row);
-                let m: Complex64 = row.iter().zip(&fit.theta).map(|(g, t)| g * t).sum();
-                let e = (self.lik.data.y[c][k] - m) / self.lik.data.v[c][k].sqrt();
-                r[i] = e.re;
-                r[i + 1] = e.im;
-                i += 2;
-            }
-        }
-        Ok(())
-    }
-    fn jacobian(&self, x: &[f64], ws: &mut (), j: &mut DMatrix<f64>) -> Result<()> {
-        let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, ws, r);
-        fd_jacobian(FdScheme::Central, x, self.bounds, residuals, j).map(|_| ())
-    }
-}
-
 /// The poles minimising the summed weighted residual (linear parameters solved for),
 /// from the band's guesses; returns the coordinate vector `(f, ln xi, ..., ln s)` with
 /// `s^2` at its maximum-likelihood value `sum RSS / (C (N - p))`.
@@ -157,26 +105,23 @@ pub fn varpro_start(lik: &BandLikelihood) -> Result<Vec<f64>> {
         .iter()
         .flat_map(|&f| [f, lik.spec.xi_guess.ln()])
         .collect();
-    let b = lik.bounds();
-    let lower: Vec<f64> = (0..x0.len()).map(|i| b[i].0).collect();
-    let upper: Vec<f64> = (0..x0.len()).map(|i| b[i].1).collect();
+    // The fit may cross the pair over (they are sorted below): no ordering constraint.
+    let unordered = lik
+        .posterior
+        .with_predictor(lik.posterior.predictor().with_ordering(false))?;
+    let problem = unordered.least_squares(&[1.0])?;
     let opts = TrfOptions {
         max_evaluations: Some(400),
         ..Default::default()
     };
-    let bounds = Bounds::new(lower, upper)?;
-    let problem = VarPro {
-        lik,
-        bounds: &bounds,
-    };
-    let sol = Trf::new(opts).minimize(&problem, &mut (), &x0, &bounds)?;
+    let sol = Trf::new(opts).minimize(&problem, &mut problem.workspace(), &x0, problem.bounds())?;
     let mut x = sol.x;
     // Keep the pair ordered (the start must lie in the support).
     let m = lik.n_modes();
     let mut pairs: Vec<(f64, f64)> = x.chunks(2).map(|c| (c[0], c[1])).collect();
     pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
     x = pairs.iter().flat_map(|&(f, l)| [f, l]).collect();
-    let fits = lik.fit_channels(&lik.poles(&x)).ok_or_else(|| {
+    let fits = lik.fit_channels(&x).ok_or_else(|| {
         Error::Numerical(format!(
             "band {}: rank-deficient basis at the start",
             lik.spec.label
@@ -214,31 +159,20 @@ fn draw_residues(
     theta: &[f64],
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<Vec<Complex64>>> {
-    let poles = lik.poles(theta);
     let s = theta[theta.len() - 1].exp();
     let fits = lik
-        .fit_channels(&poles)
+        .fit_channels(theta)
         .ok_or_else(|| Error::Numerical("rank-deficient basis at a posterior draw".into()))?;
-    let p = lik.n_linear();
+    let k = 2 * lik.n_linear();
     Ok(fits
         .iter()
         .map(|f| {
-            // x = theta^ + s L^-H z, z ~ CN(0, I): covariance s^2 (L L^H)^-1.
-            let mut z: Vec<Complex64> = (0..p)
-                .map(|_| {
-                    let (a, b): (f64, f64) =
-                        (StandardNormal.sample(rng), StandardNormal.sample(rng));
-                    Complex64::new(a, b) * std::f64::consts::FRAC_1_SQRT_2
-                })
-                .collect();
-            for i in (0..p).rev() {
-                for k in i + 1..p {
-                    let t = f.chol[k * p + i].conj() * z[k];
-                    z[i] -= t;
-                }
-                z[i] /= f.chol[i * p + i].re;
-            }
-            f.theta.iter().zip(&z).map(|(t, z)| t + s * z).collect()
+            let z: Vec<f64> = (0..k).map(|_| StandardNormal.sample(rng)).collect();
+            f.linear
+                .conditional_draw(s, &z)
+                .chunks(2)
+                .map(|c| Complex64::new(c[0], c[1]))
+                .collect()
         })
         .collect())
 }
@@ -260,7 +194,7 @@ pub fn run_band(
     }
     scale[dim - 1] = 0.02;
     let sampled = sample_to_targets(
-        &lik,
+        &lik.posterior,
         Start::Ball(Ball {
             center: start.clone(),
             scale,
@@ -272,7 +206,7 @@ pub fn run_band(
         sampling,
     )?;
     let fits0 = lik
-        .fit_channels(&lik.poles(&start))
+        .fit_channels(&start)
         .ok_or_else(|| Error::Numerical("rank-deficient basis at the start".into()))?;
     let ref_channel: Vec<usize> = (0..lik.n_modes())
         .map(|r| {
@@ -405,7 +339,7 @@ pub fn run_band(
         .collect();
     let s_med = median[dim - 1].exp();
     let fits = lik
-        .fit_channels(&lik.poles(&median))
+        .fit_channels(&median)
         .ok_or_else(|| Error::Numerical("rank-deficient basis at the posterior median".into()))?;
     let rms_z = fits
         .iter()
@@ -434,6 +368,7 @@ pub fn run(data: &WheelData, seed: u64, sampling: &mut Sampling<'_>) -> Result<V
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mcmc::LogDensity;
     use crate::real::wheel::mode_term;
 
     /// Synthetic accelerance of `modes` (f_hz, xi) on a 1/3 Hz grid over `lo..hi`, with
@@ -529,7 +464,7 @@ mod tests {
         };
         let lik = BandLikelihood::new(&data, spec).unwrap();
         let t = vec![2848.6, 0.0056f64.ln(), 2862.0, 0.0049f64.ln(), 0.05f64.ln()];
-        let l0 = lik.ln_density(&t).unwrap();
+        let l0 = lik.posterior.ln_density(&t).unwrap();
         for (i, d) in [
             (0, 0.5),
             (0, -0.5),
@@ -542,7 +477,7 @@ mod tests {
         ] {
             let mut u = t.clone();
             u[i] += d;
-            assert!(lik.ln_density(&u).unwrap() < l0, "coordinate {i} {d:+}");
+            assert!(lik.posterior.ln_density(&u).unwrap() < l0, "coordinate {i} {d:+}");
         }
     }
 

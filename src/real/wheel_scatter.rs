@@ -27,12 +27,12 @@ pub struct ChannelScatter {
 pub fn channel_scatter(b: &BandResult) -> Result<Vec<ChannelScatter>> {
     let lik = &b.lik;
     let fits0 = lik
-        .fit_channels(&lik.poles(&b.start))
+        .fit_channels(&b.start)
         .ok_or_else(|| Error::Numerical("rank-deficient basis at the start".into()))?;
     let mut per_channel: Vec<Option<Vec<f64>>> = Vec::new();
     for c in 0..N_CHANNELS {
-        let one = lik.with_channels(&[c]);
-        per_channel.push(varpro_start(&one).ok());
+        let one = lik.with_channels(&[c]).ok();
+        per_channel.push(one.and_then(|one| varpro_start(&one).ok()));
     }
     let stats = |v: &[f64]| {
         let n = v.len() as f64;
