@@ -73,6 +73,8 @@ pub struct InferenceData<'a> {
     names: Vec<String>,
     units: Vec<String>,
     acceptance: Option<Vec<f64>>,
+    /// Further `sample_stats` variables (name, one value per draw, walker-chain order).
+    stats: Vec<(String, Vec<f64>)>,
     observed: Option<Observed>,
     /// (variable name, observation dimension, draws holding the pointwise terms).
     log_likelihood: Option<(String, String, &'a Draws)>,
@@ -97,6 +99,7 @@ impl<'a> InferenceData<'a> {
             names: names.to_vec(),
             units: units.to_vec(),
             acceptance: None,
+            stats: Vec::new(),
             observed: None,
             log_likelihood: None,
             attrs: Vec::new(),
@@ -114,6 +117,20 @@ impl<'a> InferenceData<'a> {
             )));
         }
         self.acceptance = Some(per_chain);
+        Ok(self)
+    }
+
+    /// A further `sample_stats` variable: one value per draw, walker-chain order of the
+    /// posterior draws (`chain * n_draws + draw`).
+    pub fn with_stat(mut self, name: &str, per_draw: Vec<f64>) -> Result<Self> {
+        let n = self.posterior.n_chains * self.posterior.n_draws;
+        if per_draw.len() != n {
+            return Err(Error::Usage(format!(
+                "InferenceData: {} values of {name} for {n} draws",
+                per_draw.len()
+            )));
+        }
+        self.stats.push((name.to_string(), per_draw));
         Ok(self)
     }
 
@@ -219,6 +236,10 @@ impl<'a> InferenceData<'a> {
                     "acceptance fraction over the run of the walker that made the draw".into(),
                 ),
             )?;
+        }
+        for (name, per_draw) in &self.stats {
+            let values: Vec<f64> = rows.iter().map(|&r| per_draw[r]).collect();
+            add_draw_var(b, &format!("sample_stats/{name}"), &[chain, draw], &values)?;
         }
         self.group_attrs(b, "sample_stats")
     }
