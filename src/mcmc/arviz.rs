@@ -27,9 +27,9 @@
 //! pairs different walkers (about 0), where the per-walker estimate keeps the walkers'
 //! between-mean variance in every `rho_t`: on a run with 150 draws per walker it came
 //! out +4 to +29 % (bulk) and -7 to +24 % (tail) off ours (less with longer walker
-//! chains). The other choice,
-//! walkers as ArviZ chains (`az.from_emcee`), would give the walker ESS but an R-hat
-//! of 1.03-1.04 on the same converged run (short walker chains bias split R-hat up).
+//! chains). The other choice, walkers as ArviZ chains (`az.from_emcee`), would give the
+//! walker ESS but an R-hat of 1.03-1.04 on the same converged run (short walker chains
+//! bias split R-hat up).
 //!
 //! Non-index coordinates along `draw`: `walker` (walker within its ensemble) and
 //! `walker_draw` (the draw's index along that walker's chain, as in `draws.npy`, whose

@@ -72,16 +72,23 @@ pub fn posterior_file(s: &WheelStudy) -> PosteriorSummary {
 }
 
 /// `inference_data_band<k>.nc` of one band (each band is a posterior of its own):
-/// `f<r>` (Hz) and `xi<r>` of its modes and `s`, as the band's rows of `posterior.json`
-/// (the residues there are conditional draws, not functions of a posterior draw, and are
-/// left out).
-fn write_band_inference_data(b: &BandResult, path: &Path) -> Result<()> {
+/// `f<r>` (Hz) and `xi<r>` of its modes and `s_band<k>`, named as in `posterior.json`
+/// ([`all_rows`]; band `band` (0-based) whose first mode is `first_mode`). The residues
+/// there are conditional draws, not functions of a posterior draw, and are left out.
+fn write_band_inference_data(
+    b: &BandResult,
+    band: usize,
+    first_mode: usize,
+    path: &Path,
+) -> Result<()> {
     let m = b.lik.n_modes();
     let mut rows = b.rows[..2 * m + 1].to_vec();
     for (i, r) in rows.iter_mut().enumerate() {
-        if i < 2 * m {
-            r.name = format!("{}{}", r.name, i / 2 + 1);
-        }
+        r.name = match (i < 2 * m, i % 2) {
+            (true, 0) => format!("f{}", first_mode + i / 2 + 1),
+            (true, _) => format!("xi{}", first_mode + i / 2 + 1),
+            _ => format!("s_band{}", band + 1),
+        };
     }
     // Coordinates: per mode f (Hz) and ln xi, then ln s.
     let reported = |z: &[f64]| {
@@ -102,8 +109,11 @@ pub fn write(
     timings: &[(String, f64)],
 ) -> Result<()> {
     write_summary(&posterior_file(s), &out.join("posterior.json"))?;
+    let mut first_mode = 0;
     for (k, b) in s.bands.iter().enumerate() {
-        write_band_inference_data(b, &out.join(format!("inference_data_band{}.nc", k + 1)))?;
+        let path = out.join(format!("inference_data_band{}.nc", k + 1));
+        write_band_inference_data(b, k, first_mode, &path)?;
+        first_mode += b.lik.n_modes();
     }
     figures(s, data, out)?;
     crate::io::write_atomic(&out.join("report.md"), report(s, timings).as_bytes())
