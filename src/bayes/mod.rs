@@ -49,7 +49,8 @@
 //! [`run::run_sample`] does a whole `frfbayes sample` run: estimate the FRFs of a
 //! campaign, build the posterior, find the maximum-likelihood start ([`find_start`]),
 //! sample with periodic checkpoints (resumable bit for bit), and write
-//! `posterior.json`, draws (CSV, `.npy`), the pointwise log-likelihood and figures.
+//! `posterior.json`, draws (CSV, `.npy`), the pointwise log-likelihood, figures and
+//! the ArviZ InferenceData `inference_data.nc` ([`inference_data`]).
 //!
 //! # Calibration
 //! [`sbc`]: simulation-based calibration (Talts et al. 2018) of the whole chain
@@ -60,6 +61,7 @@ mod data;
 pub mod figures;
 pub mod fit;
 mod forward;
+pub mod inference_data;
 mod likelihood;
 mod moves;
 mod posterior;

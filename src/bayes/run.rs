@@ -11,6 +11,8 @@
 //!   `(chain, draw, parameter)`, parameter order as in `posterior.json`),
 //!   `ln_posterior.npy` `(chain, draw)`, `log_likelihood.npy` `(chain, draw, point)`
 //!   (every k-th draw above [`MAX_POINTWISE_VALUES`], k in `log_likelihood_thin.json`);
+//! - `inference_data.nc`: all of it as ArviZ's InferenceData, `az.from_netcdf(path)`
+//!   ([`super::inference_data`]);
 //! - figures `corner`, `traces`, `predictive`, `cv` (PNG and SVG), `run.json`.
 //!
 //! Every file is written atomically. Chains are walkers (chain = ensemble x walkers +
@@ -18,6 +20,7 @@
 
 use super::data::{FrfData, InputNoiseModel, DEFAULT_REL_SIGMA_FLOOR};
 use super::figures::write_figures;
+use super::inference_data::{write_inference_data, INFERENCE_DATA_FILE};
 pub use super::moves::{de_stretch_moves, default_moves};
 use super::posterior::{FrfPosterior, PosteriorOptions};
 use super::start::{ball_positions, find_start, StartPoint};
@@ -521,6 +524,12 @@ fn finish(
                 t.write_pointwise_npy(&out.join("log_likelihood.npy"))
             }
         }
+    })?;
+    info.time("write_inference_data", || {
+        let acceptance = sampler.acceptance_fractions().concat();
+        let pointwise = thinned.as_ref().unwrap_or(&phys);
+        let path = out.join(INFERENCE_DATA_FILE);
+        write_inference_data(&path, post, &params, &phys, pointwise, acceptance)
     })?;
     info.time("figures", || {
         write_figures(out, prep, sampler, &params, &draws, settings)

@@ -9,6 +9,7 @@ use super::report::{explanation, record};
 use super::verdict::decisive_ln_bayes_factor;
 use crate::error::{Error, Result};
 use crate::io::{write_atomic, StagedDir};
+use crate::mcmc::{Draws, InferenceData, INFERENCE_DATA_FILE};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -250,6 +251,45 @@ pub fn write_diagnosis(d: &Diagnosis, title: &str, out: &Path) -> Result<PathBuf
     staged.commit()
 }
 
+/// `inference_data.nc` ([`crate::mcmc::InferenceData`]): the sampled posterior of the
+/// model shown in `effect_posterior.png` (the verdict's hypothesis, else the best
+/// finalist), as its evidence run's final (`beta = 1`) stage kept it: every parameter in
+/// physical units (frame, `eta`, the effect), chains = the evidence run's replicates;
+/// `sample_stats` holds `lp`, `ln_likelihood` and `ln_prior`. Nothing is written when
+/// no evidence posterior was sampled (e.g. `--evidence laplace`).
+fn write_effect_inference_data(d: &Diagnosis, dir: &Path) -> Result<()> {
+    let shown = d.winner.map(|w| &d.finalists[w]).or(d.finalists.first());
+    let Some((f, p)) = shown.and_then(|f| {
+        let p = f.evidence.as_ref()?.posterior.as_ref()?;
+        Some((f, p))
+    }) else {
+        return Ok(());
+    };
+    let draws = &p.draws;
+    let rows = draws
+        .values
+        .chunks_exact(draws.dim.max(1))
+        .map(|z| f.posterior.physical(z))
+        .collect::<Result<Vec<_>>>()?;
+    let first = rows.first().map(Vec::as_slice).unwrap_or_default();
+    let names: Vec<String> = first.iter().map(|v| v.name.clone()).collect();
+    let units: Vec<String> = first.iter().map(|v| v.unit.clone()).collect();
+    let phys = Draws {
+        dim: names.len(),
+        values: rows.iter().flatten().map(|v| v.value).collect(),
+        n_pointwise: 0,
+        pointwise: Vec::new(),
+        ..draws.clone()
+    };
+    InferenceData::new(&phys, &names, &units)?
+        .with_stat("ln_likelihood", p.ln_likelihood.clone())?
+        .with_stat("ln_prior", p.ln_prior.clone())?
+        .with_attr("frfbayes_command", "diagnose")
+        .with_attr("hypothesis", &f.name)
+        .with_attr("location", &f.location.to_string())
+        .write(&dir.join(INFERENCE_DATA_FILE))
+}
+
 /// Writes the output files into `dir` (a staging folder).
 pub fn write_diagnosis_into(d: &Diagnosis, title: &str, dir: &Path) -> Result<()> {
     let dir = dir.to_path_buf();
@@ -276,6 +316,7 @@ pub fn write_diagnosis_into(d: &Diagnosis, title: &str, dir: &Path) -> Result<()
         m.write_tables(&dir.join("residual_after"))?;
         figures.push("residual_after".into());
     }
+    write_effect_inference_data(d, &dir)?;
     let rec = record(d);
     let json = serde_json::to_string_pretty(&rec)
         .map_err(|e| Error::Numerical(format!("diagnosis.json: {e}")))?;

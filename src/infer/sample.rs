@@ -89,6 +89,31 @@ pub struct Sampled {
     pub min_ess: f64,
     /// The whole chain from step 0, thinned to at most ~500 kept steps, for trace plots.
     pub full: Draws,
+    /// Acceptance fraction of every walker chain (ensemble-major, the chains of `draws`).
+    pub acceptance_per_chain: Vec<f64>,
+    /// Every k-th draw of each walker of `draws` with its pointwise log-likelihood (at
+    /// most [`MAX_LOG_LIKELIHOOD_DRAWS`] draws in all), when the density has pointwise
+    /// terms; for the `log_likelihood` group of `inference_data.nc` (`az.loo`).
+    pub log_likelihood: Option<Draws>,
+}
+
+/// Most draws (all chains) at which [`Sampled::log_likelihood`] is evaluated: enough for
+/// PSIS-LOO (Stan's default run keeps 4000), bounded so that an expensive model (the
+/// bridge) pays at most this many extra evaluations.
+pub const MAX_LOG_LIKELIHOOD_DRAWS: usize = 4000;
+
+/// [`Sampled::log_likelihood`] of `draws` under `density` (`None` without pointwise terms).
+fn log_likelihood_draws<D: LogDensity + ?Sized>(
+    density: &D,
+    draws: &Draws,
+) -> Result<Option<Draws>> {
+    if density.n_pointwise() == 0 {
+        return Ok(None);
+    }
+    let rows = draws.n_chains * draws.n_draws;
+    let mut thinned = draws.thinned(rows.div_ceil(MAX_LOG_LIKELIHOOD_DRAWS).max(1));
+    thinned.compute_pointwise(density)?;
+    Ok(Some(thinned))
 }
 
 impl Sampled {
@@ -161,7 +186,10 @@ pub fn sample_to_targets<D: LogDensity + ?Sized>(
             } else {
                 StopReason::StepCap
             };
+            let log_likelihood = log_likelihood_draws(density, &draws)?;
             return Ok(Sampled {
+                acceptance_per_chain: sampler.acceptance_fractions().concat(),
+                log_likelihood,
                 draws,
                 n_walkers,
                 n_steps: sampler.step_count(),

@@ -129,6 +129,7 @@ impl<D: LogDensity + ?Sized> LogDensity for Unconstrained<'_, D> {
 /// positions strictly inside the box); the returned draws are in box coordinates with the
 /// log density of `density` (the Jacobian removed). Autocorrelation times are those of the
 /// unconstrained chains, which are the ones that decide convergence.
+#[allow(clippy::too_many_arguments)]
 pub fn sample_in_unconstrained<D: LogDensity + ?Sized>(
     density: &D,
     prior: &BoxPrior,

@@ -11,6 +11,8 @@
 //! - Diagnostics: emcee's integrated autocorrelation time ([`integrated_time`]) and the
 //!   rank-normalised split R-hat and bulk/tail ESS of Vehtari et al. (2021)
 //!   ([`diagnostics`]).
+//! - [`InferenceData`]: the draws as ArviZ's InferenceData (netCDF-4), opened with one
+//!   `az.from_netcdf` call; the chain mapping is in its module docs.
 //!
 //! ## Reproducibility
 //! All randomness comes from one ChaCha8 key derived from `SamplerConfig::seed`: walker
@@ -47,6 +49,7 @@
 //! assert_eq!((draws.n_chains, draws.n_draws, draws.dim), (32, 100, 2));
 //! ```
 
+mod arviz;
 mod autocorr;
 mod checkpoint;
 mod config;
@@ -60,6 +63,7 @@ mod rng;
 mod sampler;
 mod spec;
 
+pub use arviz::{draw_layout, InferenceData, Observed, INFERENCE_DATA_FILE};
 pub use autocorr::{autocorrelation, integrated_time, TauEstimate};
 pub use convergence::{
     diagnostics, ensemble_diagnostics, ess_basic, ess_bulk, ess_mean, ess_tail, mcse_mean,

@@ -329,7 +329,11 @@ impl<S: ModeSolver> Predict for FrfPredictor<S> {
             &mut ws.eigenvalues,
             &mut ws.shapes,
         )?;
-        if let Some(l) = ws.eigenvalues.iter().find(|l| !(**l > 0.0)) {
+        if let Some(l) = ws
+            .eigenvalues
+            .iter()
+            .find(|l| l.partial_cmp(&&0.0) != Some(std::cmp::Ordering::Greater))
+        {
             return Err(Error::Model(format!(
                 "a model eigenvalue is {l} (not positive)"
             )));

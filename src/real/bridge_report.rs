@@ -7,7 +7,9 @@ use std::path::Path;
 use super::bridge::{smu_bounds, SMU_PUBLISHED_ALPHA, SMU_PUBLISHED_OBJECTIVE};
 use super::bridge_posterior::Identified;
 use super::bridge_run::{BridgeStudy, SmuFit};
-use super::posterior::{posterior_summary, quantile_sorted, write_summary};
+use super::posterior::{
+    posterior_summary, quantile_sorted, write_inference_data, write_summary, INFERENCE_DATA_FILE,
+};
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use crate::error::{Error, Result};
 use crate::io::write_atomic;
@@ -53,6 +55,14 @@ pub fn write(study: &BridgeStudy, out: &Path, timings: &[(String, f64)]) -> Resu
     let post = &study.posterior;
     let summary = posterior_summary(&[&post.sampled], post.rows.clone(), 5 + 5 * 57);
     write_summary(&summary, &out.join("posterior.json"))?;
+    // The reported parameters are the sampled coordinates themselves.
+    write_inference_data(
+        &out.join(INFERENCE_DATA_FILE),
+        &post.sampled,
+        &post.rows,
+        <[f64]>::to_vec,
+        "bridge-fe",
+    )?;
     let (fit_md, fit_csv) = fit_table(study);
     write_atomic(&out.join("smu_fit.csv"), fit_csv.as_bytes())?;
     let (post_md, post_csv) = identification_table(study);

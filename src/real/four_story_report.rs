@@ -7,7 +7,8 @@ use std::path::Path;
 use super::four_story::{MASSES_KG, N_FLOORS};
 use super::four_story_run::{FourStoryStudy, Ppc, Variant};
 use super::posterior::{
-    posterior_summary, quantile_sorted, write_summary, ParameterSummary, PosteriorSummary,
+    posterior_summary, quantile_sorted, write_inference_data, write_summary, ParameterSummary,
+    PosteriorSummary, INFERENCE_DATA_FILE,
 };
 use super::report::{md_table, posterior_table, run_line, sig};
 use crate::error::Result;
@@ -83,6 +84,14 @@ fn ppc_table(p: &Ppc, measured_f: &[f64], measured_label: &str) -> String {
 /// Writes `report.md`, `posterior.json` and the figures into `out`.
 pub fn write(s: &FourStoryStudy, out: &Path, timings: &[(String, f64)]) -> Result<()> {
     write_summary(&posterior_file(s), &out.join("posterior.json"))?;
+    let ns = s.main.lik.n_structural();
+    write_inference_data(
+        &out.join(INFERENCE_DATA_FILE),
+        &s.main.sampled,
+        &s.main.rows,
+        |z| super::four_story_run::reported_values(z, ns),
+        "four-story-modal",
+    )?;
     super::four_story_figures::write(s, out)?;
     let md = report(s, timings);
     crate::io::write_atomic(&out.join("report.md"), md.as_bytes())

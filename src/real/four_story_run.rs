@@ -218,11 +218,7 @@ pub fn sample_variant(
         .iter()
         .enumerate()
         .map(|(p, (name, unit))| {
-            let scale = if (4..ns).contains(&p) {
-                MASSES_KG[0]
-            } else {
-                1.0
-            };
+            let scale = reported_scale(p, ns);
             row_from_chains(
                 name,
                 unit,
@@ -239,6 +235,24 @@ pub fn sample_variant(
         sampled,
         rows,
     })
+}
+
+/// Factor from `exp(z_p)` to the reported value of coordinate `p` (`ns` structural
+/// coordinates): masses (coordinates 4 to `ns - 1`) relative to floor 1's nominal mass.
+pub fn reported_scale(p: usize, ns: usize) -> f64 {
+    if (4..ns).contains(&p) {
+        MASSES_KG[0]
+    } else {
+        1.0
+    }
+}
+
+/// The reported values (the rows of `posterior.json`) of sampled coordinates `z`.
+pub fn reported_values(z: &[f64], ns: usize) -> Vec<f64> {
+    z.iter()
+        .enumerate()
+        .map(|(p, v)| reported_scale(p, ns) * v.exp())
+        .collect()
 }
 
 /// Posterior-predictive check of `v` on all four modes; noise is drawn from `seed`.

@@ -16,7 +16,54 @@ pub use crate::infer::sample::{
     default_moves, sample_to_targets, worst_diagnostics, OnStep, Sampled, Sampling, Targets,
 };
 use crate::io::write_atomic;
-use crate::mcmc::{ensemble_diagnostics, StopReason};
+pub use crate::mcmc::INFERENCE_DATA_FILE;
+use crate::mcmc::{ensemble_diagnostics, Draws, InferenceData, StopReason};
+use rayon::prelude::*;
+
+/// Writes `path` (`inference_data.nc` beside `posterior.json`), ArviZ's InferenceData of
+/// `sampled` ([`crate::mcmc::InferenceData`]; chains = ensembles): `posterior` holds the
+/// quantities `rows` (their names and units) computed from each draw's sampled
+/// coordinates by `reported` (one value per row, in order); `sample_stats` the log
+/// posterior and the walkers' acceptance; `log_likelihood` (`terms`, one per data block
+/// of the likelihood) when the density has pointwise terms ([`Sampled::log_likelihood`]).
+/// The data themselves stay in the study's own files (no `observed_data`).
+pub fn write_inference_data(
+    path: &Path,
+    sampled: &Sampled,
+    rows: &[ParameterSummary],
+    reported: impl Fn(&[f64]) -> Vec<f64> + Sync,
+    study: &str,
+) -> Result<()> {
+    let d = &sampled.draws;
+    let values: Vec<f64> = d
+        .values
+        .par_chunks(d.dim.max(1))
+        .flat_map_iter(&reported)
+        .collect();
+    if values.len() != rows.len() * d.n_chains * d.n_draws {
+        return Err(Error::Usage(format!(
+            "{study}: {} reported values per draw for {} rows",
+            values.len() / (d.n_chains * d.n_draws).max(1),
+            rows.len()
+        )));
+    }
+    let phys = Draws {
+        dim: rows.len(),
+        values,
+        n_pointwise: 0,
+        pointwise: Vec::new(),
+        ..d.clone()
+    };
+    let names: Vec<String> = rows.iter().map(|r| r.name.clone()).collect();
+    let units: Vec<String> = rows.iter().map(|r| r.unit.clone()).collect();
+    let mut idata = InferenceData::new(&phys, &names, &units)?
+        .with_acceptance(sampled.acceptance_per_chain.clone())?
+        .with_attr("frfbayes_study", study);
+    if let Some(ll) = &sampled.log_likelihood {
+        idata = idata.with_log_likelihood("terms", "block", ll)?;
+    }
+    idata.write(path)
+}
 
 /// Writes `posterior.json` atomically (pretty JSON).
 pub fn write_summary(summary: &PosteriorSummary, path: &Path) -> Result<()> {

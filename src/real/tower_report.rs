@@ -4,10 +4,13 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::posterior::{posterior_summary, write_summary, AtBound, PosteriorSummary};
+use super::posterior::{
+    posterior_summary, write_inference_data, write_summary, AtBound, PosteriorSummary,
+    INFERENCE_DATA_FILE,
+};
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use super::tower::{AUTHOR_GAINS, DAMPER_MASS_KG, FLOOR_COLUMN, FLOOR_MASS_KG};
-use super::tower_model::N;
+use super::tower_model::{natural_freq_hz, N};
 use super::tower_residuals::{
     shear_modes, PeakResidual, ResidualAnalysis, MODE_HALF_WIDTH_HZ, PEAK_HALF_WINDOW_HZ,
     PEAK_MIN_RATIO, REPRODUCED_FREQ_TOL, REPRODUCED_MAC,
@@ -29,9 +32,34 @@ pub fn posterior_file(s: &TowerStudy) -> PosteriorSummary {
     )
 }
 
+/// `inference_data.nc` of the fit: stiffnesses, damping ratios, `s` and the natural
+/// frequencies of `posterior.json` (the channel gains there are conditional draws, not
+/// functions of a posterior draw, and are left out).
+fn write_tower_inference_data(f: &TowerFit, out: &Path) -> Result<()> {
+    let rows: Vec<_> = f.rows[..2 * N + 1]
+        .iter()
+        .chain(&f.freq_rows)
+        .cloned()
+        .collect();
+    let reported = |z: &[f64]| {
+        let mut v: Vec<f64> = z[..2 * N + 1].iter().map(|x| x.exp()).collect();
+        let freq = natural_freq_hz(&v[..N]).unwrap_or_else(|_| vec![f64::NAN; N]);
+        v.extend(freq);
+        v
+    };
+    write_inference_data(
+        &out.join(INFERENCE_DATA_FILE),
+        &f.sampled,
+        &rows,
+        reported,
+        "tower-hmd",
+    )
+}
+
 /// Writes `report.md`, `posterior.json` and figures into `out`.
 pub fn write(s: &TowerStudy, out: &Path, timings: &[(String, f64)]) -> Result<()> {
     write_summary(&posterior_file(s), &out.join("posterior.json"))?;
+    write_tower_inference_data(&s.full, out)?;
     figures(s, out)?;
     crate::io::write_atomic(&out.join("report.md"), report(s, timings).as_bytes())
 }

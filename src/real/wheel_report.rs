@@ -4,7 +4,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::posterior::{
-    posterior_summary, write_summary, ParameterSummary, PosteriorSummary, Sampled,
+    posterior_summary, write_inference_data, write_summary, ParameterSummary, PosteriorSummary,
+    Sampled,
 };
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use super::wheel::WheelData;
@@ -70,6 +71,36 @@ pub fn posterior_file(s: &WheelStudy) -> PosteriorSummary {
     )
 }
 
+/// `inference_data_band<k>.nc` of one band (each band is a posterior of its own):
+/// `f<r>` (Hz) and `xi<r>` of its modes and `s_band<k>`, named as in `posterior.json`
+/// ([`all_rows`]; band `band` (0-based) whose first mode is `first_mode`). The residues
+/// there are conditional draws, not functions of a posterior draw, and are left out.
+fn write_band_inference_data(
+    b: &BandResult,
+    band: usize,
+    first_mode: usize,
+    path: &Path,
+) -> Result<()> {
+    let m = b.lik.n_modes();
+    let mut rows = b.rows[..2 * m + 1].to_vec();
+    for (i, r) in rows.iter_mut().enumerate() {
+        r.name = match (i < 2 * m, i % 2) {
+            (true, 0) => format!("f{}", first_mode + i / 2 + 1),
+            (true, _) => format!("xi{}", first_mode + i / 2 + 1),
+            _ => format!("s_band{}", band + 1),
+        };
+    }
+    // Coordinates: per mode f (Hz) and ln xi, then ln s.
+    let reported = |z: &[f64]| {
+        z.iter()
+            .take(2 * m + 1)
+            .enumerate()
+            .map(|(i, &v)| if i % 2 == 0 && i < 2 * m { v } else { v.exp() })
+            .collect()
+    };
+    write_inference_data(path, &b.sampled, &rows, reported, "wheel-frf")
+}
+
 /// Writes everything into `out`.
 pub fn write(
     s: &WheelStudy,
@@ -78,6 +109,12 @@ pub fn write(
     timings: &[(String, f64)],
 ) -> Result<()> {
     write_summary(&posterior_file(s), &out.join("posterior.json"))?;
+    let mut first_mode = 0;
+    for (k, b) in s.bands.iter().enumerate() {
+        let path = out.join(format!("inference_data_band{}.nc", k + 1));
+        write_band_inference_data(b, k, first_mode, &path)?;
+        first_mode += b.lik.n_modes();
+    }
     figures(s, data, out)?;
     crate::io::write_atomic(&out.join("report.md"), report(s, timings).as_bytes())
 }

@@ -263,7 +263,7 @@ fn rejects_bad_pairs_modes_and_windows() {
             FrfOptions {
                 damping: FrfDamping::Rayleigh,
                 output: FrfOutput::Magnitude,
-                n_modes: n_modes,
+                n_modes,
             },
             &[FrfBlock {
                 omega_rad_s: vec![1.0, 2.0],
