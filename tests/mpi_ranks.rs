@@ -6,9 +6,9 @@
 //!   a rank that fails is named in the error, and the case rank 0 finished is reused
 //!   by the rerun.
 //!
-//! Outputs are compared byte for byte, except the records of wall time (`run.json`,
-//! `seconds.txt`, the time column of the benchmark report, the timings section of
-//! `diagnosis.md` and `report.html` that shows it).
+//! Outputs are compared byte for byte, except the records of wall time: `run.json`,
+//! `seconds.txt`, wall-time keys of JSON files, `<number> s` and tables of wall times in
+//! Markdown and HTML, the time column of the benchmark report.
 //!
 //! Needs OpenMPI's `mpirun`; without it the tests print a skip message, unless
 //! `FRFBAYES_REQUIRE_EXTERNAL=1` (CI), which makes a missing tool a failure.
@@ -19,6 +19,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 const BIN: &str = env!("CARGO_BIN_EXE_frfbayes");
+
+/// One test at a time: each runs two ranks, and the machine may have two cores.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
 
 /// True when `mpirun` runs; otherwise a skip message, or a panic under
 /// `FRFBAYES_REQUIRE_EXTERNAL=1`.
@@ -37,6 +44,14 @@ fn have_mpirun() -> bool {
     ok
 }
 
+/// Prints a wall time (the README's scaling table comes from these lines).
+fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
+    let t0 = std::time::Instant::now();
+    let v = f();
+    eprintln!("timing: {what}: {:.1} s", t0.elapsed().as_secs_f64());
+    v
+}
+
 /// `frfbayes args` in one process (one thread, as each rank below).
 fn single(args: &[&str]) -> Output {
     let out = Command::new(BIN)
@@ -45,7 +60,11 @@ fn single(args: &[&str]) -> Output {
         .args(args)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     out
 }
 
@@ -81,8 +100,12 @@ fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
         if matches!(name, "run.json" | "seconds.txt") {
             continue;
         }
-        let bytes = if matches!(name, "diagnosis.md" | "report.html") {
-            without_timings(&bytes)
+        let bytes = if name.ends_with(".json") {
+            let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+            drop_wall_times(&mut v);
+            v.to_string().into_bytes()
+        } else if name.ends_with(".md") || name.ends_with(".html") {
+            mask_wall_times(&String::from_utf8_lossy(&bytes)).into_bytes()
         } else {
             bytes
         };
@@ -91,14 +114,67 @@ fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     out
 }
 
-/// The text up to its section of wall times (`Timings`), which comes last.
-fn without_timings(bytes: &[u8]) -> Vec<u8> {
-    let text = String::from_utf8_lossy(bytes);
-    let cut = text
-        .find("Timings")
-        .or_else(|| text.find("Wall time"))
-        .unwrap_or(text.len());
-    text[..cut].as_bytes().to_vec()
+/// Keys of wall times in the JSON records.
+const WALL_TIME_KEYS: [&str; 4] = ["wall_s", "elapsed_s", "timings", "timings_s"];
+
+fn drop_wall_times(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Object(m) => {
+            m.retain(|k, _| !WALL_TIME_KEYS.contains(&k.as_str()));
+            m.values_mut().for_each(drop_wall_times);
+        }
+        serde_json::Value::Array(a) => a.iter_mut().for_each(drop_wall_times),
+        _ => {}
+    }
+}
+
+/// The text with every `<number> s` replaced by `# s` and the rows of a table of wall
+/// times (Markdown or HTML) left out.
+fn mask_wall_times(text: &str) -> String {
+    let mut out = String::new();
+    let mut in_table = false;
+    for line in text.lines() {
+        if line.contains("wall time") {
+            in_table = true;
+            continue;
+        }
+        if in_table {
+            let md_row = line.starts_with('|');
+            let html_row = line.starts_with("<tr") || line.starts_with("<td") || line == "</tr>";
+            if md_row || html_row || line.contains("</t") {
+                continue;
+            }
+            in_table = false;
+        }
+        out.push_str(&mask_seconds(line));
+        out.push('\n');
+    }
+    out
+}
+
+fn mask_seconds(line: &str) -> String {
+    let b = line.as_bytes();
+    let mut out = String::new();
+    let mut i = 0;
+    while i < b.len() {
+        let num_start = i;
+        while i < b.len() && (b[i].is_ascii_digit() || b[i] == b'.') {
+            i += 1;
+        }
+        if i > num_start {
+            let next = b.get(i + 2).copied().unwrap_or(b' ');
+            if line[i..].starts_with(" s") && !next.is_ascii_alphanumeric() {
+                out.push('#');
+            } else {
+                out.push_str(&line[num_start..i]);
+            }
+        } else {
+            let len = line[i..].chars().next().map_or(1, char::len_utf8);
+            out.push_str(&line[i..i + len]);
+            i += len;
+        }
+    }
+    out
 }
 
 fn assert_same_trees(a: &Path, b: &Path) {
@@ -110,7 +186,10 @@ fn assert_same_trees(a: &Path, b: &Path) {
         "same files"
     );
     let differ: Vec<&String> = ta.keys().filter(|k| ta[*k] != tb[*k]).collect();
-    assert!(differ.is_empty(), "files differ between 1 and 2 ranks: {differ:?}");
+    assert!(
+        differ.is_empty(),
+        "files differ between 1 and 2 ranks: {differ:?}"
+    );
 }
 
 fn path_str(p: &Path) -> &str {
@@ -122,6 +201,7 @@ fn sample_on_two_ranks_is_bit_identical() {
     if !have_mpirun() {
         return;
     }
+    let _serial = serial();
     let tmp = tempfile::tempdir().unwrap();
     let (a, b) = (tmp.path().join("one"), tmp.path().join("two"));
     let run = |out: &PathBuf| -> Vec<String> {
@@ -145,8 +225,12 @@ fn sample_on_two_ranks_is_bit_identical() {
     };
     let args_a = run(&a);
     let args_b = run(&b);
-    single(&args_a.iter().map(String::as_str).collect::<Vec<_>>());
-    ok(two_ranks(&args_b.iter().map(String::as_str).collect::<Vec<_>>()));
+    let (args_a, args_b): (Vec<&str>, Vec<&str>) = (
+        args_a.iter().map(String::as_str).collect(),
+        args_b.iter().map(String::as_str).collect(),
+    );
+    timed("sample, 1 process", || single(&args_a));
+    timed("sample, 2 ranks", || ok(two_ranks(&args_b)));
     assert!(a.join("posterior.json").exists());
     assert_same_trees(&a, &b);
     // Only rank 0 wrote: no scratch left, nothing beside the output.
@@ -162,6 +246,7 @@ fn diagnose_on_two_ranks_is_bit_identical() {
     if !have_mpirun() {
         return;
     }
+    let _serial = serial();
     let tmp = tempfile::tempdir().unwrap();
     let campaign = tmp.path().join("campaign");
     let model = concat!(
@@ -175,6 +260,8 @@ fn diagnose_on_two_ranks_is_bit_identical() {
             "diagnose",
             path_str(&campaign),
             "--quick",
+            "--only",
+            "base_flexibility,secondary_oscillator",
             "--seed",
             "2",
             "--out",
@@ -182,8 +269,12 @@ fn diagnose_on_two_ranks_is_bit_identical() {
         ]
         .map(String::from)
     };
-    single(&args(&a).each_ref().map(String::as_str));
-    ok(two_ranks(&args(&b).each_ref().map(String::as_str)));
+    timed("diagnose, 1 process", || {
+        single(&args(&a).each_ref().map(String::as_str))
+    });
+    timed("diagnose, 2 ranks", || {
+        ok(two_ranks(&args(&b).each_ref().map(String::as_str)))
+    });
     assert_same_trees(&a, &b);
 }
 
@@ -194,6 +285,7 @@ fn benchmark_on_two_ranks_is_bit_identical_and_a_failed_rank_is_named() {
     if !have_mpirun() {
         return;
     }
+    let _serial = serial();
     let tmp = tempfile::tempdir().unwrap();
     let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join(CASES);
     let bench = |work: &Path| {
@@ -204,6 +296,8 @@ fn benchmark_on_two_ranks_is_bit_identical_and_a_failed_rank_is_named() {
             path_str(&cases),
             "--only",
             "none-1,base_flexibility-1",
+            "--hypotheses",
+            "base_flexibility",
             "--work",
             path_str(work),
             "--report",
@@ -212,25 +306,44 @@ fn benchmark_on_two_ranks_is_bit_identical_and_a_failed_rank_is_named() {
         .map(String::from)
     };
     let (a, b) = (tmp.path().join("one"), tmp.path().join("two"));
-    single(&bench(&a).each_ref().map(String::as_str));
+    timed("benchmark, 2 cases, 1 process", || {
+        single(&bench(&a).each_ref().map(String::as_str))
+    });
     // Rank 1 cannot write its scratch folder: the run fails, naming rank 1 and why;
     // rank 0's case is written and reused by the rerun.
+    let t0 = std::time::Instant::now();
     let failed = Command::new("mpirun")
         .args(["--oversubscribe", "--bind-to", "none"])
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .args(["-n", "1", BIN, "--threads", "1"])
         .args(bench(&b))
-        .args([":", "-n", "1", "-x", "TMPDIR=/dev/null/none", BIN, "--threads", "1"])
+        .args([
+            ":",
+            "-n",
+            "1",
+            "-x",
+            "TMPDIR=/dev/null/none",
+            BIN,
+            "--threads",
+            "1",
+        ])
         .args(bench(&b))
         .output()
         .unwrap();
+    let secs = t0.elapsed().as_secs_f64();
+    eprintln!("timing: benchmark, 2 cases, 2 ranks (rank 1 fails at the end): {secs:.1} s");
     let stderr = String::from_utf8_lossy(&failed.stderr);
     assert!(!failed.status.success(), "{stderr}");
     assert!(stderr.contains("rank 1 of 2 failed"), "{stderr}");
-    assert!(b.join("diagnoses/none-1/diagnosis.json").exists(), "{stderr}");
+    assert!(
+        b.join("diagnoses/none-1/diagnosis.json").exists(),
+        "{stderr}"
+    );
     assert!(!b.join("diagnoses/base_flexibility-1").exists());
-    let out = ok(two_ranks(&bench(&b).each_ref().map(String::as_str)));
+    let out = timed("benchmark, 1 case left (rerun), 2 ranks", || {
+        ok(two_ranks(&bench(&b).each_ref().map(String::as_str)))
+    });
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("none-1: read back"), "{stderr}");
     for id in ["none-1", "base_flexibility-1"] {

@@ -7,10 +7,10 @@ use frfbayes::discrepancy::benchmark::{
 use frfbayes::discrepancy::diagnose::{
     diagnose_resumable, DiagnoseOptions, DiagnoseStage, Diagnosis,
 };
-use frfbayes::discrepancy::DiagnosisRecord;
-use frfbayes::dist;
 use frfbayes::discrepancy::output::write_diagnosis_into;
 use frfbayes::discrepancy::report::record;
+use frfbayes::discrepancy::DiagnosisRecord;
+use frfbayes::dist;
 use frfbayes::infer::evidence::EvidenceOptions;
 use frfbayes::infer::evidence::Stage;
 use frfbayes::io::stages::{fingerprint_folder, fingerprint_setting, Stages};
@@ -18,8 +18,8 @@ use frfbayes::io::{
     read_campaign, read_tree, write_atomic, write_tree, Campaign, OutputClaim, ScratchDir,
     StagedDir,
 };
-use frfbayes::Error;
 use frfbayes::simulate::{SimModel, Simulator};
+use frfbayes::Error;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -189,7 +189,12 @@ fn compute_elsewhere(
     dist::barrier(Ok(()))?;
     let partial = frfbayes::io::partial_path_of(out);
     let stages = (resume && partial.is_dir()).then(|| Stages::read_only(&partial));
-    Ok(diagnose_resumable(campaign, opts, stages.as_ref(), &mut |_| {})?)
+    Ok(diagnose_resumable(
+        campaign,
+        opts,
+        stages.as_ref(),
+        &mut |_| {},
+    )?)
 }
 
 /// Runs `frfbayes diagnose`.
@@ -236,6 +241,10 @@ pub struct BenchArgs {
     /// `diagnose --quick` settings (tests of the command itself).
     #[arg(long, hide = true)]
     pub quick: bool,
+    /// Only these hypotheses in every diagnosis (`diagnose --only`; tests of the
+    /// command itself: the benchmark's verdicts need all of them).
+    #[arg(long, hide = true, value_delimiter = ',')]
+    pub hypotheses: Vec<String>,
 }
 
 /// One diagnosed case as it travels to rank 0: the files of its output folder when
@@ -285,6 +294,7 @@ fn diagnose_case(args: &BenchArgs, case: &BenchmarkCase) -> anyhow::Result<CaseR
     let t0 = Instant::now();
     let mut opts = DiagnoseOptions {
         seed: args.seed,
+        only: args.hypotheses.clone(),
         ..DiagnoseOptions::default()
     };
     if args.quick {

@@ -451,11 +451,7 @@ fn fresh_claimed(
 /// chain (its walkers' densities are spread over the ranks), but only rank 0 writes
 /// `--out`; this rank writes into a scratch folder it deletes. To resume, it copies
 /// the run's state before rank 0 goes on.
-fn on_other_rank(
-    args: &Args,
-    stage: StageFn,
-    on_step: &mut ProgressFn<'_>,
-) -> anyhow::Result<()> {
+fn on_other_rank(args: &Args, stage: StageFn, on_step: &mut ProgressFn<'_>) -> anyhow::Result<()> {
     let scratch = frfbayes::io::ScratchDir::new("sample")?;
     let copied = if args.resume {
         let partial = frfbayes::io::partial_path_of(&args.out);

@@ -425,7 +425,15 @@ pub fn diagnose_resumable(
         picked.len(),
         |k| {
             let (h, best, post) = &picked[k];
-            completion(h.name(), post, &best.map, opts, k as u64 + 1, stages, progress)
+            completion(
+                h.name(),
+                post,
+                &best.map,
+                opts,
+                k as u64 + 1,
+                stages,
+                progress,
+            )
         },
         |k, done| {
             let name = picked[k].0.name();
@@ -437,7 +445,13 @@ pub fn diagnose_resumable(
         .into_iter()
         .zip(done)
         .map(|((h, best, post), done)| {
-            model_result(h.name(), best.location.clone(), post, best.map.clone(), done)
+            model_result(
+                h.name(),
+                best.location.clone(),
+                post,
+                best.map.clone(),
+                done,
+            )
         })
         .collect();
     finalists.sort_by(|a, b| {

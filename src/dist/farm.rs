@@ -158,14 +158,28 @@ mod tests {
     #[test]
     fn one_process_runs_in_order_and_passes_errors_on() {
         let mut seen = Vec::new();
-        let v = farm(3, |i| Ok(10 * i), |i, v| {
-            seen.push((i, *v));
-            Ok(())
-        })
+        let v = farm(
+            3,
+            |i| Ok(10 * i),
+            |i, v| {
+                seen.push((i, *v));
+                Ok(())
+            },
+        )
         .unwrap();
         assert_eq!(v, vec![0, 10, 20]);
         assert_eq!(seen, vec![(0, 0), (1, 10), (2, 20)]);
-        let e = farm(3, |i| if i == 1 { Err(Error::Usage("bad".into())) } else { Ok(i) }, |_, _| Ok(()));
+        let e = farm(
+            3,
+            |i| {
+                if i == 1 {
+                    Err(Error::Usage("bad".into()))
+                } else {
+                    Ok(i)
+                }
+            },
+            |_, _| Ok(()),
+        );
         assert_eq!(e.unwrap_err().to_string(), "bad");
     }
 }

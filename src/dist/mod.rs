@@ -142,7 +142,9 @@ pub fn barrier(mine: std::result::Result<(), String>) -> Result<()> {
 
 /// Rank 0's `value` on every rank of the active communicator (e.g. a list of tasks
 /// that rank 0 decided from the files it owns). Collective.
-pub fn from_root<T: serde::Serialize + serde::de::DeserializeOwned + Clone>(value: &T) -> Result<T> {
+pub fn from_root<T: serde::Serialize + serde::de::DeserializeOwned + Clone>(
+    value: &T,
+) -> Result<T> {
     let comm = active();
     if comm.size() == 1 {
         return Ok(value.clone());

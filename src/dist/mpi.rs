@@ -30,7 +30,10 @@ impl Comm for MpiWorld {
     fn all_gather(&self, mine: &[u8]) -> Result<Vec<Vec<u8>>> {
         let n = self.size();
         let len = Count::try_from(mine.len()).map_err(|_| {
-            Error::Usage(format!("{} bytes are too many for one MPI message", mine.len()))
+            Error::Usage(format!(
+                "{} bytes are too many for one MPI message",
+                mine.len()
+            ))
         })?;
         let mut counts: Vec<Count> = vec![0; n];
         self.comm.all_gather_into(&len, &mut counts[..]);

@@ -5,7 +5,6 @@
 use super::config::ExperimentConfig;
 use super::figures::{comparison_figure, estimate_figures};
 use super::pipeline::{run_variant, run_variant_with, TableId, Variant, VariantRun};
-use crate::update::{MultistartOptions, Problem, UpdateRecord, UpdateResult};
 use super::report::comparison_markdown;
 use super::tables::{PaperTables, ParamTable};
 use crate::error::{Error, Result};
@@ -14,6 +13,7 @@ use crate::io::{
 };
 use crate::signal::{estimate_campaign, TestFrf};
 use crate::update::DampingModel;
+use crate::update::{MultistartOptions, Problem, UpdateRecord, UpdateResult};
 use std::path::{Path, PathBuf};
 
 /// Progress of a run: `(stage, done, total)`.

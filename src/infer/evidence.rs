@@ -325,10 +325,7 @@ pub fn stepping_stone<T: TemperedTarget>(
         ensembles.push(ens);
     }
     let posterior = if opts.final_steps > 0 {
-        let density = Tempered {
-            target,
-            beta: 1.0,
-        };
+        let density = Tempered { target, beta: 1.0 };
         for (r, ens) in ensembles.iter_mut().enumerate() {
             for step in 0..opts.final_steps {
                 let n = ens.step(&density, &moves, true, true, &Ranks)?;

@@ -115,10 +115,7 @@ pub(crate) fn temper<'a, T: TemperedTarget>(
         }
         positions.extend(z);
     }
-    let mut density = Tempered {
-        target,
-        beta: 0.0,
-    };
+    let mut density = Tempered { target, beta: 0.0 };
     let mut ens = Ensemble::from_positions(&density, key, index, positions, rngs, true, &Ranks)?;
     n_likelihood.fetch_add(w as u64, Ordering::Relaxed);
     let (m0, v0) = ln_l_moments(&ens);

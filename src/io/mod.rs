@@ -15,8 +15,8 @@ pub use atomic::{write_atomic, write_atomic_with, StagedDir};
 pub use bundled::resolve_data;
 pub use campaign::{read_campaign, read_nominal};
 pub use output::{partial_path_of, OutputClaim, MANIFEST};
-pub use scratch::{read_tree, write_tree, ScratchDir};
 pub use runinfo::RunInfo;
+pub use scratch::{read_tree, write_tree, ScratchDir};
 pub use types::{
     Campaign, Channel, GeneralModel, NominalModel, Quantity, Test, TestKind, GENERAL, SHEAR_FRAME,
 };

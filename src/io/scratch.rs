@@ -71,7 +71,10 @@ pub fn read_tree(root: &Path) -> Result<Vec<(String, Vec<u8>)>> {
 /// that would leave `root`.
 pub fn write_tree(root: &Path, files: &[(String, Vec<u8>)]) -> Result<()> {
     for (rel, bytes) in files {
-        if rel.split('/').any(|p| p.is_empty() || p == "." || p == "..") {
+        if rel
+            .split('/')
+            .any(|p| p.is_empty() || p == "." || p == "..")
+        {
             return Err(Error::invalid(root, format!("refusing to write {rel:?}")));
         }
         write_atomic(&root.join(rel), bytes)?;

@@ -105,6 +105,7 @@ impl Ensemble {
 
     /// Builds ensemble `index` as `center + scale ⊙ N(0, I)` per walker, each walker
     /// drawing from its own stream.
+    #[allow(clippy::too_many_arguments)]
     pub fn from_ball<D: LogDensity + ?Sized>(
         density: &D,
         key: [u8; 32],
@@ -196,7 +197,9 @@ impl Ensemble {
         evaluator: &dyn Evaluator,
     ) -> Result<u64> {
         let (dim, np) = (self.dim, self.n_pointwise);
-        let members: Vec<usize> = (0..split_of.len()).filter(|&i| split_of[i] == split).collect();
+        let members: Vec<usize> = (0..split_of.len())
+            .filter(|&i| split_of[i] == split)
+            .collect();
         // One row per walker of the split (rows of at least one entry, for `par_chunks_mut`).
         let q_stride = dim.max(1);
         let mut proposals = vec![0.0; members.len() * q_stride];
@@ -227,7 +230,14 @@ impl Ensemble {
                 .zip(rngs)
                 .zip(proposals.par_chunks_mut(q_stride))
                 .with_min_len(min_len)
-                .map(|((&w, rng), q)| mv.propose(&positions[w * dim..(w + 1) * dim], &complement, rng, &mut q[..dim]))
+                .map(|((&w, rng), q)| {
+                    mv.propose(
+                        &positions[w * dim..(w + 1) * dim],
+                        &complement,
+                        rng,
+                        &mut q[..dim],
+                    )
+                })
                 .collect();
             let batch = Batch {
                 ln_p: &mut ln_q,

@@ -108,7 +108,11 @@ impl Evaluator for Ranks {
             .map(|()| (ln_p, pointwise))
             .map_err(|e| e.to_string());
         for (r, (_, values)) in dist::gather_results(comm, &[(rank, mine)])? {
-            let (lp, pw) = values.map_err(|what| Error::Distributed { rank: r, size, what })?;
+            let (lp, pw) = values.map_err(|what| Error::Distributed {
+                rank: r,
+                size,
+                what,
+            })?;
             let (lo, hi) = block(n, size, r);
             if lp.len() != hi - lo || pw.len() != (hi - lo) * np {
                 return Err(Error::Distributed {

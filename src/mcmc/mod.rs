@@ -71,9 +71,9 @@ pub use convergence::{
 };
 pub use density::{DensityFn, LogDensity};
 pub use draws::{Draws, ParamSummary};
-pub use evaluate::{Batch, Evaluator, PointFn, Ranks, Threads};
 /// Used by `infer::evidence` to run tempered ensembles with the same step.
 pub(crate) use ensemble::Ensemble;
+pub use evaluate::{Batch, Evaluator, PointFn, Ranks, Threads};
 pub use independence::{FittedIndependence, Independence};
 pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};
 pub(crate) use rng::{key_from_seed, walker_rng};

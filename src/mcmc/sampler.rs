@@ -27,9 +27,9 @@ pub use super::config::{CheckpointConfig, SamplerConfig, MIN_DRAWS_PER_WALKER, M
 use super::density::LogDensity;
 use super::draws::Draws;
 use super::ensemble::Ensemble;
-use super::evaluate::{Evaluator, Ranks};
 #[allow(unused_imports)] // for the docs
 use super::evaluate::Threads;
+use super::evaluate::{Evaluator, Ranks};
 use super::moves::Moves;
 use super::rng::{key_from_seed, walker_rng};
 use crate::error::{Error, Result};
@@ -162,7 +162,9 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
         let sp = config.store_pointwise;
         let ensembles = match start {
             Start::Ball(ball) => (0..k)
-                .map(|e| Ensemble::from_ball(density, key, e, w, &ball.center, &ball.scale, sp, &Ranks))
+                .map(|e| {
+                    Ensemble::from_ball(density, key, e, w, &ball.center, &ball.scale, sp, &Ranks)
+                })
                 .collect::<Result<Vec<_>>>()?,
             Start::Balls(balls) => {
                 if balls.len() != k {
@@ -174,7 +176,9 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
                 balls
                     .iter()
                     .enumerate()
-                    .map(|(e, b)| Ensemble::from_ball(density, key, e, w, &b.center, &b.scale, sp, &Ranks))
+                    .map(|(e, b)| {
+                        Ensemble::from_ball(density, key, e, w, &b.center, &b.scale, sp, &Ranks)
+                    })
                     .collect::<Result<Vec<_>>>()?
             }
             Start::Positions(p) => {

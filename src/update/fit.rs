@@ -83,7 +83,12 @@ impl From<&UpdateResult> for UpdateRecord {
             starts: r
                 .starts
                 .iter()
-                .map(|s| (s.start.clone(), s.fit.as_ref().map(Fit::clone).map_err(|e| e.to_string())))
+                .map(|s| {
+                    (
+                        s.start.clone(),
+                        s.fit.as_ref().map(Fit::clone).map_err(|e| e.to_string()),
+                    )
+                })
                 .collect(),
         }
     }
