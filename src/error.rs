@@ -33,6 +33,14 @@ pub enum Error {
     /// A caller passed arguments that do not fit together.
     #[error("{0}")]
     Usage(String),
+    /// A rank of a run spread over several processes failed (see [`crate::dist`]);
+    /// every rank returns the same error.
+    #[error("rank {rank} of {size} failed: {what}")]
+    Distributed {
+        rank: usize,
+        size: usize,
+        what: String,
+    },
 }
 
 /// Result with the crate's error.

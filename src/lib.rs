@@ -31,10 +31,13 @@
 //! - [`plot`]: figures (PNG and SVG) from results.
 //! - [`report`]: one self-contained `report.html` per study, from its Markdown and figures.
 //! - [`discrepancy`]: locating and explaining missing physics.
+//! - [`dist`]: runs spread over MPI ranks (task farm, collective gathers); one rank
+//!   without the `mpi` feature.
 //! - [`uff`]: Universal File Format dataset 58 / 58b (measured FRFs in and out).
 
 pub mod bayes;
 pub mod discrepancy;
+pub mod dist;
 pub mod error;
 pub mod experiment;
 pub mod frf;

@@ -60,7 +60,20 @@ fn main() -> std::process::ExitCode {
             return std::process::ExitCode::FAILURE;
         }
     }
+    // Under `mpirun` (cargo feature `mpi`), every rank runs the command (frfbayes::dist).
+    #[cfg(feature = "mpi")]
+    let _mpi = match frfbayes::dist::mpi::init() {
+        Ok(session) => session,
+        Err(e) => {
+            eprintln!("error: MPI: {e}");
+            return std::process::ExitCode::FAILURE;
+        }
+    };
     frfbayes::io::output::set_command(command_name(&cli.command));
+    if !frfbayes::dist::is_root() && !spreads_over_ranks(&cli.command) {
+        // A command that does not spread its work runs on rank 0 alone.
+        return std::process::ExitCode::SUCCESS;
+    }
     let result = match cli.command {
         Command::Check(a) => cli::check::run(a),
         Command::Diagnose(a) => cli::diagnose::run(a),
@@ -78,6 +91,11 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
+            let world = frfbayes::dist::world();
+            if world.size() > 1 {
+                report_rank_failure(&e, world);
+                return std::process::ExitCode::FAILURE;
+            }
             eprintln!("error: {}", error_text(&e));
             if let Some(hint) = io_hint(&e) {
                 eprintln!("hint: {hint}");
@@ -85,6 +103,45 @@ fn main() -> std::process::ExitCode {
             std::process::ExitCode::FAILURE
         }
     }
+}
+
+/// A failed command on one rank of several: an error every rank shares (gathered,
+/// `Error::Distributed`) is reported once, by rank 0, and every rank ends normally; any
+/// other error is this rank's alone, so the others would wait for it forever: it is
+/// reported with the rank and the whole run is aborted.
+fn report_rank_failure(e: &anyhow::Error, world: &dyn frfbayes::dist::Comm) {
+    let shared = e.chain().any(|c| {
+        matches!(
+            c.downcast_ref::<frfbayes::Error>(),
+            Some(frfbayes::Error::Distributed { .. })
+        )
+    });
+    if shared {
+        if world.rank() == 0 {
+            eprintln!("error: {}", error_text(e));
+        }
+    } else {
+        eprintln!(
+            "error on rank {} of {}: {}; aborting every rank",
+            world.rank(),
+            world.size(),
+            error_text(e)
+        );
+        world.abort(1);
+    }
+}
+
+/// Commands whose work is spread over the ranks of an MPI run (every rank runs them).
+fn spreads_over_ranks(c: &Command) -> bool {
+    matches!(
+        c,
+        Command::Sample(_)
+            | Command::Diagnose(_)
+            | Command::DiagnoseBenchmark(_)
+            | Command::Repro(_)
+            | Command::Run(_)
+            | Command::Real(_)
+    )
 }
 
 /// The subcommand's name as typed (recorded in the output folders' manifests).

@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 /// `plot` only renders (it needs `io` for atomic writes); `simulate`, `update` and `mcmc`
 /// sit on the data and model layers; the studies sit on them; `cli` is the binary.
 const LAYERS: &[&[&str]] = &[
+    &["dist"],
     &["model"],
     &["modal"],
     &["frf"],

@@ -21,7 +21,7 @@ use crate::mcmc::quantile;
 use crate::simulate::{DampingSpec, SimModel, Simulator, StructureSpec, TestSpec};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use statrs::distribution::{Binomial, DiscreteCDF};
 
 /// Which sensor noise the simulated campaigns carry (for the diagnosis of the cause).
@@ -59,7 +59,7 @@ pub struct CoverageOptions {
 }
 
 /// One campaign's result, per parameter (the parameters of [`CoverageReport::names`]).
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct CampaignResult {
     pub index: usize,
     pub noise_seed: u64,
@@ -231,7 +231,8 @@ pub fn run_campaign(opts: &CoverageOptions, index: usize) -> Result<CampaignResu
     Ok(out)
 }
 
-/// Runs the whole study, one campaign after the other (`progress` after each).
+/// Runs the whole study, one campaign after the other (`progress` after each, on rank
+/// 0); under MPI the campaigns are dealt over the ranks ([`crate::dist::farm`]).
 pub fn run_coverage(
     opts: &CoverageOptions,
     progress: &dyn Fn(&CampaignResult),
@@ -242,12 +243,15 @@ pub fn run_coverage(
             opts.n_campaigns, opts.level
         )));
     }
-    let mut campaigns = Vec::with_capacity(opts.n_campaigns);
-    for i in 0..opts.n_campaigns {
-        let r = run_campaign(opts, i)?;
-        progress(&r);
-        campaigns.push(r);
-    }
+    // One campaign after the other (dealt over the ranks of an MPI run).
+    let campaigns = crate::dist::farm(
+        opts.n_campaigns,
+        |i| run_campaign(opts, i),
+        |_, r| {
+            progress(r);
+            Ok(())
+        },
+    )?;
     let n_floors = frame_nominal(&opts.base)?.floor_mass_kg.len();
     Ok(CoverageReport {
         names: truth_names(n_floors),

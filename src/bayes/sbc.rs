@@ -70,7 +70,8 @@ pub struct RankTest {
 }
 
 /// Runs SBC on `post`'s prior and likelihood (its measured magnitudes are ignored; its
-/// points and sigmas define the experiment). Replications run in parallel;
+/// points and sigmas define the experiment). Replications run in parallel (over the
+/// ranks of an MPI run, see [`crate::dist::farm`]);
 /// replication `r` draws everything from stream `r` of `seed`, so the result does not
 /// depend on the thread count.
 pub fn run_sbc(post: &FrfPosterior, options: &SbcOptions) -> Result<SbcResult> {
@@ -79,37 +80,47 @@ pub fn run_sbc(post: &FrfPosterior, options: &SbcOptions) -> Result<SbcResult> {
     }
     Moves::from_specs(&options.moves)?;
     let dim = post.dim();
-    let reps: Vec<Result<(Vec<usize>, f64)>> = (0..options.n_replications)
-        .into_par_iter()
-        .map(|r| {
-            let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
-            rng.set_stream(r as u64);
-            let truth = post.sample_prior(&mut rng)?;
-            let y = post.simulate(&truth, &mut rng)?;
-            let p = post.with_magnitude(y)?;
-            let rep_seed = options.seed.wrapping_add(1 + r as u64);
-            let ms = MultistartOptions {
-                n_starts: options.n_starts,
-                seed: rep_seed,
-                ..Default::default()
-            };
-            let start = find_start(&p, &ms)?;
-            let n = options.n_walkers * options.n_ensembles;
-            let positions = ball_positions(&p, &start, n, options.ball_factor, rep_seed)?;
-            let mut config = SamplerConfig::new(options.n_walkers, rep_seed);
-            config.n_ensembles = options.n_ensembles;
-            config.max_steps = options.n_steps;
-            config.check_every = options.n_steps.max(1);
-            let moves = Moves::from_specs(&options.moves)?;
-            let mut sampler = Sampler::new(&p, moves, config, Start::Positions(positions))?;
-            let run = sampler.run(None)?;
-            let draws = sampler.positions();
-            let ranks = (0..dim)
-                .map(|j| draws.iter().filter(|z| z[j] < truth[j]).count())
-                .collect();
-            Ok((ranks, run.acceptance))
-        })
-        .collect();
+    let replication = |r: usize| -> Result<(Vec<usize>, f64)> {
+        let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
+        rng.set_stream(r as u64);
+        let truth = post.sample_prior(&mut rng)?;
+        let y = post.simulate(&truth, &mut rng)?;
+        let p = post.with_magnitude(y)?;
+        let rep_seed = options.seed.wrapping_add(1 + r as u64);
+        let ms = MultistartOptions {
+            n_starts: options.n_starts,
+            seed: rep_seed,
+            ..Default::default()
+        };
+        let start = find_start(&p, &ms)?;
+        let n = options.n_walkers * options.n_ensembles;
+        let positions = ball_positions(&p, &start, n, options.ball_factor, rep_seed)?;
+        let mut config = SamplerConfig::new(options.n_walkers, rep_seed);
+        config.n_ensembles = options.n_ensembles;
+        config.max_steps = options.n_steps;
+        config.check_every = options.n_steps.max(1);
+        let moves = Moves::from_specs(&options.moves)?;
+        let mut sampler = Sampler::new(&p, moves, config, Start::Positions(positions))?;
+        let run = sampler.run(None)?;
+        let draws = sampler.positions();
+        let ranks = (0..dim)
+            .map(|j| draws.iter().filter(|z| z[j] < truth[j]).count())
+            .collect();
+        Ok((ranks, run.acceptance))
+    };
+    // Over the ranks of an MPI run, one replication per rank at a time (each on its
+    // rank's threads); in one process, the replications in parallel.
+    let reps: Vec<Result<(Vec<usize>, f64)>> = if crate::dist::active().size() > 1 {
+        crate::dist::farm(options.n_replications, replication, |_, _| Ok(()))?
+            .into_iter()
+            .map(Ok)
+            .collect()
+    } else {
+        (0..options.n_replications)
+            .into_par_iter()
+            .map(replication)
+            .collect()
+    };
     let mut ranks = vec![Vec::with_capacity(options.n_replications); dim];
     let mut acc = 0.0;
     for rep in reps {

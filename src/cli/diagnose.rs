@@ -1,15 +1,25 @@
 //! `frfbayes diagnose <CAMPAIGN> --out <DIR>`: what physics, if any, the nominal model
 //! leaves out; and `frfbayes diagnose-benchmark`: the same on the simulated benchmark.
 
-use frfbayes::discrepancy::benchmark::{benchmark_markdown, read_cases, CaseOutcome};
-use frfbayes::discrepancy::diagnose::{diagnose_resumable, DiagnoseOptions, DiagnoseStage};
+use frfbayes::discrepancy::benchmark::{
+    benchmark_markdown, read_cases, BenchmarkCase, CaseOutcome,
+};
+use frfbayes::discrepancy::diagnose::{
+    diagnose_resumable, DiagnoseOptions, DiagnoseStage, Diagnosis,
+};
 use frfbayes::discrepancy::output::write_diagnosis_into;
 use frfbayes::discrepancy::report::record;
+use frfbayes::discrepancy::DiagnosisRecord;
+use frfbayes::dist;
 use frfbayes::infer::evidence::EvidenceOptions;
 use frfbayes::infer::evidence::Stage;
 use frfbayes::io::stages::{fingerprint_folder, fingerprint_setting, Stages};
-use frfbayes::io::{read_campaign, write_atomic, Campaign, OutputClaim, StagedDir};
+use frfbayes::io::{
+    read_campaign, read_tree, write_atomic, write_tree, Campaign, OutputClaim, ScratchDir,
+    StagedDir,
+};
 use frfbayes::simulate::{SimModel, Simulator};
+use frfbayes::Error;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -108,7 +118,8 @@ fn quick_options(mut opts: DiagnoseOptions) -> DiagnoseOptions {
 
 /// Diagnoses `campaign` (its folder `source`) into `out`: the folder is claimed first,
 /// every long stage is saved beside it (`.<out>.frfbayes-partial`) for `resume`, and the
-/// output replaces `out` only when complete.
+/// output replaces `out` only when complete. Under MPI this is rank 0's part; the other
+/// ranks run [`compute_elsewhere`] alongside.
 fn run_one(
     campaign: &Campaign,
     source: &Path,
@@ -116,18 +127,11 @@ fn run_one(
     out: &Path,
     resume: bool,
 ) -> anyhow::Result<frfbayes::discrepancy::DiagnosisRecord> {
-    let claim = OutputClaim::claim(out)?;
+    let opened = open_stages(source, opts, out, resume);
+    // The other ranks read the stages only once they are checked (or cleared).
+    dist::barrier(opened.as_ref().map(|_| ()).map_err(|e| e.to_string()))?;
+    let (claim, stages) = opened?;
     let partial = claim.partial_path();
-    if partial.exists() && !resume {
-        eprintln!(
-            "note: discarding the stages of an interrupted run in {} (--resume continues it)",
-            partial.display()
-        );
-    }
-    let mut inputs = fingerprint_folder(source)?;
-    inputs.push(fingerprint_setting("settings", &format!("{opts:?}")));
-    inputs.push(fingerprint_setting("version", env!("CARGO_PKG_VERSION")));
-    let stages = Stages::open(&partial, resume, &inputs)?;
     let pb = spinner();
     let mut cb = |s: DiagnoseStage<'_>| pb.set_message(stage_message(&s));
     let d = diagnose_resumable(campaign, opts, Some(&stages), &mut cb);
@@ -151,6 +155,48 @@ fn run_one(
     Ok(rec)
 }
 
+/// Claims `out` and opens the stages of its diagnosis.
+fn open_stages(
+    source: &Path,
+    opts: &DiagnoseOptions,
+    out: &Path,
+    resume: bool,
+) -> anyhow::Result<(OutputClaim, Stages)> {
+    let claim = OutputClaim::claim(out)?;
+    let partial = claim.partial_path();
+    if partial.exists() && !resume {
+        eprintln!(
+            "note: discarding the stages of an interrupted run in {} (--resume continues it)",
+            partial.display()
+        );
+    }
+    let mut inputs = fingerprint_folder(source)?;
+    inputs.push(fingerprint_setting("settings", &format!("{opts:?}")));
+    inputs.push(fingerprint_setting("version", env!("CARGO_PKG_VERSION")));
+    let stages = Stages::open(&partial, resume, &inputs)?;
+    Ok((claim, stages))
+}
+
+/// The diagnosis [`run_one`] makes, on a rank other than 0 of an MPI run: computed
+/// alongside rank 0 (the evidence runs of the hypotheses are shared out), reading back
+/// the stages rank 0 saved when resuming, writing nothing.
+fn compute_elsewhere(
+    campaign: &Campaign,
+    opts: &DiagnoseOptions,
+    out: &Path,
+    resume: bool,
+) -> anyhow::Result<Diagnosis> {
+    dist::barrier(Ok(()))?;
+    let partial = frfbayes::io::partial_path_of(out);
+    let stages = (resume && partial.is_dir()).then(|| Stages::read_only(&partial));
+    Ok(diagnose_resumable(
+        campaign,
+        opts,
+        stages.as_ref(),
+        &mut |_| {},
+    )?)
+}
+
 /// Runs `frfbayes diagnose`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (campaign, source) = open_campaign(&args.campaign)?;
@@ -161,6 +207,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     if args.quick {
         opts = quick_options(opts);
+    }
+    if !dist::is_root() {
+        compute_elsewhere(&campaign, &opts, &args.out, args.resume)?;
+        return Ok(());
     }
     let rec = run_one(&campaign, &source, &opts, &args.out, args.resume)?;
     println!("{}", rec.explanation);
@@ -191,73 +241,184 @@ pub struct BenchArgs {
     /// `diagnose --quick` settings (tests of the command itself).
     #[arg(long, hide = true)]
     pub quick: bool,
+    /// Only these hypotheses in every diagnosis (`diagnose --only`; tests of the
+    /// command itself: the benchmark's verdicts need all of them).
+    #[arg(long, hide = true, value_delimiter = ',')]
+    pub hypotheses: Vec<String>,
 }
 
-/// Runs `frfbayes diagnose-benchmark`.
+/// One diagnosed case as it travels to rank 0: the files of its output folder when
+/// another rank computed it (rank 0 writes its own cases directly).
+#[derive(serde::Serialize, serde::Deserialize)]
+struct CaseRun {
+    record: DiagnosisRecord,
+    seconds: f64,
+    files: Vec<(String, Vec<u8>)>,
+}
+
+/// The case's campaign folder and output folder.
+fn case_dirs(work: &Path, case: &BenchmarkCase) -> (PathBuf, PathBuf) {
+    (
+        work.join("campaigns").join(&case.id),
+        work.join("diagnoses").join(&case.id),
+    )
+}
+
+/// Simulates the campaigns not yet in `work` (rank 0; the others wait and read them).
+fn simulate_missing(work: &Path, cases: &[BenchmarkCase]) -> anyhow::Result<()> {
+    let simulate = || -> anyhow::Result<()> {
+        if !dist::is_root() {
+            return Ok(());
+        }
+        for case in cases {
+            let (campaign_dir, _) = case_dirs(work, case);
+            if !campaign_dir.join("campaign.toml").exists() {
+                eprintln!("simulating {}", case.id);
+                let sim = Simulator::new(SimModel::from_path(&case.model)?)?;
+                let campaign = sim.run(case.seed, &|_| {})?;
+                frfbayes::io::write_campaign(&campaign, &campaign_dir)?;
+            }
+        }
+        Ok(())
+    };
+    let done = simulate();
+    dist::barrier(done.as_ref().map(|_| ()).map_err(|e| format!("{e:#}")))?;
+    done
+}
+
+/// Diagnoses one case: on rank 0 into its output folder (with resumable stages), on
+/// another rank into a scratch folder whose files go to rank 0.
+fn diagnose_case(args: &BenchArgs, case: &BenchmarkCase) -> anyhow::Result<CaseRun> {
+    let (campaign_dir, out_dir) = case_dirs(&args.work, case);
+    let campaign = read_campaign(&campaign_dir)?;
+    let t0 = Instant::now();
+    let mut opts = DiagnoseOptions {
+        seed: args.seed,
+        only: args.hypotheses.clone(),
+        ..DiagnoseOptions::default()
+    };
+    if args.quick {
+        opts = quick_options(opts);
+    }
+    if dist::is_root() {
+        let record = run_one(&campaign, &campaign_dir, &opts, &out_dir, args.resume)?;
+        let seconds = t0.elapsed().as_secs_f64();
+        write_seconds(&out_dir, seconds)?;
+        return Ok(CaseRun {
+            record,
+            seconds,
+            files: Vec::new(),
+        });
+    }
+    let d = compute_elsewhere(&campaign, &opts, &out_dir, args.resume)?;
+    let scratch = ScratchDir::new("diagnosis")?;
+    write_diagnosis_into(&d, &campaign.title, scratch.path())?;
+    eprintln!("{}: diagnosed on rank {}", case.id, dist::world().rank());
+    Ok(CaseRun {
+        record: record(&d),
+        seconds: t0.elapsed().as_secs_f64(),
+        files: read_tree(scratch.path())?,
+    })
+}
+
+fn write_seconds(out_dir: &Path, seconds: f64) -> anyhow::Result<()> {
+    write_atomic(
+        &out_dir.join("seconds.txt"),
+        format!("{seconds:.1}\n").as_bytes(),
+    )?;
+    Ok(())
+}
+
+/// Rank 0 writes a case another rank diagnosed (as [`run_one`] would have).
+fn write_case(out_dir: &Path, run: &CaseRun) -> anyhow::Result<()> {
+    if run.files.is_empty() {
+        return Ok(());
+    }
+    let claim = OutputClaim::claim(out_dir)?;
+    let partial = claim.partial_path();
+    let staged = StagedDir::in_claim(claim)?;
+    write_tree(staged.path(), &run.files)?;
+    staged.commit()?;
+    if partial.exists() {
+        if let Err(e) = std::fs::remove_dir_all(&partial) {
+            eprintln!("warning: {}: could not delete ({e})", partial.display());
+        }
+    }
+    write_seconds(out_dir, run.seconds)
+}
+
+/// A case diagnosed by an earlier run, read back from `work`.
+fn read_back(out_dir: &Path) -> anyhow::Result<(DiagnosisRecord, f64)> {
+    let done = out_dir.join("diagnosis.json");
+    let text = std::fs::read_to_string(&done)?;
+    let record: DiagnosisRecord =
+        serde_json::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", done.display()))?;
+    let seconds = std::fs::read_to_string(out_dir.join("seconds.txt"))
+        .ok()
+        .and_then(|t| t.trim().parse().ok())
+        .unwrap_or(f64::NAN);
+    Ok((record, seconds))
+}
+
+/// Channel name -> quantity name of a campaign.
+fn channel_quantities(campaign: &Campaign) -> BTreeMap<String, String> {
+    campaign
+        .tests
+        .iter()
+        .flat_map(|t| t.channels.iter())
+        .map(|c| {
+            (
+                c.name.clone(),
+                serde_json::to_value(c.quantity)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string))
+                    .unwrap_or_default(),
+            )
+        })
+        .collect()
+}
+
+/// Runs `frfbayes diagnose-benchmark`. Under MPI the cases not yet diagnosed are dealt
+/// over the ranks (`frfbayes::dist::farm`) and rank 0 writes each as its round ends.
 pub fn bench(args: BenchArgs) -> anyhow::Result<()> {
     let (hypotheses, cases) = read_cases(&args.cases)?;
-    let mut outcomes = Vec::new();
-    for case in cases
+    let cases: Vec<BenchmarkCase> = cases
         .into_iter()
         .filter(|c| args.only.is_empty() || args.only.contains(&c.id))
-    {
-        let campaign_dir = args.work.join("campaigns").join(&case.id);
-        if !campaign_dir.join("campaign.toml").exists() {
-            eprintln!("simulating {}", case.id);
-            let model = SimModel::from_path(&case.model)?;
-            let sim = Simulator::new(model)?;
-            let campaign = sim.run(case.seed, &|_| {})?;
-            frfbayes::io::write_campaign(&campaign, &campaign_dir)?;
-        }
+        .collect();
+    simulate_missing(&args.work, &cases)?;
+    // Resumable: a case already diagnosed in `work` is read back, not run again (rank 0
+    // decides, from the folders it wrote).
+    let done = |c: &BenchmarkCase| case_dirs(&args.work, c).1.join("diagnosis.json").exists();
+    let pending: Vec<usize> = (0..cases.len()).filter(|&i| !done(&cases[i])).collect();
+    let pending = dist::from_root(&pending)?;
+    let runs = dist::farm(
+        pending.len(),
+        |k| diagnose_case(&args, &cases[pending[k]]).map_err(|e| Error::Usage(format!("{e:#}"))),
+        |k, run| {
+            let (_, out_dir) = case_dirs(&args.work, &cases[pending[k]]);
+            write_case(&out_dir, run).map_err(|e| Error::Usage(format!("{e:#}")))
+        },
+    )?;
+    if !dist::is_root() {
+        return Ok(());
+    }
+    let mut runs: BTreeMap<usize, CaseRun> = pending.into_iter().zip(runs).collect();
+    let mut outcomes = Vec::new();
+    for (i, case) in cases.into_iter().enumerate() {
+        let (campaign_dir, out_dir) = case_dirs(&args.work, &case);
         let campaign = read_campaign(&campaign_dir)?;
-        let channel_quantity: BTreeMap<String, String> = campaign
-            .tests
-            .iter()
-            .flat_map(|t| t.channels.iter())
-            .map(|c| {
-                (
-                    c.name.clone(),
-                    serde_json::to_value(c.quantity)
-                        .ok()
-                        .and_then(|v| v.as_str().map(str::to_string))
-                        .unwrap_or_default(),
-                )
-            })
-            .collect();
-        // Resumable: a case already diagnosed in `work` is read back, not run again.
-        let out_dir = args.work.join("diagnoses").join(&case.id);
-        let done = out_dir.join("diagnosis.json");
-        let (record, seconds) = if done.exists() {
-            let text = std::fs::read_to_string(&done)?;
-            let record: frfbayes::discrepancy::DiagnosisRecord = serde_json::from_str(&text)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", done.display()))?;
-            let seconds = std::fs::read_to_string(out_dir.join("seconds.txt"))
-                .ok()
-                .and_then(|t| t.trim().parse().ok())
-                .unwrap_or(f64::NAN);
-            eprintln!("{}: read back from {}", case.id, done.display());
-            (record, seconds)
-        } else {
-            let t0 = Instant::now();
-            let mut opts = DiagnoseOptions {
-                seed: args.seed,
-                ..DiagnoseOptions::default()
-            };
-            if args.quick {
-                opts = quick_options(opts);
+        let (record, seconds) = match runs.remove(&i) {
+            Some(run) => (run.record, run.seconds),
+            None => {
+                eprintln!("{}: read back from {}", case.id, out_dir.display());
+                read_back(&out_dir)?
             }
-            let record = run_one(&campaign, &campaign_dir, &opts, &out_dir, args.resume)?;
-            let seconds = t0.elapsed().as_secs_f64();
-            write_atomic(
-                &out_dir.join("seconds.txt"),
-                format!("{seconds:.1}\n").as_bytes(),
-            )?;
-            (record, seconds)
         };
         outcomes.push(CaseOutcome {
+            channel_quantity: channel_quantities(&campaign),
             case,
             record,
-            channel_quantity,
             seconds,
         });
     }

@@ -75,6 +75,9 @@ pub fn run_cmd(args: Args) -> anyhow::Result<()> {
     };
     let timings = run(dataset, &data, &out, args.seed, &mut Sampling::new(on_step));
     let timings = timings?;
+    if !frfbayes::dist::is_root() {
+        return Ok(());
+    }
     for (stage, t) in &timings {
         println!("{stage}: {t:.2} s");
     }

@@ -52,6 +52,9 @@ fn execute(cfg: &ExperimentConfig) -> anyhow::Result<Outcome> {
     let outcome = run_experiment(cfg, &progress);
     pb.finish_and_clear();
     let outcome = outcome?;
+    if !frfbayes::dist::is_root() {
+        return Ok(outcome);
+    }
     println!("wrote {}", outcome.out.display());
     for (stage, s) in &outcome.info.timings_s {
         println!("  {stage:<22} {s:8.2} s");

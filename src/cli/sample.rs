@@ -447,6 +447,34 @@ fn fresh_claimed(
     Ok(o)
 }
 
+/// The same run on a rank other than 0 of an MPI run: every rank samples the same
+/// chain (its walkers' densities are spread over the ranks), but only rank 0 writes
+/// `--out`; this rank writes into a scratch folder it deletes. To resume, it copies
+/// the run's state before rank 0 goes on.
+fn on_other_rank(args: &Args, stage: StageFn, on_step: &mut ProgressFn<'_>) -> anyhow::Result<()> {
+    let scratch = frfbayes::io::ScratchDir::new("sample")?;
+    let copied = if args.resume {
+        let partial = frfbayes::io::partial_path_of(&args.out);
+        let from = if checkpoint_path(&partial).exists() {
+            partial
+        } else {
+            args.out.clone()
+        };
+        frfbayes::io::read_tree(&from)
+            .and_then(|files| frfbayes::io::write_tree(scratch.path(), &files))
+            .map_err(|e| e.to_string())
+    } else {
+        Ok(())
+    };
+    frfbayes::dist::barrier(copied)?;
+    if args.resume {
+        resume_sample(scratch.path(), args.max_steps, stage, Some(on_step))?;
+    } else {
+        run_sample(&args.settings()?, scratch.path(), stage, Some(on_step))?;
+    }
+    Ok(())
+}
+
 /// Runs or resumes a sampling run.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let pb = progress_bar();
@@ -461,7 +489,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         pb.set_message(format!("acceptance {:.3}{tau}", p.acceptance));
         ControlFlow::Continue(())
     };
-    let claim = OutputClaim::claim(&args.out)?;
+    if !frfbayes::dist::is_root() {
+        let outcome = on_other_rank(&args, &stage, &mut on_step);
+        pb.finish_and_clear();
+        return outcome;
+    }
+    let claim = OutputClaim::claim(&args.out);
+    // Under MPI, the other ranks copy a run to resume before this rank goes on.
+    frfbayes::dist::barrier(claim.as_ref().map(|_| ()).map_err(|e| e.to_string()))?;
+    let claim = claim?;
     let outcome = if args.resume {
         resume_claimed(&args, claim, &stage, &mut on_step)
     } else {

@@ -229,19 +229,22 @@ struct Completion {
     why: String,
 }
 
+/// The stage key of model `name`'s evidence run.
+fn evidence_key(name: &str) -> String {
+    format!("evidence-{name}")
+}
+
 /// Evidence, draws and summaries of one model at its MAP (read back from `stages` when
 /// an interrupted run finished it).
-#[allow(clippy::too_many_arguments)]
-fn complete(
+fn completion(
     name: &str,
-    location: Location,
-    post: ModelPosterior,
-    map: MapFit,
+    post: &ModelPosterior,
+    map: &MapFit,
     opts: &DiagnoseOptions,
     model_index: u64,
     stages: Option<&Stages>,
     progress: &mut dyn FnMut(DiagnoseStage<'_>),
-) -> Result<ModelResult> {
+) -> Result<Completion> {
     let run = || -> Result<Completion> {
         let eopts = evidence_options(opts, post.dim(), model_index);
         let mut cb = |p: EvidenceProgress| {
@@ -250,7 +253,7 @@ fn complete(
                 progress: p,
             })
         };
-        let evidence = stepping_stone(&post, &eopts, Some(&mut cb))?;
+        let evidence = stepping_stone(post, &eopts, Some(&mut cb))?;
         let draws: Vec<Vec<f64>> = match &evidence.posterior {
             Some(p) => p
                 .draws
@@ -260,7 +263,7 @@ fn complete(
                 .collect(),
             None => vec![map.z.clone()],
         };
-        let (effect, plausible, why) = effect_summaries(&post, &draws)?;
+        let (effect, plausible, why) = effect_summaries(post, &draws)?;
         Ok(Completion {
             evidence,
             effect,
@@ -268,24 +271,29 @@ fn complete(
             why,
         })
     };
-    let Completion {
-        evidence,
-        effect,
-        plausible,
-        why,
-    } = staged(stages, &format!("evidence-{name}"), run)?;
-    Ok(ModelResult {
+    staged(stages, &evidence_key(name), run)
+}
+
+/// One model's result from its evidence run.
+fn model_result(
+    name: &str,
+    location: Location,
+    posterior: ModelPosterior,
+    map: MapFit,
+    done: Completion,
+) -> ModelResult {
+    ModelResult {
         name: name.to_string(),
         location,
-        posterior: post,
+        posterior,
         map,
-        evidence: Some(evidence),
-        effect,
-        plausible,
-        implausible_because: why,
+        evidence: Some(done.evidence),
+        effect: done.effect,
+        plausible: done.plausible,
+        implausible_because: done.why,
         held_out: None,
         time_domain: None,
-    })
+    }
 }
 
 /// Runs the diagnosis of `campaign` (see the module docs).
@@ -324,16 +332,8 @@ pub fn diagnose_resumable(
         fit_map(&post0, &starts, &opts.map)
     })?;
     mark("nominal MAP", &mut timings);
-    let nominal = complete(
-        "nominal",
-        Location::Whole,
-        post0,
-        map0.clone(),
-        opts,
-        0,
-        stages,
-        progress,
-    )?;
+    let done = completion("nominal", &post0, &map0, opts, 0, stages, progress)?;
+    let nominal = model_result("nominal", Location::Whole, post0, map0.clone(), done);
     mark("nominal evidence", &mut timings);
 
     let hypotheses: Vec<Arc<dyn Hypothesis>> = all_hypotheses()
@@ -346,25 +346,39 @@ pub fn diagnose_resumable(
         map: opts.map.clone(),
         seed: opts.seed,
     };
-    let mut searches = Vec::new();
-    for h in &hypotheses {
-        let mut cb = |name: &str, loc: &Location| {
-            progress(DiagnoseStage::Search {
-                hypothesis: name,
-                location: loc,
+    // The hypotheses' searches, one farmed task each (over the ranks of an MPI run).
+    let key = |h: &Arc<dyn Hypothesis>| format!("search-{}", h.name());
+    let found = crate::dist::farm(
+        hypotheses.len(),
+        |i| {
+            let h = &hypotheses[i];
+            let mut cb = |name: &str, loc: &Location| {
+                progress(DiagnoseStage::Search {
+                    hypothesis: name,
+                    location: loc,
+                })
+            };
+            staged(stages, &key(h), || {
+                search(&data, h, &map0.z, &sopts, &mut cb).map(|s| (s.tried, s.failed))
             })
-        };
-        let (tried, failed) = staged(stages, &format!("search-{}", h.name()), || {
-            search(&data, h, &map0.z, &sopts, &mut cb).map(|s| (s.tried, s.failed))
-        })?;
-        let found = HypothesisSearch {
-            name: h.name(),
-            tried,
-            failed,
-        };
-        searches.push((h.clone(), found));
-        mark(&format!("search {}", h.name()), &mut timings);
-    }
+        },
+        |i, found| {
+            mark(&format!("search {}", hypotheses[i].name()), &mut timings);
+            stages.map_or(Ok(()), |s| s.save_if_absent(&key(&hypotheses[i]), found))
+        },
+    )?;
+    let searches: Vec<_> = hypotheses
+        .iter()
+        .zip(found)
+        .map(|(h, (tried, failed))| {
+            let found = HypothesisSearch {
+                name: h.name(),
+                tried,
+                failed,
+            };
+            (h.clone(), found)
+        })
+        .collect();
 
     let mut laplace_z = vec![(
         "nominal".to_string(),
@@ -398,23 +412,48 @@ pub fn diagnose_resumable(
         lb.total_cmp(&la)
     });
     order.truncate(opts.max_evidence_runs);
-    let mut finalists = Vec::new();
-    for (k, &i) in order.iter().enumerate() {
-        let (h, s) = &searches[i];
-        let Some(best) = s.best() else { continue };
-        let post = ModelPosterior::new(data.clone(), Some((h.clone(), best.location.clone())))?;
-        finalists.push(complete(
-            h.name(),
-            best.location.clone(),
-            post,
-            best.map.clone(),
-            opts,
-            k as u64 + 1,
-            stages,
-            progress,
-        )?);
-        mark(&format!("evidence {}", h.name()), &mut timings);
-    }
+    // Their evidence runs, one farmed task each.
+    let picked: Vec<_> = order
+        .iter()
+        .filter_map(|&i| searches[i].1.best().map(|b| (&searches[i].0, b)))
+        .map(|(h, b)| {
+            let post = ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())));
+            post.map(|p| (h, b, p))
+        })
+        .collect::<Result<_>>()?;
+    let done = crate::dist::farm(
+        picked.len(),
+        |k| {
+            let (h, best, post) = &picked[k];
+            completion(
+                h.name(),
+                post,
+                &best.map,
+                opts,
+                k as u64 + 1,
+                stages,
+                progress,
+            )
+        },
+        |k, done| {
+            let name = picked[k].0.name();
+            mark(&format!("evidence {name}"), &mut timings);
+            stages.map_or(Ok(()), |s| s.save_if_absent(&evidence_key(name), done))
+        },
+    )?;
+    let mut finalists: Vec<ModelResult> = picked
+        .into_iter()
+        .zip(done)
+        .map(|((h, best, post), done)| {
+            model_result(
+                h.name(),
+                best.location.clone(),
+                post,
+                best.map.clone(),
+                done,
+            )
+        })
+        .collect();
     finalists.sort_by(|a, b| {
         b.ln_z()
             .unwrap_or(f64::NEG_INFINITY)

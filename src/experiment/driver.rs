@@ -4,7 +4,7 @@
 
 use super::config::ExperimentConfig;
 use super::figures::{comparison_figure, estimate_figures};
-use super::pipeline::{run_variant, TableId, Variant, VariantRun};
+use super::pipeline::{run_variant, run_variant_with, TableId, Variant, VariantRun};
 use super::report::comparison_markdown;
 use super::tables::{PaperTables, ParamTable};
 use crate::error::{Error, Result};
@@ -13,6 +13,7 @@ use crate::io::{
 };
 use crate::signal::{estimate_campaign, TestFrf};
 use crate::update::DampingModel;
+use crate::update::{MultistartOptions, Problem, UpdateRecord, UpdateResult};
 use std::path::{Path, PathBuf};
 
 /// Progress of a run: `(stage, done, total)`.
@@ -135,10 +136,61 @@ pub fn remove_sensor_low_pass(
     Ok(())
 }
 
+/// Every variant's multistart update, one farmed task each (dealt over the ranks of an
+/// MPI run, [`crate::dist::farm`]); the variants are then completed from their updates
+/// on every rank.
+fn update_variants(
+    model: &crate::model::StructuralModel,
+    frfs: &[TestFrf],
+    variants: &[Variant],
+    cfg: &ExperimentConfig,
+    progress: Progress,
+) -> Result<Vec<VariantRun>> {
+    let n = variants.len();
+    let label = |v: &Variant| format!("updating {} {}", v.table.key(), v.column());
+    if let Some(v) = variants.first() {
+        progress(&label(v), 0, n);
+    }
+    let updates = crate::dist::farm(
+        n,
+        |i| {
+            let run = run_variant(model, frfs, variants[i], cfg, cfg.seed)?;
+            Ok((UpdateRecord::from(&run.result), run.wall_s))
+        },
+        |i, _| {
+            if let Some(v) = variants.get(i + 1) {
+                progress(&label(v), i + 1, n);
+            }
+            Ok(())
+        },
+    )?;
+    variants
+        .iter()
+        .zip(updates)
+        .map(|(v, (u, wall_s))| {
+            let solved = std::cell::RefCell::new(Some(u));
+            let solve = |_: &Problem, _: &MultistartOptions| {
+                solved
+                    .borrow_mut()
+                    .take()
+                    .map(UpdateResult::from)
+                    .ok_or_else(|| Error::Usage("a variant's update was used twice".into()))
+            };
+            let mut run = run_variant_with(model, frfs, *v, cfg, cfg.seed, &solve)?;
+            run.wall_s = wall_s;
+            Ok(run)
+        })
+        .collect()
+}
+
 /// Runs the experiment and writes its output folder.
 pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outcome> {
-    // Claim the output folder first: a refusal comes before minutes of updating.
-    let claim = OutputClaim::claim(&cfg.out)?;
+    // Claim the output folder first: a refusal comes before minutes of updating. Under
+    // MPI only rank 0 writes (the others compute alongside and write nothing).
+    let claim = match crate::dist::is_root() {
+        true => Some(OutputClaim::claim(&cfg.out)?),
+        false => None,
+    };
     let config_json = serde_json::to_value(cfg).map_err(|e| Error::Usage(e.to_string()))?;
     let mut info = RunInfo::start(cfg.seed, config_json, cfg.data.clone());
     let root = resolve_data(&cfg.data)?;
@@ -156,16 +208,8 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         .into_iter()
         .filter(|v| frfs.iter().any(|f| v.table.includes(f)))
         .collect();
-    let mut runs = Vec::new();
     let t_update = std::time::Instant::now();
-    for (i, v) in variants.iter().enumerate() {
-        progress(
-            &format!("updating {} {}", v.table.key(), v.column()),
-            i,
-            variants.len(),
-        );
-        runs.push(run_variant(&model, &frfs, *v, cfg, cfg.seed)?);
-    }
+    let runs = update_variants(&model, &frfs, &variants, cfg, progress)?;
     progress("updating", variants.len(), variants.len());
     info.timings_s.push((
         "update_all_variants".into(),
@@ -178,6 +222,15 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
         None => Vec::new(),
     };
 
+    let Some(claim) = claim else {
+        return Ok(Outcome {
+            out: cfg.out.clone(),
+            campaign,
+            frfs,
+            runs,
+            info,
+        });
+    };
     let staged = StagedDir::in_claim(claim)?;
     let dir = staged.path().to_path_buf();
     let paper = PaperTables::bundled()?;

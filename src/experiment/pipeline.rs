@@ -258,6 +258,19 @@ pub fn run_variant(
     cfg: &ExperimentConfig,
     seed: u64,
 ) -> Result<VariantRun> {
+    run_variant_with(model, frfs, variant, cfg, seed, &|p, ms| update(p, ms))
+}
+
+/// [`run_variant`] with the multistart update made by `solve` (e.g. one computed on
+/// another rank of an MPI run).
+pub fn run_variant_with(
+    model: &StructuralModel,
+    frfs: &[TestFrf],
+    variant: Variant,
+    cfg: &ExperimentConfig,
+    seed: u64,
+    solve: &dyn Fn(&Problem, &MultistartOptions) -> Result<UpdateResult>,
+) -> Result<VariantRun> {
     let t0 = Instant::now();
     let group: Vec<&TestFrf> = frfs.iter().filter(|f| variant.table.includes(f)).collect();
     if group.is_empty() {
@@ -296,7 +309,7 @@ pub fn run_variant(
         seed,
         ..Default::default()
     };
-    let result = update(&problem, &ms)?;
+    let result = solve(&problem, &ms)?;
     let initial = problem.variables().initial();
     let labels: Vec<String> = data
         .blocks

@@ -60,7 +60,7 @@ use super::tempering::{temper, Tempered, TemperingRun};
 use crate::error::{Error, Result};
 use crate::mcmc::{
     ensemble_diagnostics, integrated_time, key_from_seed, Diagnostics, Draws, MoveSpec, Moves,
-    WeightedMove,
+    Ranks, WeightedMove,
 };
 
 /// A model for evidence computation: a normalised prior and a likelihood.
@@ -325,14 +325,11 @@ pub fn stepping_stone<T: TemperedTarget>(
         ensembles.push(ens);
     }
     let posterior = if opts.final_steps > 0 {
-        let density = Tempered {
-            target,
-            beta: 1.0,
-            n_likelihood: &counter,
-        };
+        let density = Tempered { target, beta: 1.0 };
         for (r, ens) in ensembles.iter_mut().enumerate() {
             for step in 0..opts.final_steps {
-                ens.step(&density, &moves, true, true)?;
+                let n = ens.step(&density, &moves, true, true, &Ranks)?;
+                counter.fetch_add(n, Ordering::Relaxed);
                 ens.store();
                 if let Some(cb) = progress.as_deref_mut() {
                     cb(EvidenceProgress {

@@ -10,15 +10,17 @@ use serde::Serialize;
 
 use super::evidence::{EvidenceOptions, EvidenceProgress, Stage, TemperedTarget};
 use crate::error::{Error, Result};
-use crate::mcmc::{walker_rng, Ensemble, LogDensity, Moves};
+use crate::mcmc::{walker_rng, Ensemble, LogDensity, Moves, Ranks};
 
 /// The power posterior `beta ln L(z) + ln pi(z)` as a [`LogDensity`], with the two terms
 /// `[ln L, ln pi]` as its pointwise values so that the ensemble keeps them per walker.
+/// Its callers count the likelihood evaluations from the ensemble's finite
+/// evaluations (a point's density is finite exactly when its prior is finite and its
+/// likelihood was computed), so the count does not depend on which rank computed a
+/// point.
 pub(crate) struct Tempered<'a, T: TemperedTarget> {
     pub target: &'a T,
     pub beta: f64,
-    /// Likelihood evaluations (shared by every temperature of a run).
-    pub n_likelihood: &'a AtomicU64,
 }
 
 impl<T: TemperedTarget> LogDensity for Tempered<'_, T> {
@@ -43,7 +45,6 @@ impl<T: TemperedTarget> LogDensity for Tempered<'_, T> {
             )));
         }
         let ln_l = self.target.ln_likelihood(z)?;
-        self.n_likelihood.fetch_add(1, Ordering::Relaxed);
         if !ln_l.is_finite() {
             return Err(Error::Numerical(format!(
                 "ln_likelihood is {ln_l} at z = {z:?} inside the prior support; it must be \
@@ -114,12 +115,9 @@ pub(crate) fn temper<'a, T: TemperedTarget>(
         }
         positions.extend(z);
     }
-    let mut density = Tempered {
-        target,
-        beta: 0.0,
-        n_likelihood,
-    };
-    let mut ens = Ensemble::from_positions(&density, key, index, positions, rngs, true)?;
+    let mut density = Tempered { target, beta: 0.0 };
+    let mut ens = Ensemble::from_positions(&density, key, index, positions, rngs, true, &Ranks)?;
+    n_likelihood.fetch_add(w as u64, Ordering::Relaxed);
     let (m0, v0) = ln_l_moments(&ens);
     let mut run = TemperingRun {
         ln_z: 0.0,
@@ -164,7 +162,8 @@ pub(crate) fn temper<'a, T: TemperedTarget>(
         let accepted_before: u64 = ens.accepted.iter().sum();
         let mut steps = 0;
         while steps < opts.max_steps_per_temperature {
-            ens.step(&density, moves, true, true)?;
+            let n = ens.step(&density, moves, true, true, &Ranks)?;
+            n_likelihood.fetch_add(n, Ordering::Relaxed);
             steps += 1;
             if steps >= opts.min_steps_per_temperature
                 && metric.mean_squared_jump(&start, &ens.positions) >= opts.jump_target

@@ -6,6 +6,7 @@ pub mod bundled;
 mod campaign;
 pub mod output;
 pub mod runinfo;
+pub mod scratch;
 pub mod stages;
 mod types;
 mod writer;
@@ -13,8 +14,9 @@ mod writer;
 pub use atomic::{write_atomic, write_atomic_with, StagedDir};
 pub use bundled::resolve_data;
 pub use campaign::{read_campaign, read_nominal};
-pub use output::{OutputClaim, MANIFEST};
+pub use output::{partial_path_of, OutputClaim, MANIFEST};
 pub use runinfo::RunInfo;
+pub use scratch::{read_tree, write_tree, ScratchDir};
 pub use types::{
     Campaign, Channel, GeneralModel, NominalModel, Quantity, Test, TestKind, GENERAL, SHEAR_FRAME,
 };

@@ -101,7 +101,7 @@ impl OutputClaim {
 
     /// The staging folder of a resumable run (the same for every process).
     pub fn partial_path(&self) -> PathBuf {
-        self.sibling("frfbayes-partial")
+        partial_path_of(&self.target)
     }
 
     fn sibling(&self, suffix: &str) -> PathBuf {
@@ -188,6 +188,12 @@ fn parent_of(target: &Path) -> &Path {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."))
+}
+
+/// The partial folder of a resumable run into `target` ([`OutputClaim::partial_path`]),
+/// for readers that do not claim it (the other ranks of an MPI run).
+pub fn partial_path_of(target: &Path) -> PathBuf {
+    target.with_file_name(format!(".{}.frfbayes-partial", name_of(target)))
 }
 
 fn name_of(target: &Path) -> String {

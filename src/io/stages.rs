@@ -28,6 +28,9 @@ pub type Fingerprint = Vec<(String, u32)>;
 #[derive(Debug)]
 pub struct Stages {
     dir: PathBuf,
+    /// False for a reader that must not write (another rank of an MPI run reading
+    /// the stages rank 0 saves).
+    writable: bool,
 }
 
 impl Stages {
@@ -58,7 +61,28 @@ impl Stages {
         }
         Ok(Stages {
             dir: dir.to_path_buf(),
+            writable: true,
         })
+    }
+
+    /// The stages in `dir` as a reader: [`Stages::get_or_run`] reads back the stages
+    /// present and computes the others without saving them. For the ranks other than 0
+    /// of an MPI run (rank 0 opened `dir`, checked its inputs, and saves every stage).
+    pub fn read_only(dir: &Path) -> Self {
+        Stages {
+            dir: dir.to_path_buf(),
+            writable: false,
+        }
+    }
+
+    /// Saves stage `key` unless it is saved already or the stages are read-only (a
+    /// result computed elsewhere, e.g. on another rank).
+    pub fn save_if_absent<T: Serialize>(&self, key: &str, value: &T) -> Result<()> {
+        let path = self.path(key);
+        if self.writable && !path.exists() {
+            write_stage(&path, value)?;
+        }
+        Ok(())
     }
 
     /// The file of stage `key`.
@@ -87,7 +111,9 @@ impl Stages {
             return read_stage(&path);
         }
         let value = f()?;
-        write_stage(&path, &value)?;
+        if self.writable {
+            write_stage(&path, &value)?;
+        }
         Ok(value)
     }
 }

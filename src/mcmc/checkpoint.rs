@@ -240,6 +240,7 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
                 })
                 .collect(),
             failed: None,
+            evaluator: Box::new(super::evaluate::Ranks),
         })
     }
 }

@@ -4,9 +4,10 @@
 //! walker `i` to split `i mod n_splits`, shuffled with the ensemble stream when
 //! `randomize_split`; for each split in turn, every walker of the split proposes from
 //! the other walkers (the complement, fixed during the split) and is accepted when
-//! `ln u < ln_factor + ln p(q) - ln p(x)`. Proposal, density and `u` use only the
-//! walker's own stream, so the walkers of a split run in parallel (rayon) with results
-//! independent of the thread count.
+//! `ln u < ln_factor + ln p(q) - ln p(x)`. Proposal and `u` use only the walker's own
+//! stream, and the densities of a split's proposals are one batch for an
+//! [`Evaluator`] (threads, or ranks and threads), so the results are independent of
+//! the thread and rank count.
 
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
@@ -14,7 +15,8 @@ use rand_distr::StandardNormal;
 use rayon::prelude::*;
 
 use super::density::{checked_ln_density, LogDensity};
-use super::moves::{Complement, Moves};
+use super::evaluate::{Batch, Evaluator};
+use super::moves::{Complement, Move, Moves};
 use super::rng::{ensemble_rng, walker_rng};
 use crate::error::{Error, Result};
 
@@ -49,6 +51,7 @@ impl Ensemble {
         positions: Vec<f64>,
         walker_rngs: Vec<ChaCha8Rng>,
         store_pointwise: bool,
+        evaluator: &dyn Evaluator,
     ) -> Result<Self> {
         let dim = density.dim();
         let n_walkers = walker_rngs.len();
@@ -65,26 +68,25 @@ impl Ensemble {
             )));
         }
         check_full_rank(index, &positions, n_walkers, dim)?;
-        let evals: Vec<Result<(f64, Vec<f64>)>> = positions
-            .par_chunks(dim)
-            .map(|theta| {
-                let mut pw = vec![0.0; n_pointwise];
-                checked_ln_density(density, theta, &mut pw).map(|lp| (lp, pw))
-            })
-            .collect();
-        let mut ln_p = Vec::with_capacity(n_walkers);
-        let mut pointwise = Vec::with_capacity(n_walkers * n_pointwise);
-        for (w, e) in evals.into_iter().enumerate() {
-            let (lp, pw) = e?;
-            if !lp.is_finite() {
-                return Err(Error::Usage(format!(
-                    "ensemble {index}: initial walker {w} at {:?} has log density {lp}; \
-                     start inside the support (smaller ball or a better center)",
-                    &positions[w * dim..(w + 1) * dim]
-                )));
-            }
-            ln_p.push(lp);
-            pointwise.extend(pw);
+        let mut ln_p = vec![0.0; n_walkers];
+        let mut pointwise = vec![0.0; n_walkers * n_pointwise];
+        let batch = Batch {
+            ln_p: &mut ln_p,
+            pointwise: &mut pointwise,
+            n_pointwise,
+            parallel: true,
+        };
+        let point = |w: usize, pw: &mut [f64]| {
+            checked_ln_density(density, &positions[w * dim..(w + 1) * dim], pw)
+        };
+        evaluator.evaluate(batch, &point)?;
+        if let Some(w) = ln_p.iter().position(|lp| !lp.is_finite()) {
+            return Err(Error::Usage(format!(
+                "ensemble {index}: initial walker {w} at {:?} has log density {}; \
+                 start inside the support (smaller ball or a better center)",
+                &positions[w * dim..(w + 1) * dim],
+                ln_p[w]
+            )));
         }
         Ok(Ensemble {
             dim,
@@ -103,6 +105,7 @@ impl Ensemble {
 
     /// Builds ensemble `index` as `center + scale ⊙ N(0, I)` per walker, each walker
     /// drawing from its own stream.
+    #[allow(clippy::too_many_arguments)]
     pub fn from_ball<D: LogDensity + ?Sized>(
         density: &D,
         key: [u8; 32],
@@ -111,6 +114,7 @@ impl Ensemble {
         center: &[f64],
         scale: &[f64],
         store_pointwise: bool,
+        evaluator: &dyn Evaluator,
     ) -> Result<Self> {
         let dim = density.dim();
         if center.len() != dim || scale.len() != dim {
@@ -135,26 +139,37 @@ impl Ensemble {
                 positions.push(c + s * n);
             }
         }
-        Self::from_positions(density, key, index, positions, rngs, store_pointwise)
+        Self::from_positions(
+            density,
+            key,
+            index,
+            positions,
+            rngs,
+            store_pointwise,
+            evaluator,
+        )
     }
 
     pub fn n_walkers(&self) -> usize {
         self.ln_p.len()
     }
 
-    /// One red-blue step with a move picked from `moves`. With `parallel`, the walkers
-    /// of each half are proposed and evaluated in parallel on rayon's pool; without, in
-    /// turn on this thread (for callers that already run several ensembles in parallel).
-    /// Either way every walker draws from its own stream, so the outcome is the same.
+    /// One red-blue step with a move picked from `moves`; returns how many proposals
+    /// had a finite log density. Each half is proposed (in parallel, each walker from
+    /// its own stream), evaluated as one batch by `evaluator`, then accepted in walker
+    /// order. With `parallel`, the walkers of each half are spread over rayon's pool;
+    /// without, they run on this thread (for callers that already run several
+    /// ensembles in parallel). The outcome is the same either way, and whatever the
+    /// evaluator.
     pub fn step<D: LogDensity + ?Sized>(
         &mut self,
         density: &D,
         moves: &Moves,
         randomize_split: bool,
         parallel: bool,
-    ) -> Result<()> {
+        evaluator: &dyn Evaluator,
+    ) -> Result<u64> {
         let n_walkers = self.n_walkers();
-        let dim = self.dim;
         let mv = moves.select(&mut self.rng);
         let n_splits = mv.n_splits();
         let mut split_of: Vec<usize> = (0..n_walkers).map(|i| i % n_splits).collect();
@@ -164,68 +179,92 @@ impl Ensemble {
                 split_of.swap(i, j);
             }
         }
-        let np = self.n_pointwise;
-        // Proposals and their pointwise terms go to buffers allocated once per step, one
-        // row per walker of the split (rows of at least one entry, for `par_chunks_mut`).
-        let (q_stride, pw_stride) = (dim.max(1), np.max(1));
-        let mut proposals = Vec::new();
-        let mut proposal_pointwise = Vec::new();
+        let mut n_finite = 0;
         for split in 0..n_splits {
-            let members: Vec<usize> = (0..n_walkers).filter(|&i| split_of[i] == split).collect();
-            proposals.resize(members.len() * q_stride, 0.0);
-            proposal_pointwise.resize(members.len() * pw_stride, 0.0);
-            let outcomes: Vec<Result<(bool, f64)>> = {
-                let comp_refs: Vec<&[f64]> = self
-                    .positions
-                    .chunks(dim)
-                    .zip(&split_of)
-                    .filter(|(_, &s)| s != split)
-                    .map(|(x, _)| x)
-                    .collect();
-                let complement = Complement::new(&comp_refs);
-                let fitted = mv.for_complement(&complement);
-                let mv = fitted.as_deref().unwrap_or(mv);
-                let rngs: Vec<&mut ChaCha8Rng> = self
-                    .walker_rngs
-                    .iter_mut()
-                    .zip(&split_of)
-                    .filter(|(_, &s)| s == split)
-                    .map(|(r, _)| r)
-                    .collect();
-                let positions = &self.positions;
-                let ln_p = &self.ln_p;
-                // Without `parallel`, one piece as long as the half: rayon runs it on
-                // this thread without splitting it into tasks.
-                let min_len = if parallel { 1 } else { members.len().max(1) };
-                members
-                    .par_iter()
-                    .zip(rngs)
-                    .zip(proposals.par_chunks_mut(q_stride))
-                    .zip(proposal_pointwise.par_chunks_mut(pw_stride))
-                    .with_min_len(min_len)
-                    .map(|(((&w, rng), q), pw)| {
-                        let x = &positions[w * dim..(w + 1) * dim];
-                        let q = &mut q[..dim];
-                        let ln_factor = mv.propose(x, &complement, rng, q);
-                        let lp = checked_ln_density(density, q, &mut pw[..np])?;
-                        let u: f64 = rng.random();
-                        Ok((ln_factor + lp - ln_p[w] > u.ln(), lp))
-                    })
-                    .collect()
+            n_finite += self.step_half(density, mv, &split_of, split, parallel, evaluator)?;
+        }
+        Ok(n_finite)
+    }
+
+    /// Proposes, evaluates and accepts the walkers of one split (see [`Ensemble::step`]).
+    fn step_half<D: LogDensity + ?Sized>(
+        &mut self,
+        density: &D,
+        mv: &dyn Move,
+        split_of: &[usize],
+        split: usize,
+        parallel: bool,
+        evaluator: &dyn Evaluator,
+    ) -> Result<u64> {
+        let (dim, np) = (self.dim, self.n_pointwise);
+        let members: Vec<usize> = (0..split_of.len())
+            .filter(|&i| split_of[i] == split)
+            .collect();
+        // One row per walker of the split (rows of at least one entry, for `par_chunks_mut`).
+        let q_stride = dim.max(1);
+        let mut proposals = vec![0.0; members.len() * q_stride];
+        let mut ln_q = vec![0.0; members.len()];
+        let mut q_pointwise = vec![0.0; members.len() * np];
+        {
+            let comp_refs: Vec<&[f64]> = self
+                .positions
+                .chunks(dim)
+                .zip(split_of)
+                .filter(|(_, &s)| s != split)
+                .map(|(x, _)| x)
+                .collect();
+            let complement = Complement::new(&comp_refs);
+            let fitted = mv.for_complement(&complement);
+            let mv = fitted.as_deref().unwrap_or(mv);
+            let rngs: Vec<&mut ChaCha8Rng> = self
+                .walker_rngs
+                .iter_mut()
+                .zip(split_of)
+                .filter(|(_, &s)| s == split)
+                .map(|(r, _)| r)
+                .collect();
+            let positions = &self.positions;
+            let min_len = if parallel { 1 } else { members.len().max(1) };
+            let ln_factors: Vec<f64> = members
+                .par_iter()
+                .zip(rngs)
+                .zip(proposals.par_chunks_mut(q_stride))
+                .with_min_len(min_len)
+                .map(|((&w, rng), q)| {
+                    mv.propose(
+                        &positions[w * dim..(w + 1) * dim],
+                        &complement,
+                        rng,
+                        &mut q[..dim],
+                    )
+                })
+                .collect();
+            let batch = Batch {
+                ln_p: &mut ln_q,
+                pointwise: &mut q_pointwise,
+                n_pointwise: np,
+                parallel,
             };
-            for (j, (&w, outcome)) in members.iter().zip(outcomes).enumerate() {
-                let (accept, lp) = outcome?;
-                if accept {
+            let proposals = &proposals;
+            let point = |j: usize, pw: &mut [f64]| {
+                checked_ln_density(density, &proposals[j * q_stride..j * q_stride + dim], pw)
+            };
+            evaluator.evaluate(batch, &point)?;
+            // The accept step, in walker order; `u` comes from the walker's stream
+            // after its proposal's draws.
+            for (j, &w) in members.iter().enumerate() {
+                let u: f64 = self.walker_rngs[w].random();
+                if ln_factors[j] + ln_q[j] - self.ln_p[w] > u.ln() {
                     self.positions[w * dim..(w + 1) * dim]
                         .copy_from_slice(&proposals[j * q_stride..j * q_stride + dim]);
-                    self.ln_p[w] = lp;
+                    self.ln_p[w] = ln_q[j];
                     self.pointwise[w * np..(w + 1) * np]
-                        .copy_from_slice(&proposal_pointwise[j * pw_stride..j * pw_stride + np]);
+                        .copy_from_slice(&q_pointwise[j * np..(j + 1) * np]);
                     self.accepted[w] += 1;
                 }
             }
         }
-        Ok(())
+        Ok(ln_q.iter().filter(|v| v.is_finite()).count() as u64)
     }
 
     /// Appends the current state to the stored chain.

@@ -19,9 +19,12 @@
 //! `w` of ensemble `k` owns stream `k << 32 | w` (initial ball, proposals, accept
 //! uniforms); ensemble `k`'s move choice and split shuffle use stream
 //! `k << 32 | 0xFFFF_FFFF`. Results are bit-identical for a seed whatever the number of
-//! threads. rayon parallelises over ensembles, which run blocks of up to
+//! threads and ranks. rayon parallelises over ensembles, which run blocks of up to
 //! `REPORT_EVERY_STEPS` steps between meetings, and, when there are fewer ensembles than
-//! threads, also over the walkers of a split.
+//! threads, also over the walkers of a split. A split's proposals are evaluated as one
+//! batch by an [`Evaluator`]: under `mpirun` ([`crate::dist`]) the default, [`Ranks`],
+//! spreads each batch over the ranks (every rank runs the same sampler and proposes the
+//! same points) and gathers the values on every rank.
 //!
 //! ## Chains for R-hat and ESS
 //! ESS (bulk and tail) treats every walker of every ensemble as a chain, as ArviZ does
@@ -57,6 +60,7 @@ mod convergence;
 mod density;
 mod draws;
 mod ensemble;
+mod evaluate;
 mod independence;
 mod moves;
 mod rng;
@@ -73,6 +77,7 @@ pub use density::{DensityFn, LogDensity};
 pub use draws::{Draws, ParamSummary};
 /// Used by `infer::evidence` to run tempered ensembles with the same step.
 pub(crate) use ensemble::Ensemble;
+pub use evaluate::{Batch, Evaluator, PointFn, Ranks, Threads};
 pub use independence::{FittedIndependence, Independence};
 pub use moves::{Complement, DifferentialEvolution, Move, Moves, Snooker, Stretch, Walk};
 pub(crate) use rng::{key_from_seed, walker_rng};

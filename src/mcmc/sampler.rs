@@ -27,6 +27,9 @@ pub use super::config::{CheckpointConfig, SamplerConfig, MIN_DRAWS_PER_WALKER, M
 use super::density::LogDensity;
 use super::draws::Draws;
 use super::ensemble::Ensemble;
+#[allow(unused_imports)] // for the docs
+use super::evaluate::Threads;
+use super::evaluate::{Evaluator, Ranks};
 use super::moves::Moves;
 use super::rng::{key_from_seed, walker_rng};
 use crate::error::{Error, Result};
@@ -147,6 +150,7 @@ pub struct Sampler<'d, D: LogDensity + ?Sized> {
     pub(super) step: u64,
     pub(super) history: Vec<TauCheck>,
     pub(super) failed: Option<String>,
+    pub(super) evaluator: Box<dyn Evaluator>,
 }
 
 impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
@@ -158,7 +162,9 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
         let sp = config.store_pointwise;
         let ensembles = match start {
             Start::Ball(ball) => (0..k)
-                .map(|e| Ensemble::from_ball(density, key, e, w, &ball.center, &ball.scale, sp))
+                .map(|e| {
+                    Ensemble::from_ball(density, key, e, w, &ball.center, &ball.scale, sp, &Ranks)
+                })
                 .collect::<Result<Vec<_>>>()?,
             Start::Balls(balls) => {
                 if balls.len() != k {
@@ -170,7 +176,9 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
                 balls
                     .iter()
                     .enumerate()
-                    .map(|(e, b)| Ensemble::from_ball(density, key, e, w, &b.center, &b.scale, sp))
+                    .map(|(e, b)| {
+                        Ensemble::from_ball(density, key, e, w, &b.center, &b.scale, sp, &Ranks)
+                    })
                     .collect::<Result<Vec<_>>>()?
             }
             Start::Positions(p) => {
@@ -186,7 +194,7 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
                     .enumerate()
                     .map(|(e, ps)| {
                         let rngs = (0..w).map(|i| walker_rng(key, e, i)).collect();
-                        Ensemble::from_positions(density, key, e, ps.concat(), rngs, sp)
+                        Ensemble::from_positions(density, key, e, ps.concat(), rngs, sp, &Ranks)
                     })
                     .collect::<Result<Vec<_>>>()?
             }
@@ -199,6 +207,7 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
             step: 0,
             history: Vec::new(),
             failed: None,
+            evaluator: Box::new(Ranks),
         })
     }
 
@@ -267,29 +276,45 @@ impl<'d, D: LogDensity + ?Sized> Sampler<'d, D> {
     /// `n_steps` steps of every ensemble, storing every `thin_by`-th state. The ensembles
     /// run their blocks in parallel and meet only at the end, so each thread works
     /// undisturbed for `n_steps` steps. With fewer ensembles than threads, each one
-    /// also spreads its walkers over the pool. Every walker draws from its own stream,
-    /// so the chains are the same whatever the thread count.
+    /// also spreads its walkers over the pool. With a collective evaluator (several
+    /// ranks), the ensembles step in turn on this thread, each half spread over the
+    /// ranks and their threads. Every walker draws from its own stream, so the chains
+    /// are the same whatever the thread and rank count.
     fn advance(&mut self, n_steps: u64) -> Result<()> {
         let (density, moves, rs) = (self.density, &self.moves, self.config.randomize_split);
         let (start, thin_by) = (self.step, self.config.thin_by);
-        let walkers_parallel = self.ensembles.len() < rayon::current_num_threads();
-        let results: Vec<Result<()>> = self
-            .ensembles
-            .par_iter_mut()
-            .with_max_len(1)
-            .map(|e| {
-                for step in start + 1..=start + n_steps {
-                    e.step(density, moves, rs, walkers_parallel)?;
-                    if step.is_multiple_of(thin_by) {
-                        e.store();
-                    }
+        let evaluator = self.evaluator.as_ref();
+        let block = |e: &mut Ensemble, walkers_parallel: bool| -> Result<()> {
+            for step in start + 1..=start + n_steps {
+                e.step(density, moves, rs, walkers_parallel, evaluator)?;
+                if step.is_multiple_of(thin_by) {
+                    e.store();
                 }
-                Ok(())
-            })
-            .collect();
-        results.into_iter().collect::<Result<Vec<()>>>()?;
+            }
+            Ok(())
+        };
+        if evaluator.collective() {
+            for e in &mut self.ensembles {
+                block(e, true)?;
+            }
+        } else {
+            let walkers_parallel = self.ensembles.len() < rayon::current_num_threads();
+            let results: Vec<Result<()>> = self
+                .ensembles
+                .par_iter_mut()
+                .with_max_len(1)
+                .map(|e| block(e, walkers_parallel))
+                .collect();
+            results.into_iter().collect::<Result<Vec<()>>>()?;
+        }
         self.step += n_steps;
         Ok(())
+    }
+
+    /// Replaces how proposals are evaluated (default: [`Ranks`], which is [`Threads`]
+    /// in one process). The chain does not depend on it.
+    pub fn set_evaluator(&mut self, evaluator: Box<dyn Evaluator>) {
+        self.evaluator = evaluator;
     }
 
     /// Records a tau check; true when emcee's criteria hold.

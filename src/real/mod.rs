@@ -110,7 +110,16 @@ pub fn run(
     }
     let config = serde_json::json!({ "dataset": dataset.name(), "seed": seed });
     let mut info = RunInfo::start(seed, config, data_dir.display().to_string());
-    let staged = StagedDir::new(out_dir)?;
+    // Under MPI every rank runs the study (the samplers spread their walkers over the
+    // ranks); only rank 0 writes `out_dir`, the others a scratch folder they delete.
+    let scratch = match crate::dist::is_root() {
+        true => None,
+        false => Some(crate::io::ScratchDir::new("real")?),
+    };
+    let staged = match &scratch {
+        None => StagedDir::new(out_dir)?,
+        Some(s) => StagedDir::new(&s.path().join("out"))?,
+    };
     let out = staged.path().to_path_buf();
     let t0 = Instant::now();
     match dataset {

@@ -6,7 +6,7 @@ use super::problem::Problem;
 use crate::error::Result;
 
 /// One local fit in physical variables.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Fit {
     /// `theta` (full layout; fixed variables at their values).
     pub theta: Vec<f64>,
@@ -56,6 +56,61 @@ impl UpdateResult {
             .filter(|(_, a)| **a != Active::Free)
             .map(|(n, a)| (n.as_str(), *a))
             .collect()
+    }
+}
+
+/// An [`UpdateResult`] as data (failed starts as their messages), e.g. to travel
+/// between the ranks of an MPI run; converts back with the same `Display` of every
+/// failure.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct UpdateRecord {
+    names: Vec<String>,
+    units: Vec<String>,
+    best_index: usize,
+    best: Fit,
+    n_at_best: usize,
+    starts: Vec<(Vec<f64>, std::result::Result<Fit, String>)>,
+}
+
+impl From<&UpdateResult> for UpdateRecord {
+    fn from(r: &UpdateResult) -> Self {
+        UpdateRecord {
+            names: r.names.clone(),
+            units: r.units.clone(),
+            best_index: r.best_index,
+            best: r.best.clone(),
+            n_at_best: r.n_at_best,
+            starts: r
+                .starts
+                .iter()
+                .map(|s| {
+                    (
+                        s.start.clone(),
+                        s.fit.as_ref().map(Fit::clone).map_err(|e| e.to_string()),
+                    )
+                })
+                .collect(),
+        }
+    }
+}
+
+impl From<UpdateRecord> for UpdateResult {
+    fn from(r: UpdateRecord) -> Self {
+        UpdateResult {
+            names: r.names,
+            units: r.units,
+            best_index: r.best_index,
+            best: r.best,
+            n_at_best: r.n_at_best,
+            starts: r
+                .starts
+                .into_iter()
+                .map(|(start, fit)| StartFit {
+                    start,
+                    fit: fit.map_err(crate::error::Error::Usage),
+                })
+                .collect(),
+        }
     }
 }
 

@@ -72,7 +72,9 @@ mod sensitivity;
 mod spec;
 mod variables;
 
-pub use fit::{internal_start_points, start_points, update, Fit, StartFit, UpdateResult};
+pub use fit::{
+    internal_start_points, start_points, update, Fit, StartFit, UpdateRecord, UpdateResult,
+};
 pub use lsq::{Active, MultistartOptions, Termination, TrfOptions, XScale};
 pub use metrics::{
     fdac, fdac_complex, fdac_per_pair, gain_relative_error, gauss_newton_covariance, pair_ranges,

@@ -1,0 +1,368 @@
+//! `mpirun -n 2 frfbayes ...` gives the same results as one process (issue 15, item 1),
+//! on the built binary (cargo feature `mpi`):
+//! - `sample`: one posterior whose walker evaluations are spread over the ranks;
+//! - `diagnose --quick`: the hypotheses' searches and evidence runs on different ranks;
+//! - `diagnose-benchmark --quick` on two cases: one case per rank, written by rank 0;
+//!   a rank that fails is named in the error, and the case rank 0 finished is reused
+//!   by the rerun.
+//!
+//! Outputs are compared byte for byte, except the records of wall time: `run.json`,
+//! `seconds.txt`, wall-time keys of JSON files, `<number> s` and tables of wall times in
+//! Markdown and HTML, the copy of `run.json` that ends `report.html`, the time column
+//! of the benchmark report.
+//!
+//! Needs OpenMPI's `mpirun`; without it the tests print a skip message, unless
+//! `FRFBAYES_REQUIRE_EXTERNAL=1` (CI), which makes a missing tool a failure.
+#![cfg(feature = "mpi")]
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const BIN: &str = env!("CARGO_BIN_EXE_frfbayes");
+
+/// One test at a time: each runs two ranks, and the machine may have two cores.
+static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// True when `mpirun` runs; otherwise a skip message, or a panic under
+/// `FRFBAYES_REQUIRE_EXTERNAL=1`.
+fn have_mpirun() -> bool {
+    let ok = Command::new("mpirun")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        let msg = "mpirun not found (Debian: apt-get install openmpi-bin libopenmpi-dev)";
+        if std::env::var("FRFBAYES_REQUIRE_EXTERNAL").is_ok_and(|v| v == "1") {
+            panic!("{msg}; FRFBAYES_REQUIRE_EXTERNAL=1 makes this a failure");
+        }
+        eprintln!("skipping: {msg}");
+    }
+    ok
+}
+
+/// Prints a wall time (the README's scaling table comes from these lines).
+fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
+    let t0 = std::time::Instant::now();
+    let v = f();
+    eprintln!("timing: {what}: {:.1} s", t0.elapsed().as_secs_f64());
+    v
+}
+
+/// `frfbayes args` in one process (one thread, as each rank below).
+fn single(args: &[&str]) -> Output {
+    let out = Command::new(BIN)
+        .arg("--threads")
+        .arg("1")
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// `mpirun -n 2 frfbayes --threads 1 args` (on a 2-core machine shared with others:
+/// oversubscription allowed; root allowed, as in CI).
+fn two_ranks(args: &[&str]) -> Output {
+    Command::new("mpirun")
+        .args(["-n", "2", "--oversubscribe", "--bind-to", "none"])
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .arg(BIN)
+        .args(["--threads", "1"])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn ok(out: Output) -> Output {
+    assert!(
+        out.status.success(),
+        "mpirun failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Every file under `dir` by relative path, with the wall-time records blanked.
+fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    for (rel, bytes) in frfbayes::io::read_tree(dir).unwrap() {
+        let name = rel.rsplit('/').next().unwrap_or_default();
+        if matches!(name, "run.json" | "seconds.txt") {
+            continue;
+        }
+        let bytes = if name.ends_with(".json") {
+            let mut v: serde_json::Value = serde_json::from_slice(&bytes).unwrap();
+            drop_wall_times(&mut v);
+            v.to_string().into_bytes()
+        } else if name.ends_with(".md") || name.ends_with(".html") {
+            mask_wall_times(&String::from_utf8_lossy(&bytes)).into_bytes()
+        } else {
+            bytes
+        };
+        out.insert(rel, bytes);
+    }
+    out
+}
+
+/// Keys of wall times in the JSON records.
+const WALL_TIME_KEYS: [&str; 4] = ["wall_s", "elapsed_s", "timings", "timings_s"];
+
+fn drop_wall_times(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Object(m) => {
+            m.retain(|k, _| !WALL_TIME_KEYS.contains(&k.as_str()));
+            m.values_mut().for_each(drop_wall_times);
+        }
+        serde_json::Value::Array(a) => a.iter_mut().for_each(drop_wall_times),
+        _ => {}
+    }
+}
+
+/// The text with every `<number> s` replaced by `# s` and the rows of a table of wall
+/// times (Markdown or HTML) left out.
+fn mask_wall_times(text: &str) -> String {
+    let mut out = String::new();
+    let mut in_table = false;
+    for line in text.lines() {
+        if line.contains("<code>run.json</code>") {
+            break; // report.html ends with the run's record (command line, start, times)
+        }
+        if line.contains("wall time") {
+            in_table = true;
+            continue;
+        }
+        if in_table {
+            let md_row = line.starts_with('|');
+            let html_row = line.starts_with("<tr") || line.starts_with("<td") || line == "</tr>";
+            if md_row || html_row || line.contains("</t") {
+                continue;
+            }
+            in_table = false;
+        }
+        out.push_str(&mask_seconds(line));
+        out.push('\n');
+    }
+    out
+}
+
+fn mask_seconds(line: &str) -> String {
+    let b = line.as_bytes();
+    let mut out = String::new();
+    let mut i = 0;
+    while i < b.len() {
+        let num_start = i;
+        while i < b.len() && (b[i].is_ascii_digit() || b[i] == b'.') {
+            i += 1;
+        }
+        if i > num_start {
+            let next = b.get(i + 2).copied().unwrap_or(b' ');
+            if line[i..].starts_with(" s") && !next.is_ascii_alphanumeric() {
+                out.push('#');
+            } else {
+                out.push_str(&line[num_start..i]);
+            }
+        } else {
+            let len = line[i..].chars().next().map_or(1, char::len_utf8);
+            out.push_str(&line[i..i + len]);
+            i += len;
+        }
+    }
+    out
+}
+
+fn assert_same_trees(a: &Path, b: &Path) {
+    let (ta, tb) = (tree(a), tree(b));
+    assert!(!ta.is_empty(), "{} is empty", a.display());
+    assert_eq!(
+        ta.keys().collect::<Vec<_>>(),
+        tb.keys().collect::<Vec<_>>(),
+        "same files"
+    );
+    let differ: Vec<&String> = ta.keys().filter(|k| ta[*k] != tb[*k]).collect();
+    assert!(
+        differ.is_empty(),
+        "files differ between 1 and 2 ranks: {differ:?}"
+    );
+}
+
+fn path_str(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn sample_on_two_ranks_is_bit_identical() {
+    if !have_mpirun() {
+        return;
+    }
+    let _serial = serial();
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, b) = (tmp.path().join("one"), tmp.path().join("two"));
+    let run = |out: &PathBuf| -> Vec<String> {
+        [
+            "sample",
+            "--tests",
+            "shake_table",
+            "--damping",
+            "rayleigh",
+            "--frf",
+            "receptance",
+            "--seed",
+            "5",
+            "--max-steps",
+            "200",
+            "--out",
+            path_str(out),
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let args_a = run(&a);
+    let args_b = run(&b);
+    let (args_a, args_b): (Vec<&str>, Vec<&str>) = (
+        args_a.iter().map(String::as_str).collect(),
+        args_b.iter().map(String::as_str).collect(),
+    );
+    timed("sample, 1 process", || single(&args_a));
+    timed("sample, 2 ranks", || ok(two_ranks(&args_b)));
+    assert!(a.join("posterior.json").exists());
+    assert_same_trees(&a, &b);
+    // Only rank 0 wrote: no scratch left, nothing beside the output.
+    let names: Vec<String> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names.len(), 2, "{names:?}");
+}
+
+#[test]
+fn diagnose_on_two_ranks_is_bit_identical() {
+    if !have_mpirun() {
+        return;
+    }
+    let _serial = serial();
+    let tmp = tempfile::tempdir().unwrap();
+    let campaign = tmp.path().join("campaign");
+    let model = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/experiments/models/discrepancy/secondary_oscillator-1.toml"
+    );
+    single(&["simulate", "--model", model, "--out", path_str(&campaign)]);
+    let (a, b) = (tmp.path().join("one"), tmp.path().join("two"));
+    let args = |out: &Path| {
+        [
+            "diagnose",
+            path_str(&campaign),
+            "--quick",
+            "--only",
+            "base_flexibility,secondary_oscillator",
+            "--seed",
+            "2",
+            "--out",
+            path_str(out),
+        ]
+        .map(String::from)
+    };
+    timed("diagnose, 1 process", || {
+        single(&args(&a).each_ref().map(String::as_str))
+    });
+    timed("diagnose, 2 ranks", || {
+        ok(two_ranks(&args(&b).each_ref().map(String::as_str)))
+    });
+    assert_same_trees(&a, &b);
+}
+
+const CASES: &str = "experiments/models/discrepancy/cases.toml";
+
+#[test]
+fn benchmark_on_two_ranks_is_bit_identical_and_a_failed_rank_is_named() {
+    if !have_mpirun() {
+        return;
+    }
+    let _serial = serial();
+    let tmp = tempfile::tempdir().unwrap();
+    let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join(CASES);
+    let bench = |work: &Path| {
+        [
+            "diagnose-benchmark",
+            "--quick",
+            "--cases",
+            path_str(&cases),
+            "--only",
+            "none-1,base_flexibility-1",
+            "--hypotheses",
+            "base_flexibility",
+            "--work",
+            path_str(work),
+            "--report",
+            path_str(&work.join("report.md")),
+        ]
+        .map(String::from)
+    };
+    let (a, b) = (tmp.path().join("one"), tmp.path().join("two"));
+    timed("benchmark, 2 cases, 1 process", || {
+        single(&bench(&a).each_ref().map(String::as_str))
+    });
+    // Rank 1 cannot write its scratch folder: the run fails, naming rank 1 and why;
+    // rank 0's case is written and reused by the rerun.
+    let t0 = std::time::Instant::now();
+    let failed = Command::new("mpirun")
+        .args(["--oversubscribe", "--bind-to", "none"])
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .args(["-n", "1", BIN, "--threads", "1"])
+        .args(bench(&b))
+        .args([
+            ":",
+            "-n",
+            "1",
+            "-x",
+            "TMPDIR=/dev/null/none",
+            BIN,
+            "--threads",
+            "1",
+        ])
+        .args(bench(&b))
+        .output()
+        .unwrap();
+    let secs = t0.elapsed().as_secs_f64();
+    eprintln!("timing: benchmark, 2 cases, 2 ranks (rank 1 fails at the end): {secs:.1} s");
+    let stderr = String::from_utf8_lossy(&failed.stderr);
+    assert!(!failed.status.success(), "{stderr}");
+    assert!(stderr.contains("rank 1 of 2 failed"), "{stderr}");
+    assert!(
+        b.join("diagnoses/none-1/diagnosis.json").exists(),
+        "{stderr}"
+    );
+    assert!(!b.join("diagnoses/base_flexibility-1").exists());
+    let out = timed("benchmark, 1 case left (rerun), 2 ranks", || {
+        ok(two_ranks(&bench(&b).each_ref().map(String::as_str)))
+    });
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("none-1: read back"), "{stderr}");
+    for id in ["none-1", "base_flexibility-1"] {
+        let d = format!("diagnoses/{id}");
+        assert_same_trees(&a.join(&d), &b.join(&d));
+    }
+    // The report differs only in its time column.
+    let table = |w: &Path| -> Vec<String> {
+        let md = std::fs::read_to_string(w.join("report.md")).unwrap();
+        md.lines()
+            .map(|l| match l.rfind(" | ") {
+                Some(i) if l.starts_with("| ") && l.ends_with(" |") => l[..i].to_string(),
+                _ => l.to_string(),
+            })
+            .collect()
+    };
+    assert_eq!(table(&a), table(&b));
+}
