@@ -67,6 +67,7 @@ mod moves;
 mod posterior;
 pub mod predictive;
 pub mod prior;
+pub mod recovery;
 pub mod report;
 pub mod run;
 pub mod sbc;

@@ -1,0 +1,568 @@
+//! Is the common mass-stiffness offset of `tests/bayes_general.rs` a bias or a draw?
+//! A seeded study over many simulated hammer campaigns of a general model: the same
+//! truth with different noise draws (or different truths), each estimated and sampled as
+//! `frfbayes sample` does (accelerance, Rayleigh, hammer tests), and per campaign the
+//! joint error against the truth ([`frfbayes::bayes::recovery`]): the z of the
+//! mass-stiffness scale direction (`N(0, 1)` for a calibrated posterior), the chi-square
+//! of the alpha-beta error with the posterior covariance (`chi2(p)`), and the 90 %
+//! interval coverage. Slow (about 6 s per six-DOF campaign); run on demand:
+//!
+//! ```sh
+//! nice -n 10 cargo test --release --test bayes_recovery_study -- --ignored --nocapture
+//! ```
+//!
+//! Environment: `FRFBAYES_STUDY_MODEL` (default `experiments/models/six-dof-hammer.toml`),
+//! `FRFBAYES_STUDY_N` campaigns (default 40), `FRFBAYES_STUDY_NOISE` (`all`, `force_only`,
+//! `responses_only`, `none`; default `all`), `FRFBAYES_STUDY_TRUTH` (`fixed`, the model
+//! file's, or `drawn`: alphas uniform in +-0.1, betas in +-0.05, per campaign),
+//! `FRFBAYES_STUDY_WALKERS` (walkers per dimension, default 4), `FRFBAYES_STUDY_SEED`
+//! (first noise seed, default the model file's), `FRFBAYES_STUDY_OUT` (default
+//! `results/recovery`), `FRFBAYES_STUDY_LABEL` (file name prefix, default `run`). Writes
+//! `<label>.csv` (one row per campaign) and `<label>.md` there.
+
+use frfbayes::bayes::recovery::{joint_error, JointError};
+use frfbayes::bayes::run::{prepare_campaign, sample_posterior, SampleSettings, TestSelection};
+use frfbayes::frf::FrfKind;
+use frfbayes::io::write_atomic;
+use frfbayes::mcmc::quantile;
+use frfbayes::simulate::{DampingSpec, SimModel, Simulator, StructureSpec};
+use frfbayes::update::DampingModel;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+fn env_or(key: &str, default: &str) -> String {
+    std::env::var(key).unwrap_or_else(|_| default.to_string())
+}
+
+/// One campaign's result.
+struct Row {
+    seed: u64,
+    joint: JointError,
+    z_a0: f64,
+    z_a1: f64,
+    covered: usize,
+    p: usize,
+    noise_scale: f64,
+    rhat_max: f64,
+    wall_s: f64,
+}
+
+/// The model with campaign `i`'s truth and noise sources; returns the structural truth.
+fn campaign_model(base: &SimModel, i: usize, truth: &str, noise: &str) -> (SimModel, Vec<f64>) {
+    let mut model = base.clone();
+    let StructureSpec::General { alpha, beta, .. } = &mut model.structure else {
+        panic!("the study is of general models");
+    };
+    if truth == "drawn" {
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        rng.set_stream(i as u64 + 1);
+        alpha
+            .iter_mut()
+            .for_each(|a| *a = -0.1 + 0.2 * rng.random::<f64>());
+        beta.iter_mut()
+            .for_each(|b| *b = -0.05 + 0.1 * rng.random::<f64>());
+    } else {
+        assert_eq!(truth, "fixed", "FRFBAYES_STUDY_TRUTH: fixed or drawn");
+    }
+    let t: Vec<f64> = alpha.iter().chain(beta.iter()).cloned().collect();
+    let n = &mut model.noise;
+    match noise {
+        "all" => {}
+        "force_only" => {
+            n.acceleration_m_per_s2 = 0.0;
+            n.displacement_m = 0.0;
+        }
+        "responses_only" => n.force_n = 0.0,
+        "none" => {
+            n.force_n = 0.0;
+            n.acceleration_m_per_s2 = 0.0;
+            n.displacement_m = 0.0;
+        }
+        other => panic!("FRFBAYES_STUDY_NOISE={other}: all, force_only, responses_only, none"),
+    }
+    (model, t)
+}
+
+/// Simulates, estimates, samples and measures one campaign.
+fn run_one(model: SimModel, t: &[f64], seed: u64, settings: &SampleSettings) -> Row {
+    let t0 = Instant::now();
+    let damping = match model.damping {
+        DampingSpec::Rayleigh { a0_per_s, a1_s } => [a0_per_s, a1_s],
+        _ => panic!("the study uses Rayleigh damping"),
+    };
+    let n_alpha = match &model.structure {
+        StructureSpec::General { alpha, .. } => alpha.len(),
+        _ => unreachable!(),
+    };
+    let names: Vec<String> = (0..t.len())
+        .map(|j| match j < n_alpha {
+            true => format!("k{}", j + 1),
+            false => format!("m{}", j - n_alpha + 1),
+        })
+        .collect();
+    let sim = Simulator::new(model).unwrap();
+    let campaign = sim.run(seed, &|_| {}).unwrap();
+    let prep = prepare_campaign(&campaign, settings).unwrap();
+    let s = sample_posterior(&prep.posterior, settings).unwrap();
+    let idx = |name: &str| s.params.iter().position(|p| p.name == name).unwrap();
+    let cols: Vec<usize> = names.iter().map(|n| idx(n)).collect();
+    let d = &s.physical;
+    let draws: Vec<f64> = d
+        .values
+        .chunks(d.dim)
+        .flat_map(|x| cols.iter().map(move |&c| x[c]))
+        .collect();
+    let dir: Vec<f64> = t.iter().map(|v| 1.0 + v).collect();
+    let joint = joint_error(&draws, t, &dir).unwrap();
+    let covered = cols
+        .iter()
+        .zip(t)
+        .filter(|(&c, &tv)| {
+            let mut v = d.param_chains(c).concat();
+            v.sort_by(f64::total_cmp);
+            quantile(&v, 0.05) <= tv && tv <= quantile(&v, 0.95)
+        })
+        .count();
+    let z_of = |name: &str, tv: f64| {
+        let p = &s.summary.parameters[idx(name)];
+        (p.mean - tv) / p.sd
+    };
+    Row {
+        seed,
+        z_a0: z_of("a0", damping[0]),
+        z_a1: z_of("a1", damping[1]),
+        covered,
+        p: t.len(),
+        noise_scale: s.summary.parameters[idx("noise_scale")].mean,
+        rhat_max: s.summary.rhat_max,
+        wall_s: t0.elapsed().as_secs_f64(),
+        joint,
+    }
+}
+
+fn csv(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "seed,z_scale,offset_scale,sd_scale,chi2,p,max_abs_z,mean_z,z_a0,z_a1,covered90,noise_scale,rhat_max,wall_s\n",
+    );
+    for r in rows {
+        let z = &r.joint.z;
+        s += &format!(
+            "{},{:.4},{:.6e},{:.6e},{:.3},{},{:.3},{:.3},{:.3},{:.3},{},{:.4},{:.5},{:.1}\n",
+            r.seed,
+            r.joint.z_dir,
+            r.joint.offset_dir,
+            r.joint.sd_dir,
+            r.joint.chi2,
+            r.p,
+            z.iter().fold(0.0f64, |a, v| a.max(v.abs())),
+            z.iter().sum::<f64>() / z.len() as f64,
+            r.z_a0,
+            r.z_a1,
+            r.covered,
+            r.noise_scale,
+            r.rhat_max,
+            r.wall_s
+        );
+    }
+    s
+}
+
+/// Mean and its standard error, and the sd.
+fn stats(v: &[f64]) -> (f64, f64, f64) {
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+    (m, sd / n.sqrt(), sd)
+}
+
+fn summary(rows: &[Row], title: &str) -> String {
+    let zs: Vec<f64> = rows.iter().map(|r| r.joint.z_dir).collect();
+    let off: Vec<f64> = rows.iter().map(|r| 100.0 * r.joint.offset_dir).collect();
+    let chi: Vec<f64> = rows.iter().map(|r| r.joint.chi2).collect();
+    let a0: Vec<f64> = rows.iter().map(|r| r.z_a0).collect();
+    let a1: Vec<f64> = rows.iter().map(|r| r.z_a1).collect();
+    let (n, p) = (rows.len(), rows[0].p);
+    let covered: usize = rows.iter().map(|r| r.covered).sum();
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+    let (zm, zse, zsd) = stats(&zs);
+    let (om, ose, osd) = stats(&off);
+    let (cm, cse, _) = stats(&chi);
+    let (a0m, a0se, a0sd) = stats(&a0);
+    let (a1m, a1se, a1sd) = stats(&a1);
+    format!(
+        "## {title}\n\n{n} campaigns, {p} alphas and betas. Calibrated: z of the scale \
+         direction N(0, 1), chi2 of the alpha-beta error chi2({p}) (mean {p}), 90 % \
+         intervals covering 90 %.\n\n\
+         | quantity | mean (se) | sd | rms |\n|---|---|---|---|\n\
+         | z of the mass-stiffness scale | {zm:+.3} ({zse:.3}) | {zsd:.3} | {:.3} |\n\
+         | scale offset, % | {om:+.4} ({ose:.4}) | {osd:.4} | |\n\
+         | chi2 of alpha, beta | {cm:.2} ({cse:.2}) | | |\n\
+         | z of a0 | {a0m:+.3} ({a0se:.3}) | {a0sd:.3} | {:.3} |\n\
+         | z of a1 | {a1m:+.3} ({a1se:.3}) | {a1sd:.3} | {:.3} |\n\n\
+         alpha, beta covered by their 90 % intervals: {covered}/{} ({:.3}). \
+         |z_scale| > 2 in {} of {n}; > 3 in {}. Max R-hat {:.4}.\n",
+        rms(&zs),
+        rms(&a0),
+        rms(&a1),
+        n * p,
+        covered as f64 / (n * p) as f64,
+        zs.iter().filter(|z| z.abs() > 2.0).count(),
+        zs.iter().filter(|z| z.abs() > 3.0).count(),
+        rows.iter().map(|r| r.rhat_max).fold(0.0, f64::max),
+    )
+}
+
+#[test]
+#[ignore = "slow: tens of simulated campaigns sampled one after the other"]
+fn common_scale_offset_over_noise_draws() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model_file = env_or(
+        "FRFBAYES_STUDY_MODEL",
+        "experiments/models/six-dof-hammer.toml",
+    );
+    let n: usize = env_or("FRFBAYES_STUDY_N", "40").parse().unwrap();
+    let noise = env_or("FRFBAYES_STUDY_NOISE", "all");
+    let truth = env_or("FRFBAYES_STUDY_TRUTH", "fixed");
+    let label = env_or("FRFBAYES_STUDY_LABEL", "run");
+    let out = PathBuf::from(env_or(
+        "FRFBAYES_STUDY_OUT",
+        root.join("results/recovery").to_str().unwrap(),
+    ));
+    let base = SimModel::from_path(&root.join(&model_file)).unwrap();
+    let seed0: u64 = env_or("FRFBAYES_STUDY_SEED", &base.seed.unwrap().to_string())
+        .parse()
+        .unwrap();
+    let mut settings = SampleSettings::new(
+        model_file.clone(),
+        DampingModel::Rayleigh,
+        FrfKind::Accelerance,
+        TestSelection::Hammer,
+        1,
+    )
+    .unwrap();
+    settings.walkers_per_dim = env_or("FRFBAYES_STUDY_WALKERS", "4").parse().unwrap();
+    let mut rows = Vec::new();
+    for i in 0..n {
+        let (model, t) = campaign_model(&base, i, &truth, &noise);
+        let r = run_one(model, &t, seed0 + i as u64, &settings);
+        eprintln!(
+            "seed {}: z_scale {:+.2} (offset {:+.4} %, sd {:.4} %), chi2 {:.1}/{}, max|z| {:.2}, \
+             z_a0 {:+.2}, z_a1 {:+.2}, covered {}/{}, s {:.3}, R-hat {:.4}, {:.1} s",
+            r.seed,
+            r.joint.z_dir,
+            100.0 * r.joint.offset_dir,
+            100.0 * r.joint.sd_dir,
+            r.joint.chi2,
+            r.p,
+            r.joint.z.iter().fold(0.0f64, |a, v| a.max(v.abs())),
+            r.z_a0,
+            r.z_a1,
+            r.covered,
+            r.p,
+            r.noise_scale,
+            r.rhat_max,
+            r.wall_s
+        );
+        rows.push(r);
+    }
+    let title = format!("{model_file}: noise {noise}, truth {truth}, label {label}");
+    let md = summary(&rows, &title);
+    std::fs::create_dir_all(&out).unwrap();
+    write_atomic(&out.join(format!("{label}.csv")), csv(&rows).as_bytes()).unwrap();
+    write_atomic(&out.join(format!("{label}.md")), md.as_bytes()).unwrap();
+    println!("{md}");
+}
+
+/// `sum_n x_n w_n exp(-j 2 pi f n / fs)` over `n` in `range`.
+fn dtft(x: &[f64], w: &[f64], f_hz: f64, fs: f64, range: std::ops::Range<usize>) -> (f64, f64) {
+    range.fold((0.0, 0.0), |(re, im), n| {
+        let ph = -2.0 * std::f64::consts::PI * f_hz * n as f64 / fs;
+        (re + x[n] * w[n] * ph.cos(), im + x[n] * w[n] * ph.sin())
+    })
+}
+
+/// Oracle: how much of the (anti-alias filtered) hammer pulse the force window keeps, at
+/// the frequencies of the modes, with the window the estimator chooses on the noise-free
+/// record and on the record with the model file's force noise.
+#[test]
+#[ignore = "diagnostic print"]
+fn force_window_keeps_the_pulse() {
+    use frfbayes::signal::{windowed_force, HammerOptions};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model_file = env_or(
+        "FRFBAYES_STUDY_MODEL",
+        "experiments/models/six-dof-hammer.toml",
+    );
+    let base = SimModel::from_path(&root.join(&model_file)).unwrap();
+    let (clean_model, _) = campaign_model(&base, 0, "fixed", "none");
+    let (noisy_model, _) = campaign_model(&base, 0, "fixed", "force_only");
+    let seed = base.seed.unwrap();
+    let clean = Simulator::new(clean_model)
+        .unwrap()
+        .run(seed, &|_| {})
+        .unwrap();
+    let noisy = Simulator::new(noisy_model)
+        .unwrap()
+        .run(seed, &|_| {})
+        .unwrap();
+    let opts = HammerOptions::default();
+    for (tc, tn) in clean.tests.iter().zip(&noisy.tests) {
+        let fs = tc.sample_rate_hz;
+        let f = &tc.data[0];
+        let ones = vec![1.0; f.len()];
+        let median = |x: &[f64]| {
+            let mut v = x.to_vec();
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        // the window chosen on each record, applied to the clean force
+        let window_of = |rec: &[f64]| -> Vec<f64> {
+            let m = median(rec);
+            let wf = windowed_force(rec, fs, &opts);
+            rec.iter()
+                .zip(&wf)
+                .map(|(r, w)| {
+                    if (r - m).abs() > 0.0 {
+                        w / (r - m)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        };
+        let (wc, wn) = (window_of(f), window_of(&tn.data[0]));
+        let width = |w: &[f64]| w.iter().filter(|&&v| v > 0.0).count();
+        println!(
+            "{}: window samples clean {} noisy {}",
+            tc.name,
+            width(&wc),
+            width(&wn)
+        );
+        // first impact, +-1 s
+        let peak = f
+            .iter()
+            .enumerate()
+            .fold(
+                (0, 0.0f64),
+                |a, (i, v)| if v.abs() > a.1 { (i, v.abs()) } else { a },
+            )
+            .0;
+        let r = peak.saturating_sub(100)..(peak + 100).min(f.len());
+        for f_hz in [2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 15.0, 20.0, 25.0] {
+            let full = dtft(f, &ones, f_hz, fs, r.clone());
+            let mag = |x: (f64, f64)| x.0.hypot(x.1);
+            let c = dtft(f, &wc, f_hz, fs, r.clone());
+            let n = dtft(f, &wn, f_hz, fs, r.clone());
+            println!(
+                "  {f_hz:5.1} Hz: |F_w|/|F| - 1: clean window {:+.4} %, noisy window {:+.4} %",
+                100.0 * (mag(c) / mag(full) - 1.0),
+                100.0 * (mag(n) / mag(full) - 1.0)
+            );
+        }
+    }
+}
+
+/// The sampled coordinates of the truth of `model` for `post` (noise scale 1).
+fn truth_coords(post: &frfbayes::bayes::FrfPosterior, model: &SimModel, t: &[f64]) -> Vec<f64> {
+    let n_alpha = match &model.structure {
+        StructureSpec::General { alpha, .. } => alpha.len(),
+        _ => unreachable!(),
+    };
+    let DampingSpec::Rayleigh { a0_per_s, a1_s } = model.damping else {
+        panic!("Rayleigh damping")
+    };
+    let mut z: Vec<f64> = post
+        .names()
+        .iter()
+        .map(|n| {
+            let i: usize = n[1..].parse().unwrap_or(0);
+            match &n[..1] {
+                "k" => t[i - 1],
+                "m" => t[n_alpha + i - 1],
+                _ if n == "ln_a0" => a0_per_s.ln(),
+                _ if n == "ln_a1" => a1_s.ln(),
+                _ => 0.0,
+            }
+        })
+        .collect();
+    *z.last_mut().unwrap() = 0.0;
+    z
+}
+
+/// Oracle on the data, without sampling: over noise draws, the common gain error of the
+/// estimated magnitudes against the exact windowed FRF at the truth,
+/// `g = sum_k w_k (y_k / h_k - 1) / sum_k w_k`, `w_k = (h_k / sigma_k)^2` (the weighted
+/// least-squares gain; the scale offset of the posterior is about `-g`), per test.
+#[test]
+#[ignore = "diagnostic: about 1 s per campaign"]
+fn gain_error_of_the_estimates() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model_file = env_or(
+        "FRFBAYES_STUDY_MODEL",
+        "experiments/models/six-dof-hammer.toml",
+    );
+    let n: usize = env_or("FRFBAYES_STUDY_N", "20").parse().unwrap();
+    let base = SimModel::from_path(&root.join(&model_file)).unwrap();
+    let settings = SampleSettings::new(
+        model_file.clone(),
+        DampingModel::Rayleigh,
+        FrfKind::Accelerance,
+        TestSelection::Hammer,
+        1,
+    )
+    .unwrap();
+    for noise in ["none", "responses_only", "force_only", "all"] {
+        let mut per_test: Vec<Vec<f64>> = Vec::new();
+        for i in 0..if noise == "none" { 1 } else { n } {
+            let (model, t) = campaign_model(&base, i, "fixed", noise);
+            let sim = Simulator::new(model.clone()).unwrap();
+            let campaign = sim.run(base.seed.unwrap() + i as u64, &|_| {}).unwrap();
+            let post = prepare_campaign(&campaign, &settings).unwrap().posterior;
+            let h = post.magnitudes(&truth_coords(&post, &model, &t)).unwrap();
+            let d = post.data();
+            let mut at = 0;
+            let mut gains = Vec::new();
+            for b in &d.blocks {
+                let len = b.omega_rad_s.len() * b.pairs.len();
+                let (mut num, mut den) = (0.0, 0.0);
+                let range = at..at + len;
+                for ((h, s), y) in h[range.clone()]
+                    .iter()
+                    .zip(&d.sigma[range.clone()])
+                    .zip(&d.magnitude[range])
+                {
+                    let w = (h / s).powi(2);
+                    num += w * (y / h - 1.0);
+                    den += w;
+                }
+                gains.push(num / den);
+                at += len;
+            }
+            per_test.push(gains);
+        }
+        let n_tests = per_test[0].len();
+        for j in 0..n_tests {
+            let g: Vec<f64> = per_test.iter().map(|v| 100.0 * v[j]).collect();
+            let (m, se, sd) = stats(&g);
+            println!(
+                "noise {noise:<15} test {j}: gain error {m:+.4} % (se {se:.4}), sd {sd:.4} % over {} draws",
+                g.len()
+            );
+        }
+    }
+}
+
+/// Oracle on the likelihood, without sampling: over noise draws, the maximum of the
+/// log-likelihood along the mass-stiffness scale direction from the truth (damping at the
+/// truth, noise scale 1): `c_hat` and its curvature sd, against the sampled posterior's
+/// offsets of `common_scale_offset_over_noise_draws`.
+#[test]
+#[ignore = "diagnostic: about 1 s per campaign"]
+fn likelihood_profile_along_the_scale() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model_file = env_or(
+        "FRFBAYES_STUDY_MODEL",
+        "experiments/models/six-dof-hammer.toml",
+    );
+    let n: usize = env_or("FRFBAYES_STUDY_N", "20").parse().unwrap();
+    let noise = env_or("FRFBAYES_STUDY_NOISE", "all");
+    let base = SimModel::from_path(&root.join(&model_file)).unwrap();
+    let settings = SampleSettings::new(
+        model_file.clone(),
+        DampingModel::Rayleigh,
+        FrfKind::Accelerance,
+        TestSelection::Hammer,
+        1,
+    )
+    .unwrap();
+    let (mut hats, mut sds) = (Vec::new(), Vec::new());
+    for i in 0..n {
+        let (model, t) = campaign_model(&base, i, "fixed", &noise);
+        let sim = Simulator::new(model.clone()).unwrap();
+        let campaign = sim.run(base.seed.unwrap() + i as u64, &|_| {}).unwrap();
+        let mut post = oracle_posterior(&campaign, &settings);
+        let z0 = truth_coords(&post, &model, &t);
+        if env_or("FRFBAYES_STUDY_LOADINGS", "measured") == "truth" {
+            // oracle: the shared loadings scaled by the true magnitudes, not the measured
+            let h = post.magnitudes(&z0).unwrap();
+            let mut data = post.data().clone();
+            for c in &mut data.correlated {
+                for k in 0..c.len {
+                    let f = h[c.start + k] / data.magnitude[c.start + k];
+                    c.loadings[k * c.rank..(k + 1) * c.rank]
+                        .iter_mut()
+                        .for_each(|v| *v *= f);
+                }
+            }
+            post = post.with_data(data).unwrap();
+        }
+        let ll = |c: f64| {
+            let z: Vec<f64> = post
+                .names()
+                .iter()
+                .zip(&z0)
+                .map(|(n, &v)| match &n[..1] {
+                    "k" | "m" => v + c * (1.0 + v),
+                    _ => v,
+                })
+                .collect();
+            let mut pw = vec![0.0; post.data().len()];
+            post.ln_likelihood(&z, &mut pw).unwrap()
+        };
+        let h = 2e-3;
+        let (lm, l0, lp) = (ll(-h), ll(0.0), ll(h));
+        let curv = (lp - 2.0 * l0 + lm) / (h * h);
+        let hat = -(lp - lm) / (2.0 * h) / curv;
+        let sd = (-curv).sqrt().recip();
+        println!(
+            "seed {}: c_hat {:+.4} %, sd {:.4} %",
+            base.seed.unwrap() + i as u64,
+            100.0 * hat,
+            100.0 * sd
+        );
+        hats.push(100.0 * hat);
+        sds.push(100.0 * sd);
+    }
+    let (m, se, sd) = stats(&hats);
+    println!(
+        "noise {noise}: c_hat mean {m:+.4} % (se {se:.4}), sd over draws {sd:.4} %, mean curvature sd {:.4} %",
+        sds.iter().sum::<f64>() / sds.len() as f64
+    );
+}
+
+/// The posterior of `prepare_campaign` with the oracle's estimator and noise-model
+/// overrides: `FRFBAYES_STUDY_MARGIN_S` (force window margin, s; default 0.03),
+/// `FRFBAYES_STUDY_INPUT_NOISE` (`shared`, the default, or `per_point`).
+fn oracle_posterior(
+    campaign: &frfbayes::io::Campaign,
+    settings: &SampleSettings,
+) -> frfbayes::bayes::FrfPosterior {
+    use frfbayes::bayes::{FrfData, FrfPosterior, InputNoiseModel};
+    let mut opts = settings.estimate.options();
+    opts.hammer.force_margin_s = env_or("FRFBAYES_STUDY_MARGIN_S", "0.03").parse().unwrap();
+    let input_noise = match env_or("FRFBAYES_STUDY_INPUT_NOISE", "shared").as_str() {
+        "shared" => InputNoiseModel::Shared,
+        _ => InputNoiseModel::PerPoint,
+    };
+    let frfs = frfbayes::signal::estimate_campaign(campaign, &opts).unwrap();
+    let chosen: Vec<_> = frfs.iter().filter(|f| settings.tests.includes(f)).collect();
+    let data = FrfData::with_input_noise(
+        &chosen,
+        settings.frf,
+        settings.residual,
+        settings.rel_sigma_floor,
+        input_noise,
+    )
+    .unwrap();
+    let model = campaign.nominal.structural_model().unwrap();
+    FrfPosterior::new(
+        model,
+        data,
+        settings.damping,
+        &settings.variables,
+        settings.posterior,
+    )
+    .unwrap()
+}
