@@ -16,6 +16,7 @@ pub mod evidence;
 pub mod fit;
 pub mod laplace;
 pub mod likelihood;
+pub mod nested;
 pub mod posterior;
 pub mod prior;
 pub mod sample;
@@ -23,6 +24,7 @@ mod tempering;
 #[cfg(test)]
 mod tests;
 pub mod unconstrained;
+pub mod validation;
 
 pub use evidence::{
     stepping_stone, Evidence, EvidenceOptions, EvidenceProgress, PosteriorDraws, Stage,
@@ -31,6 +33,7 @@ pub use evidence::{
 pub use fit::{fit_multistart, FitOptions, FitResult};
 pub use laplace::{laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION};
 pub use likelihood::{Block, BlockKind, NoiseScale};
+pub use nested::{bridge_evidence, gain_bound, BridgeEvidence, BridgeOptions, InUnconstrained};
 pub use posterior::Posterior;
 pub use prior::BoxPrior;
 pub use sample::{sample_to_targets, Sampled, Sampling, Targets};
