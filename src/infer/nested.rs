@@ -239,13 +239,7 @@ pub fn bridge_evidence<T: TemperedTarget>(
         )));
     }
     let counter = AtomicU64::new(0);
-    let u0: Vec<f64> = ut
-        .map()
-        .from_box(start)
-        .into_iter()
-        .map(|v| v.clamp(-U_START, U_START))
-        .collect();
-    let (u_mode, lap, n_newton) = newton_mode(&ut, u0, opts.max_newton)?;
+    let (u_mode, lap, n_newton) = laplace_in_u_with(&ut, start, opts.max_newton)?;
     counter.fetch_add(n_newton, Ordering::Relaxed);
     let density = Tempered {
         target: &ut,
@@ -269,6 +263,43 @@ pub fn bridge_evidence<T: TemperedTarget>(
         draws,
         n_likelihood_evaluations: counter.load(Ordering::Relaxed),
     })
+}
+
+/// Laplace's approximation at the mode of `t` in logit coordinates, found by Newton
+/// steps from `start` (box coordinates; points on a wall are moved inside, to
+/// `|u| <= 8`): the mode `u*`, the approximation there and the likelihood evaluations.
+pub fn laplace_in_u<T: TemperedTarget>(
+    t: &InUnconstrained<'_, T>,
+    start: &[f64],
+) -> Result<(Vec<f64>, LaplaceEvidence, u64)> {
+    laplace_in_u_with(t, start, 30)
+}
+
+fn laplace_in_u_with<T: TemperedTarget>(
+    t: &InUnconstrained<'_, T>,
+    start: &[f64],
+    max_newton: usize,
+) -> Result<(Vec<f64>, LaplaceEvidence, u64)> {
+    if start.len() != t.dim() {
+        return Err(Error::Usage(format!(
+            "start has {} values, the target {} parameters",
+            start.len(),
+            t.dim()
+        )));
+    }
+    let u0: Vec<f64> = t
+        .map()
+        .from_box(start)
+        .into_iter()
+        .map(|v| {
+            if v.is_nan() {
+                0.0
+            } else {
+                v.clamp(-U_START, U_START)
+            }
+        })
+        .collect();
+    newton_mode(t, u0, max_newton)
 }
 
 /// Largest `|u|` of a Newton start (a MAP on a wall is moved to `s(u) = 3e-4` of the box).
@@ -377,13 +408,24 @@ fn sample_posterior<T: TemperedTarget>(
         .into_iter()
         .step_by(SIR_CANDIDATES)
         .collect();
-    let rngs: Vec<ChaCha8Rng> = (0..opts.n_walkers).map(|w| walker_rng(key, 0, w)).collect();
+    let rngs = || (0..opts.n_walkers).map(|w| walker_rng(key, 0, w)).collect();
     let positions: Vec<f64> = parents
         .iter()
         .flat_map(|&p| cands[p].0.iter().copied())
         .collect();
     let moves = Moves::from_specs(&opts.moves)?;
-    let mut ens = Ensemble::from_positions(density, key, 0, positions, rngs, true)?;
+    // Too few distinct survivors to span every direction: start on the first candidates
+    // (independent t draws) instead.
+    let mut ens = match Ensemble::from_positions(density, key, 0, positions, rngs(), true) {
+        Ok(e) => e,
+        Err(_) => {
+            let first: Vec<f64> = cands[..opts.n_walkers]
+                .iter()
+                .flat_map(|c| c.0.iter().copied())
+                .collect();
+            Ensemble::from_positions(density, key, 0, first, rngs(), true)?
+        }
+    };
     for _ in 0..opts.burn_steps {
         ens.step(density, &moves, true, true)?;
     }

@@ -389,6 +389,11 @@ impl<'a> NestedModel<'a> {
         &self.bounds
     }
 
+    /// Number of base coordinates (the effect coordinates follow them).
+    pub fn n_base(&self) -> usize {
+        self.problem.base_bounds.len()
+    }
+
     /// [`NestedProblem::best_fit`] of this model.
     pub fn best_fit(&self) -> Result<Vec<f64>> {
         self.problem.best_fit(self.extended)
