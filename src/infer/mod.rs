@@ -16,13 +16,16 @@ pub mod evidence;
 pub mod fit;
 pub mod laplace;
 pub mod likelihood;
+pub mod nested;
 pub mod posterior;
 pub mod prior;
+pub mod reference;
 pub mod sample;
 mod tempering;
 #[cfg(test)]
 mod tests;
 pub mod unconstrained;
+pub mod validation;
 
 pub use evidence::{
     stepping_stone, Evidence, EvidenceOptions, EvidenceProgress, PosteriorDraws, Stage,
@@ -31,8 +34,12 @@ pub use evidence::{
 pub use fit::{fit_multistart, FitOptions, FitResult};
 pub use laplace::{laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION};
 pub use likelihood::{Block, BlockKind, LinearFit, NoiseScale};
+pub use nested::{
+    bridge_evidence, gain_bound, laplace_in_u, BridgeEvidence, BridgeOptions, InUnconstrained,
+};
 pub use posterior::Posterior;
 pub use prior::BoxPrior;
+pub use reference::{referenced_evidence, Referenced, ReferencedEvidence};
 pub use sample::{sample_to_targets, Sampled, Sampling, Targets};
 pub use tempering::TemperingRun;
 pub use unconstrained::{sample_in_unconstrained, LogitMap, Unconstrained};

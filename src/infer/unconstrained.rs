@@ -39,6 +39,24 @@ impl LogitMap {
         }
     }
 
+    /// The map of the box `bounds` (`(lower, upper)` per coordinate, finite, lower <
+    /// upper).
+    pub fn from_bounds(bounds: &[(f64, f64)]) -> Result<Self> {
+        if let Some((i, b)) = bounds
+            .iter()
+            .enumerate()
+            .find(|(_, (l, u))| !(l.is_finite() && u.is_finite() && l < u))
+        {
+            return Err(Error::Usage(format!(
+                "logit map: bounds {b:?} of coordinate {i} must be finite with lower < upper"
+            )));
+        }
+        Ok(LogitMap {
+            lower: bounds.iter().map(|b| b.0).collect(),
+            width: bounds.iter().map(|(l, u)| u - l).collect(),
+        })
+    }
+
     pub fn dim(&self) -> usize {
         self.lower.len()
     }

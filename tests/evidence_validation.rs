@@ -1,0 +1,212 @@
+//! Evidence near the decision threshold (issue 14, item 3): stepping-stone and
+//! warp-III bridge sampling (`frfbayes::infer::nested`) against the exact Bayes factors
+//! of the nested linear-Gaussian problems of `frfbayes::infer::validation`.
+//!
+//! Default tests: the bridge on every problem, one seed each, within a tolerance from
+//! its own standard error. Ignored: the measurement over seeds (bias and sd of `ln Z`
+//! and `Delta ln Z` of both estimators, time and likelihood evaluations), and the export
+//! of the problems for `experiments/evidence/tmcmc_pymc.py`.
+
+use std::time::Instant;
+
+use frfbayes::infer::validation::{NestedModel, NestedProblem, ProblemSpec};
+use frfbayes::infer::TemperedTarget;
+use frfbayes::infer::{
+    bridge_evidence, gain_bound, referenced_evidence, stepping_stone, BridgeOptions,
+    EvidenceOptions,
+};
+
+/// Seed of the problem data (the same problems for every estimator and tool).
+const PROBLEM_SEED: u64 = 1;
+
+/// One estimate of a model's `ln Z`.
+struct Estimate {
+    ln_z: f64,
+    se: f64,
+    seconds: f64,
+    evaluations: u64,
+}
+
+fn bridge(t: &NestedModel<'_>, seed: u64) -> Estimate {
+    let t0 = Instant::now();
+    let start = t.best_fit().unwrap();
+    let o = BridgeOptions::new(t.dim(), seed);
+    let b = bridge_evidence(t, t.bounds(), &start, &o).unwrap();
+    Estimate {
+        ln_z: b.ln_z,
+        se: b.ln_z_se,
+        seconds: t0.elapsed().as_secs_f64(),
+        evaluations: b.n_likelihood_evaluations,
+    }
+}
+
+/// Replicates of the generalised stepping-stone (4: three degrees of freedom for its
+/// standard error, at a fraction of the prior-referenced run's cost).
+const GSS_REPLICATES: usize = 4;
+
+fn referenced(t: &NestedModel<'_>, seed: u64) -> Estimate {
+    let t0 = Instant::now();
+    let start = t.best_fit().unwrap();
+    let mut o = EvidenceOptions::new(t.dim(), seed);
+    o.final_steps = 0;
+    o.n_replicates = GSS_REPLICATES;
+    let effect: Vec<usize> = (t.n_base()..t.dim()).collect();
+    let r = referenced_evidence(t, t.bounds(), &start, &effect, &o).unwrap();
+    Estimate {
+        ln_z: r.evidence.ln_z,
+        se: r.evidence.ln_z_se,
+        seconds: t0.elapsed().as_secs_f64(),
+        evaluations: r.n_likelihood_evaluations,
+    }
+}
+
+fn stepping<T: TemperedTarget>(t: &T, seed: u64) -> Estimate {
+    let t0 = Instant::now();
+    let mut o = EvidenceOptions::new(t.dim(), seed);
+    o.final_steps = 0;
+    let e = stepping_stone(t, &o, None).unwrap();
+    Estimate {
+        ln_z: e.ln_z,
+        se: e.ln_z_se,
+        seconds: t0.elapsed().as_secs_f64(),
+        evaluations: e.n_likelihood_evaluations,
+    }
+}
+
+fn problems() -> Vec<NestedProblem> {
+    ProblemSpec::all()
+        .iter()
+        .map(|s| s.build(PROBLEM_SEED).unwrap())
+        .collect()
+}
+
+/// Two-sided 0.1 % Student t quantile with `GSS_REPLICATES - 1 = 3` degrees of freedom.
+const T3_9995: f64 = 12.924;
+
+/// The generalised stepping-stone on every problem and both models, one seed: within
+/// `t_3(0.9995) se + 0.1` nats of the exact `ln Z` (`se` from 4 replicates; 0.1: the
+/// downward bias of `ln` of an unbiased `Z` estimate plus the finite ensemble's; measured
+/// up to 0.33 on one model, inside `t se` with the replicates' se of 0.03-0.17). The bound `Delta ln Z <= gain`
+/// holds for the estimates within their errors.
+#[test]
+fn referenced_stepping_stone_matches_exact_evidence() {
+    for p in problems() {
+        let (base, ext) = (p.base(), p.extension());
+        let eb = referenced(&base, 11);
+        let ee = referenced(&ext, 12);
+        for (e, exact, which) in [(&eb, p.ln_z_base, "base"), (&ee, p.ln_z_extension, "ext")] {
+            let err = e.ln_z - exact;
+            assert!(
+                err.abs() < T3_9995 * e.se + 0.1,
+                "{} {which}: ln Z {:.4} +- {:.4}, exact {exact:.4}",
+                p.name,
+                e.ln_z,
+                e.se
+            );
+        }
+        let se = eb.se.hypot(ee.se);
+        assert!(ee.ln_z - eb.ln_z <= gain_bound(p.gain, 0.0) + T3_9995 * se + 0.2);
+    }
+}
+
+/// The bridge where the posterior in logit coordinates is one peak (the corner and
+/// interior problems): within `4 se + 0.15` (4 se: two-sided 1e-4; 0.15 its measured
+/// bias, up to 0.13 on the decisive extension). On the log-uniform plateau it is biased low by ~0.25 nats
+/// (walkers cross slowly between the peak and the plateau): a known limit, measured, not
+/// tested.
+#[test]
+fn bridge_matches_exact_evidence_on_single_peaks() {
+    for p in problems()
+        .iter()
+        .filter(|p| !p.name.starts_with("null_log"))
+    {
+        let (base, ext) = (p.base(), p.extension());
+        for (e, exact, which) in [
+            (bridge(&base, 21), p.ln_z_base, "base"),
+            (bridge(&ext, 22), p.ln_z_extension, "ext"),
+        ] {
+            assert!(
+                (e.ln_z - exact).abs() < 4.0 * e.se + 0.15,
+                "{} {which}: ln Z {:.4} +- {:.4}, exact {exact:.4}",
+                p.name,
+                e.ln_z,
+                e.se
+            );
+        }
+    }
+}
+
+#[test]
+#[ignore = "measurement: both estimators over seeds on the validation problems (minutes)"]
+fn measure_estimators() {
+    let seeds: u64 = std::env::var("EVIDENCE_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(10);
+    println!("| problem | k | exact Delta ln Z | gain | method | bias Delta | sd Delta | bias ln Z_ext | sd ln Z_ext | mean se | s per model | evals per model |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for p in problems() {
+        let (base, ext) = (p.base(), p.extension());
+        for method in [
+            "stepping-stone (2 replicates)",
+            "generalised stepping-stone (4 replicates)",
+            "bridge (warp-III, logit)",
+        ] {
+            let mut rows = Vec::new();
+            for s in 0..seeds {
+                let run = |t: &dyn Fn(u64) -> Estimate, k: u64| t(100 * s + k);
+                let (eb, ee) = if method.starts_with("stepping") {
+                    (
+                        run(&|x| stepping(&base, x), 1),
+                        run(&|x| stepping(&ext, x), 2),
+                    )
+                } else if method.starts_with("generalised") {
+                    (
+                        run(&|x| referenced(&base, x), 1),
+                        run(&|x| referenced(&ext, x), 2),
+                    )
+                } else {
+                    (run(&|x| bridge(&base, x), 1), run(&|x| bridge(&ext, x), 2))
+                };
+                rows.push((eb, ee));
+            }
+            let stat = |v: Vec<f64>, exact: f64| {
+                let n = v.len() as f64;
+                let m = v.iter().sum::<f64>() / n;
+                let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+                (m - exact, sd)
+            };
+            let (bd, sdd) = stat(
+                rows.iter().map(|(b, e)| e.ln_z - b.ln_z).collect(),
+                p.ln_bayes_factor(),
+            );
+            let (be, sde) = stat(rows.iter().map(|(_, e)| e.ln_z).collect(), p.ln_z_extension);
+            let n = rows.len() as f64;
+            let se = rows.iter().map(|(b, e)| b.se.hypot(e.se)).sum::<f64>() / n;
+            let secs = rows.iter().map(|(b, e)| b.seconds + e.seconds).sum::<f64>() / (2.0 * n);
+            let evals = rows
+                .iter()
+                .map(|(b, e)| (b.evaluations + e.evaluations) as f64)
+                .sum::<f64>()
+                / (2.0 * n);
+            println!(
+                "| {} | {} | {:.3} | {:.2} | {method} | {bd:+.3} | {sdd:.3} | {be:+.3} | {sde:.3} | {se:.3} | {secs:.2} | {evals:.0} |",
+                p.name,
+                p.effect_bounds.len(),
+                p.ln_bayes_factor(),
+                p.gain
+            );
+        }
+    }
+}
+
+/// Writes the problems (designs, data, priors, exact `ln Z`) for other tools.
+#[test]
+#[ignore = "writes experiments/evidence/problems.json"]
+fn export_problems() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/evidence/problems.json");
+    let json = serde_json::to_string(&problems()).unwrap();
+    std::fs::write(&path, json).unwrap();
+    println!("wrote {}", path.display());
+}
