@@ -244,8 +244,7 @@ impl Block {
     ) -> Result<Self> {
         check_finite(name, "observed", observed)?;
         let n = sd_complex.len();
-        if observed.len() != 2 * n || predictions.len() != 2 * n * n_columns || 2 * n <= n_columns
-        {
+        if observed.len() != 2 * n || predictions.len() != 2 * n * n_columns || 2 * n <= n_columns {
             return Err(Error::Usage(format!(
                 "{name}: {} predictions and {} observed parts for {n} complex values and \
                  {n_columns} columns (need 2n > columns)",
@@ -291,7 +290,12 @@ impl Block {
         else {
             return None;
         };
-        linear::fit(&pred[self.predictions.clone()], inv_sd, observed, *n_columns)
+        linear::fit(
+            &pred[self.predictions.clone()],
+            inv_sd,
+            observed,
+            *n_columns,
+        )
     }
 
     /// Mean and standard deviation of the gain of a one-column
@@ -299,8 +303,7 @@ impl Block {
     /// otherwise.
     pub fn conditional_gain(&self, pred: &[f64], sigma: f64) -> Option<(f64, f64)> {
         let f = self.linear_fit(pred)?;
-        (f.coefficients.len() == 1)
-            .then(|| (f.coefficients[0], sigma / f.normal.l_dirty()[(0, 0)]))
+        (f.coefficients.len() == 1).then(|| (f.coefficients[0], sigma / f.normal.l_dirty()[(0, 0)]))
     }
 
     fn checked(

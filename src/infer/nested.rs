@@ -55,7 +55,8 @@ use super::tempering::{log_sum_exp, systematic_resample, Tempered};
 use super::unconstrained::LogitMap;
 use crate::error::{Error, Result};
 use crate::mcmc::{
-    integrated_time, key_from_seed, walker_rng, Ensemble, MoveSpec, Moves, WeightedMove,
+    integrated_time, key_from_seed, walker_rng, Ensemble, LogDensity, MoveSpec, Moves, Threads,
+    WeightedMove,
 };
 
 const LN_2PI: f64 = 1.837_877_066_409_345_5;
@@ -241,10 +242,12 @@ pub fn bridge_evidence<T: TemperedTarget>(
     let counter = AtomicU64::new(0);
     let (u_mode, lap, n_newton) = laplace_in_u_with(&ut, start, opts.max_newton)?;
     counter.fetch_add(n_newton, Ordering::Relaxed);
-    let density = Tempered {
-        target: &ut,
-        beta: 1.0,
-        n_likelihood: &counter,
+    let density = Counted {
+        inner: Tempered {
+            target: &ut,
+            beta: 1.0,
+        },
+        n: &counter,
     };
     let (chain, ln_q, acceptance) = sample_posterior(&density, &u_mode, &lap, opts)?;
     let bridge = warp3_bridge(&density, &chain, &ln_q, lap.ln_z, opts)?;
@@ -373,13 +376,12 @@ const NEWTON_TOL: f64 = 1e-6;
 /// where a skewed posterior has mass that the Gaussian misses (an effect's plateau below
 /// detection). Then burn-in and the kept steps `(step, walker, parameter)`, their `ln q`
 /// and the acceptance of the kept steps.
-fn sample_posterior<T: TemperedTarget>(
-    density: &Tempered<'_, T>,
+fn sample_posterior<D: LogDensity>(
+    density: &D,
     u_mode: &[f64],
     lap: &LaplaceEvidence,
     opts: &BridgeOptions,
 ) -> Result<(Vec<f64>, Vec<f64>, f64)> {
-    use crate::mcmc::LogDensity;
     let dim = u_mode.len();
     let key = key_from_seed(opts.seed);
     let chol = nalgebra::Cholesky::new(lap.covariance.clone())
@@ -416,27 +418,44 @@ fn sample_posterior<T: TemperedTarget>(
     let moves = Moves::from_specs(&opts.moves)?;
     // Too few distinct survivors to span every direction: start on the first candidates
     // (independent t draws) instead.
-    let mut ens = match Ensemble::from_positions(density, key, 0, positions, rngs(), true) {
+    let mut ens = match Ensemble::from_positions(density, key, 0, positions, rngs(), true, &Threads)
+    {
         Ok(e) => e,
         Err(_) => {
             let first: Vec<f64> = cands[..opts.n_walkers]
                 .iter()
                 .flat_map(|c| c.0.iter().copied())
                 .collect();
-            Ensemble::from_positions(density, key, 0, first, rngs(), true)?
+            Ensemble::from_positions(density, key, 0, first, rngs(), true, &Threads)?
         }
     };
     for _ in 0..opts.burn_steps {
-        ens.step(density, &moves, true, true)?;
+        ens.step(density, &moves, true, true, &Threads)?;
     }
     ens.accepted.fill(0);
     for _ in 0..opts.kept_steps {
-        ens.step(density, &moves, true, true)?;
+        ens.step(density, &moves, true, true, &Threads)?;
         ens.store();
     }
     let accepted: u64 = ens.accepted.iter().sum();
     let acceptance = accepted as f64 / (opts.n_walkers * opts.kept_steps) as f64;
     Ok((ens.chain, ens.chain_ln_p, acceptance))
+}
+
+/// A log density that counts its evaluations (the tempered targets no longer do).
+struct Counted<'a, D> {
+    inner: D,
+    n: &'a AtomicU64,
+}
+
+impl<D: LogDensity> LogDensity for Counted<'_, D> {
+    fn dim(&self) -> usize {
+        self.inner.dim()
+    }
+    fn ln_density(&self, z: &[f64]) -> Result<f64> {
+        self.n.fetch_add(1, Ordering::Relaxed);
+        self.inner.ln_density(z)
+    }
 }
 
 /// The bridge's estimate, standard error, `tau_f2` and iterations.
@@ -449,14 +468,13 @@ struct Bridge {
 
 /// Warp-III bridge sampling (module docs) from the kept steps `chain` with log densities
 /// `ln_q`; `ln_z0` starts the fixed-point iteration.
-fn warp3_bridge<T: TemperedTarget>(
-    density: &Tempered<'_, T>,
+fn warp3_bridge<D: LogDensity>(
+    density: &D,
     chain: &[f64],
     ln_q: &[f64],
     ln_z0: f64,
     opts: &BridgeOptions,
 ) -> Result<Bridge> {
-    use crate::mcmc::LogDensity;
     let dim = density.dim();
     let w = opts.n_walkers;
     let half = opts.kept_steps / 2;

@@ -41,7 +41,12 @@ pub struct PoleResidue {
 
 impl PoleResidue {
     /// `n_modes` modes on the grid `freq_hz`, residual terms about `omega0_rad_s`.
-    pub fn new(freq_hz: Vec<f64>, omega0_rad_s: f64, n_modes: usize, ordered: bool) -> Result<Self> {
+    pub fn new(
+        freq_hz: Vec<f64>,
+        omega0_rad_s: f64,
+        n_modes: usize,
+        ordered: bool,
+    ) -> Result<Self> {
         if freq_hz.len() < n_modes + 2 || freq_hz.iter().any(|f| !(f.is_finite() && *f > 0.0)) {
             return Err(Error::Usage(format!(
                 "a pole-residue model of {n_modes} modes needs at least {} positive frequencies, \

@@ -276,7 +276,11 @@ impl BandLikelihood {
         let model = self.posterior.predictor().with_ordering(false);
         let mut pred = vec![0.0; model.n_outputs()];
         model
-            .predict(&theta[..model.n_params()], &mut model.workspace(), &mut pred)
+            .predict(
+                &theta[..model.n_params()],
+                &mut model.workspace(),
+                &mut pred,
+            )
             .ok()?;
         self.posterior
             .blocks()

@@ -477,7 +477,10 @@ mod tests {
         ] {
             let mut u = t.clone();
             u[i] += d;
-            assert!(lik.posterior.ln_density(&u).unwrap() < l0, "coordinate {i} {d:+}");
+            assert!(
+                lik.posterior.ln_density(&u).unwrap() < l0,
+                "coordinate {i} {d:+}"
+            );
         }
     }
 

@@ -38,9 +38,7 @@ impl LinearFit {
     /// (`G~^T G~ = L L^T`), so its covariance is `sigma^2 (G~^T G~)^-1`.
     pub fn conditional_draw(&self, sigma: f64, z: &[f64]) -> Vec<f64> {
         let mut v = DVector::from_column_slice(z);
-        self.normal
-            .l_dirty()
-            .tr_solve_lower_triangular_mut(&mut v);
+        self.normal.l_dirty().tr_solve_lower_triangular_mut(&mut v);
         self.coefficients
             .iter()
             .zip(v.iter())
@@ -64,7 +62,13 @@ fn design(p: &[f64], inv_sd: &[f64], k: usize) -> DMatrix<f64> {
 fn solve(g: &DMatrix<f64>, observed: &[f64]) -> Option<(LinearFit, DVector<f64>)> {
     let y = DVector::from_column_slice(observed);
     let normal = Cholesky::new(g.tr_mul(g))?;
-    let ln_det = 2.0 * normal.l_dirty().diagonal().iter().map(|d| d.ln()).sum::<f64>();
+    let ln_det = 2.0
+        * normal
+            .l_dirty()
+            .diagonal()
+            .iter()
+            .map(|d| d.ln())
+            .sum::<f64>();
     if !ln_det.is_finite() {
         return None;
     }
@@ -165,7 +169,9 @@ mod tests {
         let ln_det_qr: f64 = 2.0 * r.diagonal().iter().map(|d| d.abs().ln()).sum::<f64>();
         assert!((f.ln_det - ln_det_qr).abs() < 1e-12);
         let yv = DVector::from_column_slice(&y);
-        let c_qr = r.solve_upper_triangular(&(qr.q().transpose() * &yv)).unwrap();
+        let c_qr = r
+            .solve_upper_triangular(&(qr.q().transpose() * &yv))
+            .unwrap();
         let rss_qr = (&yv - &gt * &c_qr).norm_squared();
         assert!((f.rss - rss_qr).abs() < 1e-12 * rss_qr.max(1.0));
         let mut out = vec![0.0; m];
@@ -225,7 +231,11 @@ mod tests {
             residuals(&pred(&dn), &inv_sd, &y, 2, &mut rd);
             for i in 0..m {
                 let fd = (ru[i] - rd[i]) / (2.0 * h);
-                assert!((jac[(i, j)] - fd).abs() < 1e-6, "({i},{j}) {} {fd}", jac[(i, j)]);
+                assert!(
+                    (jac[(i, j)] - fd).abs() < 1e-6,
+                    "({i},{j}) {} {fd}",
+                    jac[(i, j)]
+                );
             }
         }
     }
