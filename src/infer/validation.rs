@@ -18,8 +18,8 @@
 //! (the Gaussian integral; `V` a box volume). Integrating `theta` out at fixed `e` leaves
 //! a Gaussian in `e` (`S = (QB)^T QB / sigma^2`, `e_hat = S^-1 (QB)^T Q y / sigma^2`),
 //! so the Bayes factor is
-//! `ln Z_ext - ln Z_base = g + ln (1/V_phi) int_box exp(-(e(phi) - e_hat)^T S
-//! (e(phi) - e_hat) / 2) d phi`, `g = e_hat^T S e_hat / 2`
+//! `ln Z_ext - ln Z_base = g + ln (1/V_phi) int_box exp(-q(phi) / 2) d phi` with
+//! `q(phi) = (e(phi) - e_hat)^T S (e(phi) - e_hat)` and `g = e_hat^T S e_hat / 2`,
 //! the gain in maximum log-likelihood (over all `e`). The integral is analytic when the
 //! box holds the Gaussian (every problem with `k > 2`), otherwise by composite
 //! Gauss-Legendre quadrature on the window `e_hat +- 14 sd` cut to the box (`k <= 2`;
@@ -313,8 +313,8 @@ fn matrix_to_rows(m: &DMatrix<f64>) -> Vec<Vec<f64>> {
 /// Nodes and weights of the 8-point Gauss-Legendre rule on `[-1, 1]` (Abramowitz &
 /// Stegun 25.4.30).
 const GL8: [(f64, f64); 4] = [
-    (0.183_434_642_495_649_8, 0.362_683_783_378_362_0),
-    (0.525_532_409_916_329_0, 0.313_706_645_877_887_3),
+    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
+    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
     (0.796_666_477_413_626_7, 0.222_381_034_453_374_5),
     (0.960_289_856_497_536_3, 0.101_228_536_290_376_3),
 ];
