@@ -89,6 +89,33 @@ pub fn data_dir(shared: &Path, dataset: Dataset) -> PathBuf {
     shared.join("data/real").join(dataset.name())
 }
 
+/// How a study runs: the full study (the default), or a short one for tests.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StudyOptions {
+    /// Master seed.
+    pub seed: u64,
+    /// Every stage on a small scale ([`QUICK_STEPS`] sampler steps; the bridge also
+    /// [`bridge_run::BridgeSettings::quick`]): the numbers are not the study's.
+    pub quick: bool,
+    /// Step cap of every sampler of the study (the bridge's replaces its own cap, so it
+    /// also lengthens a `quick` run).
+    pub max_steps: Option<u64>,
+}
+
+impl StudyOptions {
+    /// The full study with `seed`.
+    pub fn full(seed: u64) -> Self {
+        StudyOptions {
+            seed,
+            quick: false,
+            max_steps: None,
+        }
+    }
+}
+
+/// Sampler steps of a `quick` study (the bridge: [`bridge_run::BridgeSettings::quick`]).
+pub const QUICK_STEPS: u64 = 200;
+
 /// Runs the study of `dataset` on the data in `data_dir` and writes `report.md`,
 /// `posterior.json`, `run.json` and the figures into `out_dir`, atomically: the folder
 /// is built aside ([`StagedDir`]) and replaces `out_dir` only when complete. `sampling`
@@ -97,9 +124,10 @@ pub fn run(
     dataset: Dataset,
     data_dir: &Path,
     out_dir: &Path,
-    seed: u64,
+    options: StudyOptions,
     sampling: &mut Sampling<'_>,
 ) -> Result<Vec<(String, f64)>> {
+    let seed = options.seed;
     if !data_dir.is_dir() {
         return Err(Error::Usage(format!(
             "data folder {} not found: pass --shared <DIR> with <DIR>/data/real/{} (or set \
@@ -108,7 +136,22 @@ pub fn run(
             dataset.name()
         )));
     }
-    let config = serde_json::json!({ "dataset": dataset.name(), "seed": seed });
+    let config = serde_json::json!({
+        "dataset": dataset.name(),
+        "seed": seed,
+        "quick": options.quick,
+        "max_steps": options.max_steps,
+    });
+    if dataset != Dataset::BridgeFe {
+        let cap = match (options.quick, options.max_steps) {
+            (_, Some(n)) => Some(n),
+            (true, None) => Some(QUICK_STEPS),
+            (false, None) => None,
+        };
+        if let Some(n) = cap {
+            sampling.step_cap = Some(sampling.step_cap.map_or(n, |c| c.min(n)));
+        }
+    }
     let mut info = RunInfo::start(seed, config, data_dir.display().to_string());
     // Under MPI every rank runs the study (the samplers spread their walkers over the
     // ranks); only rank 0 writes `out_dir`, the others a scratch folder they delete.
@@ -156,10 +199,16 @@ pub fn run(
         }
         Dataset::BridgeFe => {
             let data = info.time("read model and modes", || bridge::load(data_dir))?;
-            let settings = bridge_run::BridgeSettings {
-                seed,
-                ..Default::default()
+            let mut settings = match options.quick {
+                true => bridge_run::BridgeSettings::quick(seed),
+                false => bridge_run::BridgeSettings {
+                    seed,
+                    ..Default::default()
+                },
             };
+            if let Some(n) = options.max_steps {
+                settings.max_steps = n;
+            }
             let study = info.time("reduced basis, SMU multistarts, posterior", || {
                 bridge_run::run(&data, &settings, sampling)
             })?;

@@ -1,6 +1,11 @@
 """Opens a run's inference_data.nc with one ArviZ call and checks it against posterior.json.
 
-Usage: check_inference_data.py RUN_DIR
+Usage: check_inference_data.py RUN_DIR [NC_FILE]
+
+NC_FILE defaults to inference_data.nc. For a `frfbayes real` study's folder the
+`log_likelihood` group holds one term per likelihood block (`block`) and `observed_data`
+the blocks' data along `value` with a `block` coordinate: the script checks that every
+block of the one has data in the other.
 
 - `az.from_netcdf(RUN_DIR / "inference_data.nc")` is the one call; the groups posterior,
   sample_stats, log_likelihood and observed_data must be there, the posterior's variables
@@ -60,8 +65,23 @@ def walker_chains(idata, name):
     return out.reshape(x.shape[0] * n_w, n_t)
 
 
-def main(run_dir):
-    idata = az.from_netcdf(run_dir / "inference_data.nc")  # the one call
+def check_blocks(idata):
+    """A `real` study's file: every log-likelihood block has data, every datum a block."""
+    obs = idata.observed_data
+    if "block" not in obs.coords and "block" not in obs:
+        return None
+    n_block = idata.log_likelihood.sizes["block"]
+    blocks = np.unique(np.asarray(obs["block"]))
+    if list(blocks) != list(range(n_block)):
+        fail(f"observed_data blocks {blocks} != the {n_block} log-likelihood blocks")
+    names = obs["observations"].attrs["block_names"].split(", ")
+    if len(names) != n_block:
+        fail(f"{len(names)} block names for {n_block} blocks")
+    return {"blocks": n_block, "block_names": names, "values": obs.sizes["value"]}
+
+
+def main(run_dir, nc_name="inference_data.nc"):
+    idata = az.from_netcdf(run_dir / nc_name)  # the one call
     ours = json.loads((run_dir / "posterior.json").read_text())
     for g in ["posterior", "sample_stats", "log_likelihood", "observed_data"]:
         if g not in idata.groups():
@@ -123,7 +143,10 @@ def main(run_dir):
     if not math.isfinite(elpd):
         fail(f"az.loo gave elpd {elpd}")
     k = np.asarray(loo.pareto_k)
+    blocks = check_blocks(idata)
     print(json.dumps({
+        "file": nc_name,
+        "blocks": blocks,
         "arviz": az.__version__,
         "groups": list(idata.groups()),
         "chains": n_chain,
@@ -137,4 +160,4 @@ def main(run_dir):
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]))
+    main(Path(sys.argv[1]), *sys.argv[2:3])
