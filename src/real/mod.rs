@@ -142,16 +142,7 @@ pub fn run(
         "quick": options.quick,
         "max_steps": options.max_steps,
     });
-    if dataset != Dataset::BridgeFe {
-        let cap = match (options.quick, options.max_steps) {
-            (_, Some(n)) => Some(n),
-            (true, None) => Some(QUICK_STEPS),
-            (false, None) => None,
-        };
-        if let Some(n) = cap {
-            sampling.step_cap = Some(sampling.step_cap.map_or(n, |c| c.min(n)));
-        }
-    }
+    cap_steps(dataset, options, sampling);
     let mut info = RunInfo::start(seed, config, data_dir.display().to_string());
     // Under MPI every rank runs the study (the samplers spread their walkers over the
     // ranks); only rank 0 writes `out_dir`, the others a scratch folder they delete.
@@ -164,7 +155,63 @@ pub fn run(
         Some(s) => StagedDir::new(&s.path().join("out"))?,
     };
     let out = staged.path().to_path_buf();
-    let t0 = Instant::now();
+    compute_and_write(dataset, data_dir, &out, options, sampling, &mut info)?;
+    info.write(&out)?;
+    crate::report::write_html_report(
+        &out,
+        &crate::report::HtmlReport {
+            markdown: &["report.md"],
+            lead: crate::report::LEAD,
+            tail: crate::report::TAIL,
+            title: None,
+        },
+    )?;
+    staged.commit()?;
+    Ok(info.timings_s)
+}
+
+/// Lowers `sampling`'s step cap to the one of `options` (the bridge caps its sampler
+/// itself, [`bridge_settings`]).
+fn cap_steps(dataset: Dataset, options: StudyOptions, sampling: &mut Sampling<'_>) {
+    if dataset == Dataset::BridgeFe {
+        return;
+    }
+    let cap = match (options.quick, options.max_steps) {
+        (_, Some(n)) => Some(n),
+        (true, None) => Some(QUICK_STEPS),
+        (false, None) => None,
+    };
+    if let Some(n) = cap {
+        sampling.step_cap = Some(sampling.step_cap.map_or(n, |c| c.min(n)));
+    }
+}
+
+/// The bridge study's settings for `options`.
+fn bridge_settings(options: StudyOptions) -> bridge_run::BridgeSettings {
+    let mut settings = match options.quick {
+        true => bridge_run::BridgeSettings::quick(options.seed),
+        false => bridge_run::BridgeSettings {
+            seed: options.seed,
+            ..Default::default()
+        },
+    };
+    if let Some(n) = options.max_steps {
+        settings.max_steps = n;
+    }
+    settings
+}
+
+/// Computes the study of `dataset` and writes its report, posterior and figures into
+/// `out`, timing each stage in `info`.
+fn compute_and_write(
+    dataset: Dataset,
+    data_dir: &Path,
+    out: &Path,
+    options: StudyOptions,
+    sampling: &mut Sampling<'_>,
+    info: &mut RunInfo,
+) -> Result<()> {
+    let (seed, t0) = (options.seed, Instant::now());
     match dataset {
         Dataset::FourStoryModal => {
             let study = info.time("sample three variants and check", || {
@@ -173,7 +220,7 @@ pub fn run(
             let mut timings = info.timings_s.clone();
             timings.push(("total before writing".into(), t0.elapsed().as_secs_f64()));
             info.time("write report and figures", || {
-                four_story_report::write(&study, &out, &timings)
+                four_story_report::write(&study, out, &timings)
             })?;
         }
         Dataset::WheelFrf => {
@@ -194,27 +241,18 @@ pub fn run(
             };
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
-                wheel_report::write(&study, &data, &out, &timings)
+                wheel_report::write(&study, &data, out, &timings)
             })?;
         }
         Dataset::BridgeFe => {
             let data = info.time("read model and modes", || bridge::load(data_dir))?;
-            let mut settings = match options.quick {
-                true => bridge_run::BridgeSettings::quick(seed),
-                false => bridge_run::BridgeSettings {
-                    seed,
-                    ..Default::default()
-                },
-            };
-            if let Some(n) = options.max_steps {
-                settings.max_steps = n;
-            }
+            let settings = bridge_settings(options);
             let study = info.time("reduced basis, SMU multistarts, posterior", || {
                 bridge_run::run(&data, &settings, sampling)
             })?;
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
-                bridge_report::write(&study, &out, &timings)
+                bridge_report::write(&study, out, &timings)
             })?;
         }
         Dataset::TowerHmd => {
@@ -223,22 +261,11 @@ pub fn run(
             })?;
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
-                tower_report::write(&study, &out, &timings)
+                tower_report::write(&study, out, &timings)
             })?;
         }
     }
-    info.write(&out)?;
-    crate::report::write_html_report(
-        &out,
-        &crate::report::HtmlReport {
-            markdown: &["report.md"],
-            lead: crate::report::LEAD,
-            tail: crate::report::TAIL,
-            title: None,
-        },
-    )?;
-    staged.commit()?;
-    Ok(info.timings_s)
+    Ok(())
 }
 
 /// For tests: `<shared>/data/real/<dataset>` when present (`$FRFBAYES_SHARED_DIR` or
