@@ -11,8 +11,8 @@
 //!
 //! Outputs are compared byte for byte, except the records of wall time: `run.json`,
 //! `seconds.txt`, wall-time keys of JSON files, `<number> s` (and `ms`, `us`, speed
-//! ratios `(<number>x)`) and tables of wall times in Markdown and HTML, the copy of `run.json` that ends `report.html`,
-//! the time column of the benchmark report.
+//! ratios `(<number>x)`) and tables of wall times in Markdown and HTML, the copy of
+//! `run.json` that ends `report.html`, the time column of the benchmark report.
 //!
 //! Needs OpenMPI's `mpirun`; without it the tests print a skip message, unless
 //! `FRFBAYES_REQUIRE_EXTERNAL=1` (CI), which makes a missing tool a failure.
