@@ -8,6 +8,11 @@
 //! A second test writes a posterior whose log-likelihood group holds every 3rd draw only
 //! (the thinned case of large runs) and checks that ArviZ opens it and `az.loo` runs.
 //!
+//! A third runs `frfbayes real four-story-modal --quick` on the shared data (skipped with
+//! a message, checking nothing, without `../shared`) and runs the same script on its
+//! file: the `log_likelihood` (one term per likelihood block) and `observed_data` (the
+//! blocks' data) groups are there and pair up, and `az.loo` runs.
+//!
 //! Needs `python3` with `arviz` (which brings `h5netcdf`); without it the test prints a
 //! skip message, unless `FRFBAYES_REQUIRE_EXTERNAL=1` (CI), which makes it a failure.
 
@@ -47,6 +52,10 @@ fn check(run: &Path) -> serde_json::Value {
         .arg(run)
         .output()
         .unwrap();
+    report(out)
+}
+
+fn report(out: std::process::Output) -> serde_json::Value {
     assert!(
         out.status.success(),
         "check_inference_data.py: {}",
@@ -97,6 +106,58 @@ fn arviz_opens_a_sample_run_and_agrees_on_rhat_ess_and_loo() {
         info["timings_s"],
         serde_json::to_string_pretty(&report).unwrap()
     );
+}
+
+/// `../shared/data/real/<dataset>` (or under `$FRFBAYES_SHARED_DIR`), else a skip message.
+fn shared_dataset(dataset: &str) -> Option<std::path::PathBuf> {
+    let root = frfbayes::model::shared_root();
+    let root = if root.is_relative() {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(root)
+    } else {
+        root
+    };
+    if root.join("data/real").join(dataset).is_dir() {
+        return Some(root);
+    }
+    println!(
+        "skipped: {}/data/real/{dataset} not found (no ../shared beside the repository and \
+         no FRFBAYES_SHARED_DIR): nothing checked",
+        root.display()
+    );
+    None
+}
+
+/// A `real` study's file: ArviZ opens it, its log-likelihood blocks pair with the
+/// observed data (8 blocks: each mode's frequency and shape) and `az.loo` runs.
+#[test]
+fn arviz_opens_a_real_study_with_log_likelihood_and_observed_data() {
+    if !have_arviz() {
+        return;
+    }
+    let Some(shared) = shared_dataset("four-story-modal") else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("four-story-modal");
+    let out = Command::new(env!("CARGO_BIN_EXE_frfbayes"))
+        .args(["real", "four-story-modal", "--quick", "--seed", "4"])
+        .arg("--shared")
+        .arg(&shared)
+        .arg("--out")
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r = check(&run);
+    println!("{}", serde_json::to_string_pretty(&r).unwrap());
+    assert_eq!(r["blocks"]["blocks"], serde_json::json!(8), "{r}");
+    // 4 frequencies and 4 shapes of 4 floors.
+    assert_eq!(r["blocks"]["values"], serde_json::json!(20), "{r}");
+    assert!(r["loo"]["elpd_loo"].as_f64().unwrap().is_finite());
 }
 
 /// `y_i ~ N(mu, 1)`, 30 observations, flat prior on `mu`: the pointwise terms are

@@ -4,12 +4,15 @@
 //! - `diagnose --quick`: the hypotheses' searches and evidence runs on different ranks;
 //! - `diagnose-benchmark --quick` on two cases: one case per rank, written by rank 0;
 //!   a rank that fails is named in the error, and the case rank 0 finished is reused
-//!   by the rerun.
+//!   by the rerun;
+//! - `real bridge-fe --quick`: the bridge study on the 946-DOF model read from
+//!   `../shared` (skipped with a message, checking nothing, when the data are absent),
+//!   its posterior's walkers spread over the ranks.
 //!
 //! Outputs are compared byte for byte, except the records of wall time: `run.json`,
-//! `seconds.txt`, wall-time keys of JSON files, `<number> s` and tables of wall times in
-//! Markdown and HTML, the copy of `run.json` that ends `report.html`, the time column
-//! of the benchmark report.
+//! `seconds.txt`, wall-time keys of JSON files, `<number> s` (and `ms`, `us`, speed
+//! ratios `(<number>x)`) and tables of wall times in Markdown and HTML, the copy of
+//! `run.json` that ends `report.html`, the time column of the benchmark report.
 //!
 //! Needs OpenMPI's `mpirun`; without it the tests print a skip message, unless
 //! `FRFBAYES_REQUIRE_EXTERNAL=1` (CI), which makes a missing tool a failure.
@@ -115,13 +118,22 @@ fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     out
 }
 
-/// Keys of wall times in the JSON records.
-const WALL_TIME_KEYS: [&str; 4] = ["wall_s", "elapsed_s", "timings", "timings_s"];
+/// Keys of wall times in the JSON records (and every key ending `wall_s`).
+const WALL_TIME_KEYS: [&str; 8] = [
+    "wall_s",
+    "elapsed_s",
+    "timings",
+    "timings_s",
+    "build_s",
+    "polish_s",
+    "reduced_eval_s",
+    "exact_eval_s",
+];
 
 fn drop_wall_times(v: &mut serde_json::Value) {
     match v {
         serde_json::Value::Object(m) => {
-            m.retain(|k, _| !WALL_TIME_KEYS.contains(&k.as_str()));
+            m.retain(|k, _| !WALL_TIME_KEYS.contains(&k.as_str()) && !k.ends_with("wall_s"));
             m.values_mut().for_each(drop_wall_times);
         }
         serde_json::Value::Array(a) => a.iter_mut().for_each(drop_wall_times),
@@ -129,8 +141,8 @@ fn drop_wall_times(v: &mut serde_json::Value) {
     }
 }
 
-/// The text with every `<number> s` replaced by `# s` and the rows of a table of wall
-/// times (Markdown or HTML) left out.
+/// The text with every `<number> s` (`ms`, `us`; and a speed ratio `(<number>x)`)
+/// replaced by `# s` and the rows of a table of wall times (Markdown or HTML) left out.
 fn mask_wall_times(text: &str) -> String {
     let mut out = String::new();
     let mut in_table = false;
@@ -138,7 +150,7 @@ fn mask_wall_times(text: &str) -> String {
         if line.contains("<code>run.json</code>") {
             break; // report.html ends with the run's record (command line, start, times)
         }
-        if line.contains("wall time") {
+        if line.contains("wall time") || line.contains("wall (s)") {
             in_table = true;
             continue;
         }
@@ -166,8 +178,11 @@ fn mask_seconds(line: &str) -> String {
             i += 1;
         }
         if i > num_start {
-            let next = b.get(i + 2).copied().unwrap_or(b' ');
-            if line[i..].starts_with(" s") && !next.is_ascii_alphanumeric() {
+            let unit = [" s", " ms", " us", " µs", "x)"]
+                .into_iter()
+                .find(|u| line[i..].starts_with(u));
+            let next = unit.and_then(|u| b.get(i + u.len()).copied());
+            if unit.is_some() && !next.unwrap_or(b' ').is_ascii_alphanumeric() {
                 out.push('#');
             } else {
                 out.push_str(&line[num_start..i]);
@@ -372,4 +387,65 @@ fn benchmark_on_two_ranks_is_bit_identical_and_a_failed_rank_is_named() {
             .collect()
     };
     assert_eq!(table(&a), table(&b));
+}
+
+/// The bridge data in `../shared` (or `$FRFBAYES_SHARED_DIR`), else a skip message.
+fn bridge_shared() -> Option<PathBuf> {
+    let root = frfbayes::model::shared_root();
+    let root = if root.is_relative() {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(root)
+    } else {
+        root
+    };
+    if root.join("data/real/bridge-fe").is_dir() {
+        Some(root)
+    } else {
+        println!(
+            "skipped: {}/data/real/bridge-fe not found (no ../shared beside the repository \
+             and no FRFBAYES_SHARED_DIR): nothing checked",
+            root.display()
+        );
+        None
+    }
+}
+
+/// The bridge posterior (`real bridge-fe --quick`: 48 x 4 walkers, 100 steps on the
+/// reduced basis; the multistart, polish and checks run on every rank) on two ranks
+/// against one process: every output the same bits, `inference_data.nc` included.
+#[test]
+fn bridge_posterior_on_two_ranks_is_bit_identical() {
+    if !have_mpirun() {
+        return;
+    }
+    let Some(shared) = bridge_shared() else {
+        return;
+    };
+    let _serial = serial();
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, b) = (tmp.path().join("one"), tmp.path().join("two"));
+    let args = |out: &Path| {
+        [
+            "real",
+            "bridge-fe",
+            "--quick",
+            "--shared",
+            path_str(&shared),
+            "--seed",
+            "2",
+            "--out",
+            path_str(out),
+        ]
+        .map(String::from)
+    };
+    timed("real bridge-fe --quick, 1 process", || {
+        single(&args(&a).each_ref().map(String::as_str))
+    });
+    timed("real bridge-fe --quick, 2 ranks", || {
+        ok(two_ranks(&args(&b).each_ref().map(String::as_str)))
+    });
+    let post: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(a.join("posterior.json")).unwrap()).unwrap();
+    assert_eq!(post["n_steps"], serde_json::json!(100), "{post}");
+    assert!(a.join("inference_data.nc").is_file());
+    assert_same_trees(&a, &b);
 }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use frfbayes::mcmc::Progress;
 use frfbayes::real::posterior::Sampling;
-use frfbayes::real::{data_dir, run, shared_dir, Dataset};
+use frfbayes::real::{data_dir, run, shared_dir, Dataset, StudyOptions};
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// Which dataset.
@@ -37,6 +37,14 @@ pub struct Args {
     /// Master seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// A short run of every stage, for tests of the command (e.g. `mpirun -n 2` against
+    /// one process): 200 sampler steps; the bridge also 4 starts of 200 evaluations, one
+    /// exact polish of 40, 100 sampler steps. Its numbers are not the study's.
+    #[arg(long)]
+    pub quick: bool,
+    /// Step cap of every sampler of the study (with --quick, replaces its step count).
+    #[arg(long)]
+    pub max_steps: Option<u64>,
 }
 
 /// Runs the study with a progress bar per sampled posterior and prints where the
@@ -73,7 +81,12 @@ pub fn run_cmd(args: Args) -> anyhow::Result<()> {
             b.set_message(format!("acceptance {:.3}", p.acceptance));
         }
     };
-    let timings = run(dataset, &data, &out, args.seed, &mut Sampling::new(on_step));
+    let options = StudyOptions {
+        seed: args.seed,
+        quick: args.quick,
+        max_steps: args.max_steps,
+    };
+    let timings = run(dataset, &data, &out, options, &mut Sampling::new(on_step));
     let timings = timings?;
     if !frfbayes::dist::is_root() {
         return Ok(());

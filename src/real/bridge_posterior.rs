@@ -10,11 +10,11 @@ use rand_distr::{Distribution, Normal};
 
 use super::bridge::{bayes_posterior, BridgeData};
 use super::bridge_run::BridgeSettings;
-use super::posterior::{near_bound, row_from_chains, Sampled, Sampling, Targets};
+use super::posterior::{near_bound, observed_blocks, row_from_chains, Sampled, Sampling, Targets};
 use crate::bayes::summary::{AtBound, ParameterSummary};
 use crate::error::{Error, Result};
 use crate::infer::{sample_in_unconstrained, Posterior};
-use crate::mcmc::Start;
+use crate::mcmc::{Observed, Start};
 use crate::predict::modal::ModalPredictor;
 use crate::predict::reduced::{compare_with_full, PointError, ReducedModes};
 use crate::update::lsq::LeastSquaresProblem;
@@ -35,6 +35,8 @@ pub struct BridgePosterior {
     /// The basis: size, and its error at posterior draws.
     pub basis_size: usize,
     pub basis_at_draws: Vec<PointError>,
+    /// The likelihood's data, for `inference_data.nc`.
+    pub observed: Observed,
 }
 
 /// What the 5 modes say of one alpha, from its posterior against its prior.
@@ -228,6 +230,7 @@ pub fn sample_posterior(
         mac,
         basis_size: reduced.size(),
         basis_at_draws,
+        observed: observed_blocks(&post),
     })
 }
 

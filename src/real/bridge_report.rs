@@ -61,6 +61,7 @@ pub fn write(study: &BridgeStudy, out: &Path, timings: &[(String, f64)]) -> Resu
         &post.sampled,
         &post.rows,
         <[f64]>::to_vec,
+        Some(post.observed.clone()),
         "bridge-fe",
     )?;
     let (fit_md, fit_csv) = fit_table(study);

@@ -40,6 +40,10 @@ pub struct BridgeSettings {
     pub n_predictive: usize,
     /// Step cap of the sampler (the study stops there, converged or not, and says which).
     pub max_steps: u64,
+    /// Distinct multistart end points polished with the exact solver, and the residual
+    /// evaluations of each polish.
+    pub n_polished: usize,
+    pub polish_evaluations: usize,
 }
 
 impl Default for BridgeSettings {
@@ -58,6 +62,29 @@ impl Default for BridgeSettings {
             n_walkers: 48,
             n_predictive: 400,
             max_steps: 9000,
+            n_polished: 5,
+            polish_evaluations: 200,
+        }
+    }
+}
+
+impl BridgeSettings {
+    /// `frfbayes real bridge-fe --quick`: every stage of the study on a small scale (4
+    /// random snapshots, 2 check points, 4 starts of 200 evaluations, one end point
+    /// polished with 40 exact evaluations, 20 predictive draws, 100 sampler steps), for
+    /// tests of the command; its numbers are not the study's.
+    pub fn quick(seed: u64) -> Self {
+        BridgeSettings {
+            seed,
+            n_random_snapshots: 4,
+            n_check_points: 2,
+            n_starts: 4,
+            max_evaluations: 200,
+            n_predictive: 20,
+            max_steps: 100,
+            n_polished: 1,
+            polish_evaluations: 40,
+            ..Default::default()
         }
     }
 }
@@ -218,9 +245,6 @@ fn objective<P: crate::predict::Predict>(post: &Posterior<P>, alpha: &[f64]) -> 
     Ok(post.residuals(alpha)?.iter().map(|r| r * r).sum())
 }
 
-/// Distinct end points of the multistart polished with the exact solver.
-const POLISHED: usize = 5;
-
 /// The exact sparse partial solver (`src/modal/partial.rs`) of the bridge.
 fn partial_modes(data: &BridgeData) -> Result<PartialModes> {
     PartialModes::new(data.model.clone(), PartialOptions::default())
@@ -247,7 +271,7 @@ pub fn smu_fit(
     let t0 = Instant::now();
     let polish = FitOptions {
         n_starts: 1,
-        trf: trf_options(200),
+        trf: trf_options(settings.polish_evaluations),
         ..FitOptions::default()
     };
     // The reduced basis ranks end points to its own accuracy (eigenvalues within a few
@@ -261,7 +285,9 @@ pub fn smu_fit(
     ends.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut distinct: Vec<(f64, Vec<f64>)> = Vec::new();
     for e in ends {
-        if distinct.len() < POLISHED && distinct.iter().all(|d| (d.0 - e.0).abs() > 1e-6 * d.0) {
+        if distinct.len() < settings.n_polished
+            && distinct.iter().all(|d| (d.0 - e.0).abs() > 1e-6 * d.0)
+        {
             distinct.push(e);
         }
     }

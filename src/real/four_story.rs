@@ -392,6 +392,15 @@ impl LogDensity for ModalLikelihood {
     fn ln_density(&self, theta: &[f64]) -> Result<f64> {
         self.posterior.ln_density(theta)
     }
+
+    /// One term per block (each mode's frequency, each mode's shape).
+    fn n_pointwise(&self) -> usize {
+        self.posterior.n_pointwise()
+    }
+
+    fn ln_density_with_pointwise(&self, theta: &[f64], pointwise: &mut [f64]) -> Result<f64> {
+        self.posterior.ln_density_with_pointwise(theta, pointwise)
+    }
 }
 
 #[cfg(test)]

@@ -7,8 +7,8 @@ use std::path::Path;
 use super::four_story::{MASSES_KG, N_FLOORS};
 use super::four_story_run::{FourStoryStudy, Ppc, Variant};
 use super::posterior::{
-    posterior_summary, quantile_sorted, write_inference_data, write_summary, ParameterSummary,
-    PosteriorSummary, INFERENCE_DATA_FILE,
+    observed_blocks, posterior_summary, quantile_sorted, write_inference_data, write_summary,
+    ParameterSummary, PosteriorSummary, INFERENCE_DATA_FILE,
 };
 use super::report::{md_table, posterior_table, run_line, sig};
 use crate::error::Result;
@@ -90,6 +90,7 @@ pub fn write(s: &FourStoryStudy, out: &Path, timings: &[(String, f64)]) -> Resul
         &s.main.sampled,
         &s.main.rows,
         |z| super::four_story_run::reported_values(z, ns),
+        Some(observed_blocks(s.main.lik.posterior())),
         "four-story-modal",
     )?;
     super::four_story_figures::write(s, out)?;

@@ -89,6 +89,33 @@ pub fn data_dir(shared: &Path, dataset: Dataset) -> PathBuf {
     shared.join("data/real").join(dataset.name())
 }
 
+/// How a study runs: the full study (the default), or a short one for tests.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StudyOptions {
+    /// Master seed.
+    pub seed: u64,
+    /// Every stage on a small scale ([`QUICK_STEPS`] sampler steps; the bridge also
+    /// [`bridge_run::BridgeSettings::quick`]): the numbers are not the study's.
+    pub quick: bool,
+    /// Step cap of every sampler of the study (the bridge's replaces its own cap, so it
+    /// also lengthens a `quick` run).
+    pub max_steps: Option<u64>,
+}
+
+impl StudyOptions {
+    /// The full study with `seed`.
+    pub fn full(seed: u64) -> Self {
+        StudyOptions {
+            seed,
+            quick: false,
+            max_steps: None,
+        }
+    }
+}
+
+/// Sampler steps of a `quick` study (the bridge: [`bridge_run::BridgeSettings::quick`]).
+pub const QUICK_STEPS: u64 = 200;
+
 /// Runs the study of `dataset` on the data in `data_dir` and writes `report.md`,
 /// `posterior.json`, `run.json` and the figures into `out_dir`, atomically: the folder
 /// is built aside ([`StagedDir`]) and replaces `out_dir` only when complete. `sampling`
@@ -97,9 +124,10 @@ pub fn run(
     dataset: Dataset,
     data_dir: &Path,
     out_dir: &Path,
-    seed: u64,
+    options: StudyOptions,
     sampling: &mut Sampling<'_>,
 ) -> Result<Vec<(String, f64)>> {
+    let seed = options.seed;
     if !data_dir.is_dir() {
         return Err(Error::Usage(format!(
             "data folder {} not found: pass --shared <DIR> with <DIR>/data/real/{} (or set \
@@ -108,7 +136,13 @@ pub fn run(
             dataset.name()
         )));
     }
-    let config = serde_json::json!({ "dataset": dataset.name(), "seed": seed });
+    let config = serde_json::json!({
+        "dataset": dataset.name(),
+        "seed": seed,
+        "quick": options.quick,
+        "max_steps": options.max_steps,
+    });
+    cap_steps(dataset, options, sampling);
     let mut info = RunInfo::start(seed, config, data_dir.display().to_string());
     // Under MPI every rank runs the study (the samplers spread their walkers over the
     // ranks); only rank 0 writes `out_dir`, the others a scratch folder they delete.
@@ -121,7 +155,63 @@ pub fn run(
         Some(s) => StagedDir::new(&s.path().join("out"))?,
     };
     let out = staged.path().to_path_buf();
-    let t0 = Instant::now();
+    compute_and_write(dataset, data_dir, &out, options, sampling, &mut info)?;
+    info.write(&out)?;
+    crate::report::write_html_report(
+        &out,
+        &crate::report::HtmlReport {
+            markdown: &["report.md"],
+            lead: crate::report::LEAD,
+            tail: crate::report::TAIL,
+            title: None,
+        },
+    )?;
+    staged.commit()?;
+    Ok(info.timings_s)
+}
+
+/// Lowers `sampling`'s step cap to the one of `options` (the bridge caps its sampler
+/// itself, [`bridge_settings`]).
+fn cap_steps(dataset: Dataset, options: StudyOptions, sampling: &mut Sampling<'_>) {
+    if dataset == Dataset::BridgeFe {
+        return;
+    }
+    let cap = match (options.quick, options.max_steps) {
+        (_, Some(n)) => Some(n),
+        (true, None) => Some(QUICK_STEPS),
+        (false, None) => None,
+    };
+    if let Some(n) = cap {
+        sampling.step_cap = Some(sampling.step_cap.map_or(n, |c| c.min(n)));
+    }
+}
+
+/// The bridge study's settings for `options`.
+fn bridge_settings(options: StudyOptions) -> bridge_run::BridgeSettings {
+    let mut settings = match options.quick {
+        true => bridge_run::BridgeSettings::quick(options.seed),
+        false => bridge_run::BridgeSettings {
+            seed: options.seed,
+            ..Default::default()
+        },
+    };
+    if let Some(n) = options.max_steps {
+        settings.max_steps = n;
+    }
+    settings
+}
+
+/// Computes the study of `dataset` and writes its report, posterior and figures into
+/// `out`, timing each stage in `info`.
+fn compute_and_write(
+    dataset: Dataset,
+    data_dir: &Path,
+    out: &Path,
+    options: StudyOptions,
+    sampling: &mut Sampling<'_>,
+    info: &mut RunInfo,
+) -> Result<()> {
+    let (seed, t0) = (options.seed, Instant::now());
     match dataset {
         Dataset::FourStoryModal => {
             let study = info.time("sample three variants and check", || {
@@ -130,7 +220,7 @@ pub fn run(
             let mut timings = info.timings_s.clone();
             timings.push(("total before writing".into(), t0.elapsed().as_secs_f64()));
             info.time("write report and figures", || {
-                four_story_report::write(&study, &out, &timings)
+                four_story_report::write(&study, out, &timings)
             })?;
         }
         Dataset::WheelFrf => {
@@ -151,21 +241,18 @@ pub fn run(
             };
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
-                wheel_report::write(&study, &data, &out, &timings)
+                wheel_report::write(&study, &data, out, &timings)
             })?;
         }
         Dataset::BridgeFe => {
             let data = info.time("read model and modes", || bridge::load(data_dir))?;
-            let settings = bridge_run::BridgeSettings {
-                seed,
-                ..Default::default()
-            };
+            let settings = bridge_settings(options);
             let study = info.time("reduced basis, SMU multistarts, posterior", || {
                 bridge_run::run(&data, &settings, sampling)
             })?;
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
-                bridge_report::write(&study, &out, &timings)
+                bridge_report::write(&study, out, &timings)
             })?;
         }
         Dataset::TowerHmd => {
@@ -174,22 +261,11 @@ pub fn run(
             })?;
             let timings = info.timings_s.clone();
             info.time("write report and figures", || {
-                tower_report::write(&study, &out, &timings)
+                tower_report::write(&study, out, &timings)
             })?;
         }
     }
-    info.write(&out)?;
-    crate::report::write_html_report(
-        &out,
-        &crate::report::HtmlReport {
-            markdown: &["report.md"],
-            lead: crate::report::LEAD,
-            tail: crate::report::TAIL,
-            title: None,
-        },
-    )?;
-    staged.commit()?;
-    Ok(info.timings_s)
+    Ok(())
 }
 
 /// For tests: `<shared>/data/real/<dataset>` when present (`$FRFBAYES_SHARED_DIR` or

@@ -15,9 +15,10 @@ use crate::error::{Error, Result};
 pub use crate::infer::sample::{
     default_moves, sample_to_targets, worst_diagnostics, OnStep, Sampled, Sampling, Targets,
 };
+use crate::infer::{BlockKind, Posterior};
 use crate::io::write_atomic;
 pub use crate::mcmc::INFERENCE_DATA_FILE;
-use crate::mcmc::{ensemble_diagnostics, Draws, InferenceData, StopReason};
+use crate::mcmc::{ensemble_diagnostics, Draws, InferenceData, Observed, StopReason};
 use rayon::prelude::*;
 
 /// Writes `path` (`inference_data.nc` beside `posterior.json`), ArviZ's InferenceData of
@@ -25,13 +26,15 @@ use rayon::prelude::*;
 /// quantities `rows` (their names and units) computed from each draw's sampled
 /// coordinates by `reported` (one value per row, in order); `sample_stats` the log
 /// posterior and the walkers' acceptance; `log_likelihood` (`terms`, one per data block
-/// of the likelihood) when the density has pointwise terms ([`Sampled::log_likelihood`]).
-/// The data themselves stay in the study's own files (no `observed_data`).
+/// of the likelihood, so that `az.loo` leaves one block out) when the density has
+/// pointwise terms ([`Sampled::log_likelihood`]); `observed_data` the blocks' data
+/// ([`observed_blocks`]) when given.
 pub fn write_inference_data(
     path: &Path,
     sampled: &Sampled,
     rows: &[ParameterSummary],
     reported: impl Fn(&[f64]) -> Vec<f64> + Sync,
+    observed: Option<Observed>,
     study: &str,
 ) -> Result<()> {
     let d = &sampled.draws;
@@ -62,7 +65,50 @@ pub fn write_inference_data(
     if let Some(ll) = &sampled.log_likelihood {
         idata = idata.with_log_likelihood("terms", "block", ll)?;
     }
+    if let Some(obs) = observed {
+        idata = idata.with_observed(obs)?;
+    }
     idata.write(path)
+}
+
+/// The `observed_data` of a posterior on the inference layer: every block's data in
+/// block order along `value`, as its likelihood compares them (a `Values` block's
+/// transformed values, e.g. `ln f` or eigenvalues; a `ShapeMac` block's unit shape; a
+/// `ShapeDifference` block's shape over its reference entry; a `LinearMarginal`
+/// block's complex values as real and imaginary parts), with the coordinate `block`
+/// (the index along `log_likelihood`'s `block`) and the blocks' names and kinds as
+/// attributes.
+pub fn observed_blocks<P: crate::predict::Predict>(post: &Posterior<P>) -> Observed {
+    let (mut values, mut block) = (Vec::new(), Vec::new());
+    let (mut names, mut kinds) = (Vec::new(), Vec::new());
+    for (i, b) in post.blocks().iter().enumerate() {
+        let (v, kind) = match &b.kind {
+            BlockKind::Values { observed, .. } => (observed.clone(), "values"),
+            BlockKind::ShapeMac { observed_unit } => (observed_unit.clone(), "shape_mac"),
+            BlockKind::ShapeDifference { observed, .. } => (observed.clone(), "shape_difference"),
+            BlockKind::LinearMarginal {
+                observed, inv_sd, ..
+            } => (
+                observed.iter().zip(inv_sd).map(|(y, w)| y / w).collect(),
+                "linear_marginal",
+            ),
+        };
+        block.extend(std::iter::repeat_n(i as f64, v.len()));
+        values.extend(v);
+        names.push(b.name.clone());
+        kinds.push(kind);
+    }
+    Observed {
+        name: "observations".into(),
+        dim: "value".into(),
+        values,
+        unit: "as each block compares them (see block_kinds)".into(),
+        coords: vec![("block".into(), block)],
+        attrs: vec![
+            ("block_names".into(), names.join(", ")),
+            ("block_kinds".into(), kinds.join(", ")),
+        ],
+    }
 }
 
 /// Writes `posterior.json` atomically (pretty JSON).

@@ -4,7 +4,7 @@
 //! output folder.
 
 use super::posterior::Sampling;
-use super::{run, shared_dataset, Dataset};
+use super::{run, shared_dataset, Dataset, StudyOptions};
 
 /// Steps per sampled posterior in the smoke runs.
 const SMOKE_STEPS: u64 = 200;
@@ -15,7 +15,15 @@ fn smoke(dataset: Dataset, figures: &[&str]) {
     };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join(dataset.name());
-    let timings = run(dataset, &data, &out, 3, &mut Sampling::capped(SMOKE_STEPS)).unwrap();
+    let options = StudyOptions::full(3);
+    let timings = run(
+        dataset,
+        &data,
+        &out,
+        options,
+        &mut Sampling::capped(SMOKE_STEPS),
+    )
+    .unwrap();
     assert!(!timings.is_empty());
     let report = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(report.starts_with("# "), "{report}");
@@ -78,14 +86,7 @@ fn bridge_fe_runs_end_to_end() {
         return;
     };
     let data = bridge::load(&data_dir).unwrap();
-    let settings = bridge_run::BridgeSettings {
-        n_random_snapshots: 4,
-        n_check_points: 2,
-        n_starts: 4,
-        max_evaluations: 200,
-        n_predictive: 20,
-        ..Default::default()
-    };
+    let settings = bridge_run::BridgeSettings::quick(1);
     let study = bridge_run::run(&data, &settings, &mut Sampling::capped(100)).unwrap();
     let dir = tempfile::tempdir().unwrap();
     bridge_report::write(&study, dir.path(), &[("all".into(), 1.0)]).unwrap();

@@ -327,6 +327,15 @@ impl LogDensity for TowerLikelihood {
     fn ln_density(&self, t: &[f64]) -> Result<f64> {
         self.post.ln_density(t)
     }
+
+    /// One term per channel (its gain integrated out).
+    fn n_pointwise(&self) -> usize {
+        self.post.n_pointwise()
+    }
+
+    fn ln_density_with_pointwise(&self, t: &[f64], pointwise: &mut [f64]) -> Result<f64> {
+        self.post.ln_density_with_pointwise(t, pointwise)
+    }
 }
 
 #[cfg(test)]

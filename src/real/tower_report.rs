@@ -5,8 +5,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::posterior::{
-    posterior_summary, write_inference_data, write_summary, AtBound, PosteriorSummary,
-    INFERENCE_DATA_FILE,
+    observed_blocks, posterior_summary, write_inference_data, write_summary, AtBound,
+    PosteriorSummary, INFERENCE_DATA_FILE,
 };
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use super::tower::{AUTHOR_GAINS, DAMPER_MASS_KG, FLOOR_COLUMN, FLOOR_MASS_KG};
@@ -52,6 +52,7 @@ fn write_tower_inference_data(f: &TowerFit, out: &Path) -> Result<()> {
         &f.sampled,
         &rows,
         reported,
+        Some(observed_blocks(f.lik.posterior())),
         "tower-hmd",
     )
 }

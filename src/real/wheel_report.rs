@@ -4,8 +4,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::posterior::{
-    posterior_summary, write_inference_data, write_summary, ParameterSummary, PosteriorSummary,
-    Sampled,
+    observed_blocks, posterior_summary, write_inference_data, write_summary, ParameterSummary,
+    PosteriorSummary, Sampled,
 };
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use super::wheel::WheelData;
@@ -98,7 +98,8 @@ fn write_band_inference_data(
             .map(|(i, &v)| if i % 2 == 0 && i < 2 * m { v } else { v.exp() })
             .collect()
     };
-    write_inference_data(path, &b.sampled, &rows, reported, "wheel-frf")
+    let observed = Some(observed_blocks(&b.lik.posterior));
+    write_inference_data(path, &b.sampled, &rows, reported, observed, "wheel-frf")
 }
 
 /// Writes everything into `out`.

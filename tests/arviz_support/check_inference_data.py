@@ -1,10 +1,17 @@
 """Opens a run's inference_data.nc with one ArviZ call and checks it against posterior.json.
 
-Usage: check_inference_data.py RUN_DIR
+Usage: check_inference_data.py RUN_DIR [NC_FILE]
+
+NC_FILE defaults to inference_data.nc. For a `frfbayes real` study's folder the
+`log_likelihood` group holds one term per likelihood block (`block`) and `observed_data`
+the blocks' data along `value` with a `block` coordinate: the script checks that every
+block of the one has data in the other.
 
 - `az.from_netcdf(RUN_DIR / "inference_data.nc")` is the one call; the groups posterior,
   sample_stats, log_likelihood and observed_data must be there, the posterior's variables
-  must be posterior.json's parameters, and their means posterior.json's means.
+  must be posterior.json's parameters (some of them for a `real` study's file, which
+  names its study in the attribute `frfbayes_study`), and their means posterior.json's
+  means.
 - ArviZ's rank-normalised R-hat and bulk/tail ESS must match ours within their Monte Carlo
   error (tolerances below), and `az.loo` must run and give a finite elpd. Our R-hat
   treats each ensemble as a chain, our ESS each walker (src/mcmc/convergence.rs), so:
@@ -60,8 +67,23 @@ def walker_chains(idata, name):
     return out.reshape(x.shape[0] * n_w, n_t)
 
 
-def main(run_dir):
-    idata = az.from_netcdf(run_dir / "inference_data.nc")  # the one call
+def check_blocks(idata):
+    """A `real` study's file: every log-likelihood block has data, every datum a block."""
+    obs = idata.observed_data
+    if "block" not in obs.coords and "block" not in obs:
+        return None
+    n_block = idata.log_likelihood.sizes["block"]
+    blocks = np.unique(np.asarray(obs["block"]))
+    if list(blocks) != list(range(n_block)):
+        fail(f"observed_data blocks {blocks} != the {n_block} log-likelihood blocks")
+    names = obs["observations"].attrs["block_names"].split(", ")
+    if len(names) != n_block:
+        fail(f"{len(names)} block names for {n_block} blocks")
+    return {"blocks": n_block, "block_names": names, "values": obs.sizes["value"]}
+
+
+def main(run_dir, nc_name="inference_data.nc"):
+    idata = az.from_netcdf(run_dir / nc_name)  # the one call
     ours = json.loads((run_dir / "posterior.json").read_text())
     for g in ["posterior", "sample_stats", "log_likelihood", "observed_data"]:
         if g not in idata.groups():
@@ -70,8 +92,15 @@ def main(run_dir):
         if v not in idata.sample_stats:
             fail(f"sample_stats has no {v}")
     names = [p["name"] for p in ours["parameters"]]
-    # HDF5 lists a group's members by name (the file keeps no creation order).
-    if sorted(idata.posterior.data_vars) != sorted(names):
+    # HDF5 lists a group's members by name (the file keeps no creation order). A `real`
+    # study may leave out quantities that are no function of a draw (tower-hmd's gains,
+    # drawn conditionally): its variables must be some of posterior.json's.
+    study = idata.posterior.attrs.get("frfbayes_study")
+    file_vars = sorted(idata.posterior.data_vars)
+    if study is not None:
+        if not file_vars or not set(file_vars) <= set(names):
+            fail(f"posterior variables {file_vars} are not among {names}")
+    elif file_vars != sorted(names):
         fail(f"posterior variables {list(idata.posterior.data_vars)} != {names}")
     n_chain = idata.posterior.sizes["chain"]
     if n_chain != ours["n_ensembles"]:
@@ -87,6 +116,8 @@ def main(run_dir):
     rows = []
     for p in ours["parameters"]:
         name = p["name"]
+        if name not in idata.posterior:
+            continue
         mean = float(idata.posterior[name].mean())
         if not math.isclose(mean, p["mean"], rel_tol=1e-9, abs_tol=1e-300):
             fail(f"{name}: mean {mean} != posterior.json {p['mean']}")
@@ -123,7 +154,10 @@ def main(run_dir):
     if not math.isfinite(elpd):
         fail(f"az.loo gave elpd {elpd}")
     k = np.asarray(loo.pareto_k)
+    blocks = check_blocks(idata)
     print(json.dumps({
+        "file": nc_name,
+        "blocks": blocks,
         "arviz": az.__version__,
         "groups": list(idata.groups()),
         "chains": n_chain,
@@ -137,4 +171,4 @@ def main(run_dir):
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]))
+    main(Path(sys.argv[1]), *sys.argv[2:3])
