@@ -1,7 +1,7 @@
 //! Posterior sampling on general models (`structure = "general"` campaigns, models given
 //! as Matrix Market files): a campaign is simulated from a model file with a known truth,
 //! its FRFs estimated and its posterior sampled exactly as `frfbayes sample` does
-//! ([`prepare_campaign`], [`sample_posterior`]), and every alpha, beta and damping
+//! ([`prepare_campaign`], [`sample_prepared`]), and every alpha, beta and damping
 //! variable (alpha, beta) must lie within 3 posterior standard deviations of the truth,
 //! with every R-hat below 1.01. The damping's standardised errors are printed, not
 //! checked: a1 of the six-DOF campaign is 4.4 sd off (0.27 %; an open question of the
@@ -16,7 +16,7 @@
 //! model). The seeds are fixed; the test is deterministic.
 
 use frfbayes::bayes::run::{
-    prepare_campaign, sample_posterior, PosteriorSample, SampleSettings, TestSelection,
+    prepare_campaign, sample_prepared, PosteriorSample, SampleSettings, TestSelection,
 };
 use frfbayes::frf::FrfKind;
 use frfbayes::simulate::{DampingSpec, SimModel, Simulator, StructureSpec};
@@ -80,7 +80,7 @@ fn recover(model_file: &str, small: bool) -> Recovery {
         settings.walkers_per_dim = 4;
     }
     let prep = prepare_campaign(&campaign, &settings).unwrap();
-    let PosteriorSample { summary, .. } = sample_posterior(&prep.posterior, &settings).unwrap();
+    let PosteriorSample { summary, .. } = sample_prepared(&prep, &settings).unwrap();
     let wall_s = t0.elapsed().as_secs_f64();
     let mut worst = (String::new(), 0.0f64);
     println!("{model_file}: {} points", prep.posterior.data().len());

@@ -18,12 +18,12 @@
 //! Every file is written atomically. Chains are walkers (chain = ensemble x walkers +
 //! walker), as ArviZ reads emcee output.
 
-use super::data::{FrfData, InputNoiseModel, DEFAULT_REL_SIGMA_FLOOR};
+use super::data::{FrfData, InputNoiseModel, LoadingMagnitude, DEFAULT_REL_SIGMA_FLOOR};
 use super::figures::write_figures;
 use super::inference_data::{write_inference_data, INFERENCE_DATA_FILE};
 pub use super::moves::{de_stretch_moves, default_moves};
 use super::posterior::{FrfPosterior, PosteriorOptions};
-use super::start::{ball_positions, find_start, StartPoint};
+use super::start::{ball_positions, find_start, plug_in_start, StartPoint};
 use super::summary::{
     output_params, physical_draws, stuck_walkers, summarize, OutputParam, PosteriorSummary,
 };
@@ -89,6 +89,12 @@ pub struct SampleSettings {
     /// runs before it was added did, so they resume unchanged).
     #[serde(default)]
     pub input_noise: InputNoiseModel,
+    /// The magnitude that scales the shared force noise's loadings
+    /// ([`SampleSettings::new`]: the model's at the maximum-likelihood start; a settings
+    /// file without the key: the measured one, as runs before it was added did, so they
+    /// resume unchanged).
+    #[serde(default)]
+    pub loading_magnitude: LoadingMagnitude,
     /// Multistart local solves for the start point.
     pub n_starts: usize,
     /// Initial ball: this many Gauss-Newton standard deviations.
@@ -133,6 +139,7 @@ impl SampleSettings {
             residual: ResidualForm::Magnitude,
             rel_sigma_floor: DEFAULT_REL_SIGMA_FLOOR,
             input_noise: InputNoiseModel::Shared,
+            loading_magnitude: LoadingMagnitude::Model,
             n_starts: 32,
             ball_factor: 1.0,
             walkers_per_dim: 12,
@@ -161,14 +168,19 @@ impl SampleSettings {
     }
 }
 
-/// The campaign's FRF estimates and the posterior of a run.
+/// The campaign's FRF estimates, the posterior of a run and its start.
 pub struct Prepared {
     pub frfs: Vec<TestFrf>,
     pub posterior: FrfPosterior,
+    /// The maximum-likelihood start, at which the shared noise's loadings were scaled
+    /// ([`plug_in_start`]).
+    pub start: StartPoint,
 }
 
-/// Reads the campaign, estimates its FRFs and builds the posterior; or, with
-/// `settings.frfs`, reads the measured FRFs and their model ([`prepare_measured`]).
+/// Reads the campaign, estimates its FRFs, builds the posterior and finds its start
+/// ([`plug_in_start`], with `settings.loading_magnitude`); or, with `settings.frfs`,
+/// reads the measured FRFs and their model ([`prepare_measured`]). Deterministic for
+/// the settings, so that `--resume` rebuilds the same posterior.
 pub fn prepare(settings: &SampleSettings) -> Result<Prepared> {
     if let Some(manifest) = &settings.frfs {
         return prepare_measured(Path::new(manifest), settings);
@@ -226,7 +238,16 @@ fn posterior_of(
         &settings.variables,
         settings.posterior,
     )?;
-    Ok(Prepared { frfs, posterior })
+    let (posterior, start) = plug_in_start(
+        posterior,
+        settings.loading_magnitude,
+        &multistart_options(settings),
+    )?;
+    Ok(Prepared {
+        frfs,
+        posterior,
+        start,
+    })
 }
 
 /// What a run produced.
@@ -251,7 +272,7 @@ pub fn checkpoint_path(out: &Path) -> PathBuf {
     out.join(CHECKPOINT)
 }
 
-/// Stage messages of a run (`"estimating FRFs"`, ...).
+/// Stage messages of a run (`"sampling"`, ...).
 pub type StageFn<'a> = &'a dyn Fn(&str);
 
 fn json<T: Serialize>(v: &T) -> Result<Vec<u8>> {
@@ -281,13 +302,10 @@ pub fn run_sample(
             .unwrap_or_else(|| settings.campaign.clone()),
     );
     write_atomic(&settings_path(out), settings.to_toml()?.as_bytes())?;
-    stage("estimating FRFs");
-    let prep = info.time("estimate_frfs", || prepare(settings))?;
+    stage("estimating FRFs, finding the maximum-likelihood start");
+    let prep = info.time("estimate_frfs_and_start", || prepare(settings))?;
     let post = &prep.posterior;
-    stage("finding the maximum-likelihood start");
-    let start = info.time("multistart", || {
-        find_start(post, &multistart_options(settings))
-    })?;
+    let start = prep.start.clone();
     write_atomic(&out.join("start.json"), &json(&start_record(post, &start))?)?;
     let mut config = sampler_config(settings, post.dim())?;
     config.checkpoint = Some(CheckpointConfig {
@@ -339,8 +357,8 @@ pub fn resume_sample(
             .clone()
             .unwrap_or_else(|| settings.campaign.clone()),
     );
-    stage("estimating FRFs");
-    let prep = info.time("estimate_frfs", || prepare(&settings))?;
+    stage("estimating FRFs, finding the maximum-likelihood start");
+    let prep = info.time("estimate_frfs_and_start", || prepare(&settings))?;
     let moves = Moves::from_specs(&settings.moves)?;
     let mut sampler = Sampler::resume(&prep.posterior, moves, &cp)?;
     sampler.set_checkpoint(Some(CheckpointConfig {
@@ -421,8 +439,24 @@ pub struct PosteriorSample {
 /// Samples `post` with the run settings `settings` (the data-related fields, campaign,
 /// estimate, tests, are not used: `post` carries the data): maximum-likelihood start,
 /// Gauss-Newton ball, sampling to the convergence criterion or the step cap, summary.
+/// `post` is sampled as it is (its loadings are not rescaled: [`sample_prepared`] does
+/// what `frfbayes sample` does).
 pub fn sample_posterior(post: &FrfPosterior, settings: &SampleSettings) -> Result<PosteriorSample> {
     let start = find_start(post, &multistart_options(settings))?;
+    sample_from(post, start, settings)
+}
+
+/// [`sample_posterior`] of a prepared run: its posterior from its start ([`prepare`]).
+pub fn sample_prepared(prep: &Prepared, settings: &SampleSettings) -> Result<PosteriorSample> {
+    sample_from(&prep.posterior, prep.start.clone(), settings)
+}
+
+/// Samples `post` from `start` (see [`sample_posterior`]).
+fn sample_from(
+    post: &FrfPosterior,
+    start: StartPoint,
+    settings: &SampleSettings,
+) -> Result<PosteriorSample> {
     let config = sampler_config(settings, post.dim())?;
     let mut sampler = new_sampler(post, &start, config, settings)?;
     let t0 = Instant::now();
