@@ -5,10 +5,11 @@
 //! variable (alpha, beta) must lie within 3 posterior standard deviations of the truth,
 //! with every R-hat below 1.01. The damping's standardised errors are printed, not
 //! checked: a1 of the six-DOF campaign is 4.4 sd off (0.27 %; an open question of the
-//! estimator's damping bias at 0.06 % posterior cv). The alphas and betas of both
-//! campaigns share one offset along the mass-stiffness scale: a bias of the shared
-//! force-noise term's loadings (measured in `tests/bayes_recovery_study.rs`; README,
-//! "Not yet right"), so the ten-story check still fails.
+//! estimator's damping bias at 0.06 % posterior cv). The six-DOF campaign's common
+//! offset along the mass-stiffness scale was a bias of the shared force-noise term's
+//! loadings, fixed (`tests/bayes_recovery_study.rs`); the ten-story frame keeps a
+//! larger offset of another cause, tied to its damping (README, "Not yet right"), so
+//! the ten-story check still fails.
 //!
 //! Tolerance: with the posterior calibrated, `(truth - mean) / sd` is about standard
 //! normal per parameter, so `|z| <= 3` fails for a given parameter with probability
