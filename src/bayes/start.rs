@@ -179,7 +179,13 @@ pub fn plug_in_start(
         let mut z = ms.best.x.clone();
         z.push(0.0);
         let h = post.magnitudes(&z)?;
-        post.with_data(post.data().with_loading_magnitudes(&h)?)?
+        let plugged = post.with_data(post.data().with_loading_magnitudes(&h)?)?;
+        if plugged.prior() != post.prior() || plugged.names() != post.names() {
+            return Err(Error::Numerical(
+                "plug-in loadings: the rebuilt posterior has other variables or bounds".into(),
+            ));
+        }
+        plugged
     } else {
         post
     };
