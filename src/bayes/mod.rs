@@ -76,6 +76,7 @@ pub mod recovery;
 pub mod report;
 pub mod run;
 pub mod sbc;
+mod settings;
 mod start;
 pub mod summary;
 #[cfg(test)]
