@@ -4,7 +4,7 @@
 //! and modal damping within plausible ranges around a base model), simulate the campaign
 //! with the base model's sensor noise ([`crate::simulate`]), estimate H1 and build the
 //! posterior exactly as `frfbayes sample` does ([`super::run::prepare_campaign`]), sample
-//! it ([`super::run::sample_posterior`]) and record, per parameter, whether the central
+//! it ([`super::run::sample_prepared`]) and record, per parameter, whether the central
 //! interval of level `level` covers the truth and the standardised error
 //! `(posterior mean - truth) / posterior sd`.
 //!
@@ -15,7 +15,7 @@
 //! campaign dependent, so the pooled count is judged against the same bounds per
 //! parameter only.
 
-use super::run::{prepare_campaign, sample_posterior, SampleSettings};
+use super::run::{prepare_campaign, sample_prepared, SampleSettings};
 use crate::error::{Error, Result};
 use crate::mcmc::quantile;
 use crate::simulate::{DampingSpec, SimModel, Simulator, StructureSpec, TestSpec};
@@ -192,7 +192,7 @@ pub fn run_campaign(opts: &CoverageOptions, index: usize) -> Result<CampaignResu
     let t0 = std::time::Instant::now();
     let campaign = Simulator::new(model)?.run(noise_seed, &|_| {})?;
     let prep = prepare_campaign(&campaign, &opts.settings)?;
-    let sample = sample_posterior(&prep.posterior, &opts.settings)?;
+    let sample = sample_prepared(&prep, &opts.settings)?;
     let tail = 0.5 * (1.0 - opts.level);
     let mut out = CampaignResult {
         index,

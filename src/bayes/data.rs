@@ -36,6 +36,21 @@ pub enum InputNoiseModel {
     Shared,
 }
 
+/// Which magnitude scales the loadings of the shared force noise (magnitude residuals;
+/// see [`FrfData::with_loading_magnitudes`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LoadingMagnitude {
+    /// The measured `|H^E_k|`: carries the point's own response noise, which biases the
+    /// mass-stiffness scale (six-DOF campaign +0.375 %, 2.65 posterior sd; README).
+    #[default]
+    Measured,
+    /// Two-stage plug-in: the model's `|H^A_k(theta_ML)|` at the maximum-likelihood
+    /// start ([`crate::bayes::plug_in_start`]), whose dependence on any one point is
+    /// `O(1/n)`; fixed while sampling (no cost per evaluation).
+    Model,
+}
+
 /// Relative eigenvalue below which components of the shared force noise are dropped
 /// (their variance is added to each point's own).
 pub const SHARED_NOISE_REL_TOL: f64 = 1e-3;
@@ -52,6 +67,13 @@ pub struct CorrelatedNoise {
     pub rank: usize,
     /// `L`, `len x rank`, row-major.
     pub loadings: Vec<f64>,
+    /// The magnitude `|H_k|` that row `k` of `loadings` is scaled by (magnitude
+    /// residuals: the row is `|H_k| a_k`, `a_k` the relative loadings); as built, the
+    /// measured `|H^E_k|`, after [`FrfData::with_loading_magnitudes`] the model's. Empty
+    /// when the loadings scale with no magnitude (log residuals, or loadings given
+    /// directly).
+    #[serde(default)]
+    pub magnitude: Vec<f64>,
 }
 
 /// Measured magnitudes and their noise model at noise scale 1.
@@ -193,7 +215,7 @@ impl FrfData {
             .map(|n| n.low_rank(&bins, SHARED_NOISE_REL_TOL))
             .transpose()?;
         let start = self.magnitude.len();
-        let mut loadings = Vec::new();
+        let (mut loadings, mut scale) = (Vec::new(), Vec::new());
         for &j in &used {
             for (q, &i) in keep.iter().enumerate() {
                 let (m, r) = (mags[j * nw + i], rel[j * nw + i]);
@@ -211,7 +233,10 @@ impl FrfData {
                 if let Some(lr) = &shared {
                     r = (r * r + lr.dropped_var[q]).sqrt();
                     let unit = match self.residual {
-                        ResidualForm::Magnitude => m,
+                        ResidualForm::Magnitude => {
+                            scale.push(m);
+                            m
+                        }
                         ResidualForm::LogMagnitude => 1.0,
                     };
                     let row = &lr.loadings[q * lr.rank..(q + 1) * lr.rank];
@@ -233,6 +258,7 @@ impl FrfData {
                 len: self.magnitude.len() - start,
                 rank: lr.rank,
                 loadings,
+                magnitude: scale,
             });
         }
         self.blocks.push(FrfBlock {
@@ -251,6 +277,50 @@ impl FrfData {
     /// True without points.
     pub fn is_empty(&self) -> bool {
         self.magnitude.is_empty()
+    }
+
+    /// The same data with every shared-noise row that scales with a magnitude rescaled
+    /// to `h[k]` (long-vector order, e.g. the model's `|H^A_k|` at a point estimate):
+    /// row `k` becomes `h_k a_k` in place of `|H^E_k| a_k`, and
+    /// [`CorrelatedNoise::magnitude`] records `h`. Everything else is unchanged. Why:
+    /// the force noise of a test moves its measured FRF by a common relative error
+    /// `sum_r a_kr eta_r`, so its loadings are `|H_k| a_k` with `|H_k|` the FRF itself;
+    /// the measured `|H^E_k|` carries point `k`'s own response noise, so loadings built
+    /// from it correlate with the residual `y_k - |H^A_k|` they weight
+    /// (`E[L^T D^-1 (y - h)]` holds `var(y_k)`, not 0) and the Woodbury correction
+    /// biases the mass-stiffness scale (README, "Recovery of a simulated truth").
+    /// See [`LoadingMagnitude::Model`].
+    pub fn with_loading_magnitudes(&self, h: &[f64]) -> Result<FrfData> {
+        if h.len() != self.len() {
+            return Err(Error::Usage(format!(
+                "{} loading magnitudes for {} points",
+                h.len(),
+                self.len()
+            )));
+        }
+        let mut data = self.clone();
+        for c in data
+            .correlated
+            .iter_mut()
+            .filter(|c| !c.magnitude.is_empty())
+        {
+            for k in 0..c.len {
+                let to = h[c.start + k];
+                if !(to.is_finite() && to > 0.0) {
+                    return Err(Error::Numerical(format!(
+                        "loading magnitude {to} at point {}; it must be positive",
+                        c.start + k
+                    )));
+                }
+                let f = to / c.magnitude[k];
+                c.loadings[k * c.rank..(k + 1) * c.rank]
+                    .iter_mut()
+                    .for_each(|v| *v *= f);
+                c.magnitude[k] = to;
+            }
+        }
+        data.validate()?;
+        Ok(data)
     }
 
     /// Checks lengths and values: one magnitude and one sigma per point, magnitudes
@@ -301,10 +371,12 @@ impl FrfData {
                 || c.start + c.len > n
                 || c.loadings.len() != c.len * c.rank
                 || c.loadings.iter().any(|v| !v.is_finite())
+                || !(c.magnitude.is_empty() || c.magnitude.len() == c.len)
+                || c.magnitude.iter().any(|v| !(v.is_finite() && *v > 0.0))
             {
                 return Err(Error::Usage(format!(
                     "correlated noise over points {}..{} (rank {}, {} loadings) does not fit \
-                     {n} points in order, or has non-finite loadings",
+                     {n} points in order, or has non-finite loadings or loading magnitudes",
                     c.start,
                     c.start + c.len,
                     c.rank,

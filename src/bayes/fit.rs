@@ -1,6 +1,6 @@
 //! A maximum-likelihood update (`frfbayes fit`): the same posterior as `frfbayes sample`
 //! (campaign -> FRF estimates -> [`FrfPosterior`]), but only its multistart
-//! maximum-likelihood point ([`find_start`]) with Gauss-Newton standard deviations, for
+//! maximum-likelihood point ([`super::plug_in_start`]) with Gauss-Newton standard deviations, for
 //! any model a campaign names (shear frame or general). Writes `settings.toml` and
 //! `fit.json` ([`FitReport`]).
 //!
@@ -9,8 +9,8 @@
 //! bound on the posterior's; `sample` gives the full posterior.
 
 use super::posterior::FrfPosterior;
-use super::run::{multistart_options, prepare, SampleSettings};
-use super::start::{find_start, StartPoint};
+use super::run::{prepare, SampleSettings};
+use super::start::StartPoint;
 use super::summary::{output_params, physical_values};
 use crate::error::{Error, Result};
 use crate::io::write_atomic;
@@ -76,7 +76,7 @@ pub fn run_fit(settings: &SampleSettings, out: &Path) -> Result<FitReport> {
     write_atomic(&out.join("settings.toml"), settings.to_toml()?.as_bytes())?;
     let prep = prepare(settings)?;
     let post = &prep.posterior;
-    let start = find_start(post, &multistart_options(settings))?;
+    let start = prep.start.clone();
     let report = FitReport {
         campaign: settings.campaign.clone(),
         n_points: post.data().len(),

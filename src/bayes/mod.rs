@@ -34,6 +34,10 @@
 //! and stiffnesses of simulated campaigns in 6-9 of 20 ([`coverage`],
 //! `results/coverage/`). `s` carries what the coherence does
 //! not see (model error, bias); it is sampled, log-uniform on [`DEFAULT_NOISE_SCALE_BOUNDS`].
+//! The loadings are relative errors times the FRF magnitude; `sample` takes the model's
+//! magnitude at the maximum-likelihood start, not the measured one, whose own noise
+//! would correlate the covariance with the residual and bias the mass-stiffness scale
+//! ([`LoadingMagnitude`], [`plug_in_start`]).
 //!
 //! Pointwise log-likelihood (for PSIS-LOO / WAIC): the log density of each `y_k`
 //! (lognormal density for log residuals), so both residual forms compare on one scale;
@@ -47,7 +51,8 @@
 //!
 //! # Running
 //! [`run::run_sample`] does a whole `frfbayes sample` run: estimate the FRFs of a
-//! campaign, build the posterior, find the maximum-likelihood start ([`find_start`]),
+//! campaign, build the posterior, find the maximum-likelihood start ([`find_start`];
+//! with the shared noise's loadings at the start's model magnitudes, [`plug_in_start`]),
 //! sample with periodic checkpoints (resumable bit for bit), and write
 //! `posterior.json`, draws (CSV, `.npy`), the pointwise log-likelihood, figures and
 //! the ArviZ InferenceData `inference_data.nc` ([`inference_data`]).
@@ -71,15 +76,17 @@ pub mod recovery;
 pub mod report;
 pub mod run;
 pub mod sbc;
+mod settings;
 mod start;
 pub mod summary;
 #[cfg(test)]
 mod tests;
 
 pub use data::{
-    CorrelatedNoise, FrfData, InputNoiseModel, DEFAULT_REL_SIGMA_FLOOR, SHARED_NOISE_REL_TOL,
+    CorrelatedNoise, FrfData, InputNoiseModel, LoadingMagnitude, DEFAULT_REL_SIGMA_FLOOR,
+    SHARED_NOISE_REL_TOL,
 };
 pub use forward::{ForwardModel, ForwardWorkspace};
 pub use posterior::{FrfPosterior, PosteriorOptions};
 pub use prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
-pub use start::{ball_positions, find_start, StartPoint};
+pub use start::{ball_positions, find_start, plug_in_start, StartPoint};

@@ -18,157 +18,42 @@
 //! Every file is written atomically. Chains are walkers (chain = ensemble x walkers +
 //! walker), as ArviZ reads emcee output.
 
-use super::data::{FrfData, InputNoiseModel, DEFAULT_REL_SIGMA_FLOOR};
+use super::data::FrfData;
 use super::figures::write_figures;
 use super::inference_data::{write_inference_data, INFERENCE_DATA_FILE};
 pub use super::moves::{de_stretch_moves, default_moves};
-use super::posterior::{FrfPosterior, PosteriorOptions};
-use super::start::{ball_positions, find_start, StartPoint};
+use super::posterior::FrfPosterior;
+pub use super::settings::{SampleSettings, TestSelection};
+use super::start::{ball_positions, find_start, plug_in_start, StartPoint};
 use super::summary::{
     output_params, physical_draws, stuck_walkers, summarize, OutputParam, PosteriorSummary,
 };
 use crate::error::{Error, Result};
-use crate::frf::FrfKind;
 use crate::io::{read_campaign, resolve_data, write_atomic, Campaign, RunInfo};
 use crate::mcmc::{
     Burn, CheckpointConfig, Draws, LogDensity, Moves, ProgressFn, RunSummary, Sampler,
-    SamplerConfig, Start, StopReason, WeightedMove,
+    SamplerConfig, Start, StopReason,
 };
 use crate::signal::measured::read_measured;
-use crate::signal::{estimate_campaign, EstimateSection, InputKind, TestFrf};
-use crate::update::{DampingModel, MultistartOptions, ResidualForm, VariablesConfig};
-use serde::{Deserialize, Serialize};
+use crate::signal::{estimate_campaign, TestFrf};
+use crate::update::MultistartOptions;
+use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Which tests a run uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum TestSelection {
-    /// Impact-hammer tests (force input).
-    Hammer,
-    /// Shake-table tests (ground input).
-    ShakeTable,
-    /// Both.
-    All,
-}
-
-impl TestSelection {
-    /// Whether a test estimate is selected.
-    pub fn includes(self, frf: &TestFrf) -> bool {
-        matches!(
-            (self, &frf.input),
-            (TestSelection::All, _)
-                | (TestSelection::Hammer, InputKind::Force { .. })
-                | (TestSelection::ShakeTable, InputKind::Ground { .. })
-        )
-    }
-}
-
-/// Everything that defines a run; stored as `settings.toml`.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct SampleSettings {
-    /// Campaign folder or `bundled:four-story`.
-    pub campaign: String,
-    /// Measured FRFs instead of the campaign's recordings: the path of a measured-FRF
-    /// manifest ([`crate::signal::measured`]; UFF 58/58b, `.mat` or CSV files mapped to
-    /// model DOFs). The campaign is then not read; the manifest names the model.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub frfs: Option<String>,
-    pub damping: DampingModel,
-    pub frf: FrfKind,
-    pub tests: TestSelection,
-    /// Master seed (start design, initial ball, sampler).
-    pub seed: u64,
-    pub residual: ResidualForm,
-    /// Floor on the relative standard deviation of a magnitude.
-    pub rel_sigma_floor: f64,
-    /// How the force noise of hammer tests enters the likelihood ([`SampleSettings::new`]:
-    /// shared by the points of a test; a settings file without the key: per point, as
-    /// runs before it was added did, so they resume unchanged).
-    #[serde(default)]
-    pub input_noise: InputNoiseModel,
-    /// Multistart local solves for the start point.
-    pub n_starts: usize,
-    /// Initial ball: this many Gauss-Newton standard deviations.
-    pub ball_factor: f64,
-    /// Walkers per ensemble = this x dimension.
-    pub walkers_per_dim: usize,
-    pub n_ensembles: usize,
-    pub max_steps: u64,
-    pub check_every: u64,
-    /// Store every this many steps (default 5: the autocorrelation times here are ~50
-    /// steps, so tau and the draws lose nothing, and checkpoints are 5 times smaller).
-    pub thin_by: u64,
-    /// Checkpoint every this many steps.
-    pub checkpoint_every: u64,
-    /// Posterior draws behind the predictive bands.
-    pub predictive_draws: usize,
-    pub moves: Vec<WeightedMove>,
-    pub posterior: PosteriorOptions,
-    pub estimate: EstimateSection,
-    pub variables: VariablesConfig,
-}
-
-impl SampleSettings {
-    /// Defaults: the default FRF estimation ([`EstimateSection::default`]) and bounds
-    /// ([`VariablesConfig::default`]), which are those of `experiments/paper_repro.toml`
-    /// (a test in `crate::experiment::config` keeps them equal), default noise model and
-    /// prior, 4 ensembles of 12 x dim walkers, [`default_moves`].
-    pub fn new(
-        campaign: String,
-        damping: DampingModel,
-        frf: FrfKind,
-        tests: TestSelection,
-        seed: u64,
-    ) -> Result<Self> {
-        Ok(SampleSettings {
-            campaign,
-            frfs: None,
-            damping,
-            frf,
-            tests,
-            seed,
-            residual: ResidualForm::Magnitude,
-            rel_sigma_floor: DEFAULT_REL_SIGMA_FLOOR,
-            input_noise: InputNoiseModel::Shared,
-            n_starts: 32,
-            ball_factor: 1.0,
-            walkers_per_dim: 12,
-            n_ensembles: 4,
-            max_steps: 20_000,
-            check_every: 100,
-            thin_by: 5,
-            checkpoint_every: 500,
-            predictive_draws: 200,
-            moves: default_moves(),
-            posterior: PosteriorOptions::default(),
-            estimate: EstimateSection::default(),
-            variables: VariablesConfig::default(),
-        })
-    }
-
-    /// Reads `settings.toml`.
-    pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))
-    }
-
-    /// The TOML text of [`Self::load`].
-    pub fn to_toml(&self) -> Result<String> {
-        toml::to_string(self).map_err(|e| Error::Usage(format!("settings: {e}")))
-    }
-}
-
-/// The campaign's FRF estimates and the posterior of a run.
+/// The campaign's FRF estimates, the posterior of a run and its start.
 pub struct Prepared {
     pub frfs: Vec<TestFrf>,
     pub posterior: FrfPosterior,
+    /// The maximum-likelihood start, at which the shared noise's loadings were scaled
+    /// ([`plug_in_start`]).
+    pub start: StartPoint,
 }
 
-/// Reads the campaign, estimates its FRFs and builds the posterior; or, with
-/// `settings.frfs`, reads the measured FRFs and their model ([`prepare_measured`]).
+/// Reads the campaign, estimates its FRFs, builds the posterior and finds its start
+/// ([`plug_in_start`], with `settings.loading_magnitude`); or, with `settings.frfs`,
+/// reads the measured FRFs and their model ([`prepare_measured`]). Deterministic for
+/// the settings, so that `--resume` rebuilds the same posterior.
 pub fn prepare(settings: &SampleSettings) -> Result<Prepared> {
     if let Some(manifest) = &settings.frfs {
         return prepare_measured(Path::new(manifest), settings);
@@ -226,7 +111,16 @@ fn posterior_of(
         &settings.variables,
         settings.posterior,
     )?;
-    Ok(Prepared { frfs, posterior })
+    let (posterior, start) = plug_in_start(
+        posterior,
+        settings.loading_magnitude,
+        &multistart_options(settings),
+    )?;
+    Ok(Prepared {
+        frfs,
+        posterior,
+        start,
+    })
 }
 
 /// What a run produced.
@@ -251,7 +145,7 @@ pub fn checkpoint_path(out: &Path) -> PathBuf {
     out.join(CHECKPOINT)
 }
 
-/// Stage messages of a run (`"estimating FRFs"`, ...).
+/// Stage messages of a run (`"sampling"`, ...).
 pub type StageFn<'a> = &'a dyn Fn(&str);
 
 fn json<T: Serialize>(v: &T) -> Result<Vec<u8>> {
@@ -281,13 +175,10 @@ pub fn run_sample(
             .unwrap_or_else(|| settings.campaign.clone()),
     );
     write_atomic(&settings_path(out), settings.to_toml()?.as_bytes())?;
-    stage("estimating FRFs");
-    let prep = info.time("estimate_frfs", || prepare(settings))?;
+    stage("estimating FRFs, finding the maximum-likelihood start");
+    let prep = info.time("estimate_frfs_and_start", || prepare(settings))?;
     let post = &prep.posterior;
-    stage("finding the maximum-likelihood start");
-    let start = info.time("multistart", || {
-        find_start(post, &multistart_options(settings))
-    })?;
+    let start = prep.start.clone();
     write_atomic(&out.join("start.json"), &json(&start_record(post, &start))?)?;
     let mut config = sampler_config(settings, post.dim())?;
     config.checkpoint = Some(CheckpointConfig {
@@ -339,8 +230,8 @@ pub fn resume_sample(
             .clone()
             .unwrap_or_else(|| settings.campaign.clone()),
     );
-    stage("estimating FRFs");
-    let prep = info.time("estimate_frfs", || prepare(&settings))?;
+    stage("estimating FRFs, finding the maximum-likelihood start");
+    let prep = info.time("estimate_frfs_and_start", || prepare(&settings))?;
     let moves = Moves::from_specs(&settings.moves)?;
     let mut sampler = Sampler::resume(&prep.posterior, moves, &cp)?;
     sampler.set_checkpoint(Some(CheckpointConfig {
@@ -421,8 +312,24 @@ pub struct PosteriorSample {
 /// Samples `post` with the run settings `settings` (the data-related fields, campaign,
 /// estimate, tests, are not used: `post` carries the data): maximum-likelihood start,
 /// Gauss-Newton ball, sampling to the convergence criterion or the step cap, summary.
+/// `post` is sampled as it is (its loadings are not rescaled: [`sample_prepared`] does
+/// what `frfbayes sample` does).
 pub fn sample_posterior(post: &FrfPosterior, settings: &SampleSettings) -> Result<PosteriorSample> {
     let start = find_start(post, &multistart_options(settings))?;
+    sample_from(post, start, settings)
+}
+
+/// [`sample_posterior`] of a prepared run: its posterior from its start ([`prepare`]).
+pub fn sample_prepared(prep: &Prepared, settings: &SampleSettings) -> Result<PosteriorSample> {
+    sample_from(&prep.posterior, prep.start.clone(), settings)
+}
+
+/// Samples `post` from `start` (see [`sample_posterior`]).
+fn sample_from(
+    post: &FrfPosterior,
+    start: StartPoint,
+    settings: &SampleSettings,
+) -> Result<PosteriorSample> {
     let config = sampler_config(settings, post.dim())?;
     let mut sampler = new_sampler(post, &start, config, settings)?;
     let t0 = Instant::now();

@@ -3,12 +3,14 @@
 //! residuals `(y_k - |H^A_k|) / sigma_k`, windows included), plus a ball of about the
 //! Gauss-Newton posterior width, truncated to the prior box.
 
+use super::data::LoadingMagnitude;
 use super::forward::ForwardWorkspace;
 use super::posterior::FrfPosterior;
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
 use crate::update::lsq::{
     fd_jacobian, multistart, Bounds, FdScheme, LeastSquaresProblem, MultistartOptions,
+    MultistartResult,
 };
 use crate::update::ResidualForm;
 use nalgebra::DMatrix;
@@ -144,6 +146,59 @@ impl LeastSquaresProblem for Residuals<'_> {
 /// the first start at the variables' start values, the others from a Latin hypercube
 /// over the box ([`multistart`]); deterministic for `options.seed`.
 pub fn find_start(post: &FrfPosterior, options: &MultistartOptions) -> Result<StartPoint> {
+    let ms = structural_optimum(post, options)?;
+    start_at(post, &ms)
+}
+
+/// [`find_start`], and the posterior whose shared force-noise loadings are scaled by the
+/// model's magnitudes at the start (`magnitude` [`LoadingMagnitude::Model`]; `post`
+/// itself for [`LoadingMagnitude::Measured`] or without magnitude-scaled loadings).
+///
+/// Two-stage plug-in: the structural optimum is the weighted least-squares point of the
+/// per-point residuals `(y_k - |H^A_k|) / sigma_k`, which does not involve the loadings;
+/// the loadings `|H_k| a_k` then take `|H_k| = |H^A_k(theta_ML)|`
+/// ([`super::FrfData::with_loading_magnitudes`]), a function of all `n` points, each with
+/// weight `O(1/n)`, so no longer correlated with point `k`'s own residual as the
+/// measured `|H^E_k|` is. The noise scale of the start is then found on the new
+/// posterior. Exact would be `|H^A_k(theta)|` at every evaluation (a new Woodbury
+/// factor per evaluation: a cost on the hot path); the plug-in differs from it by the
+/// posterior spread of `|H^A_k|`, a fraction of a percent, in a term that is itself a
+/// correction. Deterministic for `options.seed`.
+pub fn plug_in_start(
+    post: FrfPosterior,
+    magnitude: LoadingMagnitude,
+    options: &MultistartOptions,
+) -> Result<(FrfPosterior, StartPoint)> {
+    let ms = structural_optimum(&post, options)?;
+    let scaled = post
+        .data()
+        .correlated
+        .iter()
+        .any(|c| !c.magnitude.is_empty());
+    let post = if magnitude == LoadingMagnitude::Model && scaled {
+        let mut z = ms.best.x.clone();
+        z.push(0.0);
+        let h = post.magnitudes(&z)?;
+        let plugged = post.with_data(post.data().with_loading_magnitudes(&h)?)?;
+        if plugged.prior() != post.prior() || plugged.names() != post.names() {
+            return Err(Error::Numerical(
+                "plug-in loadings: the rebuilt posterior has other variables or bounds".into(),
+            ));
+        }
+        plugged
+    } else {
+        post
+    };
+    let start = start_at(&post, &ms)?;
+    Ok((post, start))
+}
+
+/// The multistart weighted least-squares optimum of the structural coordinates
+/// (standardised per-point residuals, noise scale 1; the shared noise is not involved).
+fn structural_optimum(
+    post: &FrfPosterior,
+    options: &MultistartOptions,
+) -> Result<MultistartResult> {
     let vars = post.variables();
     let z0 = vars.to_internal(&vars.initial());
     let n_free = post.n_free();
@@ -156,7 +211,23 @@ pub fn find_start(post: &FrfPosterior, options: &MultistartOptions) -> Result<St
         post,
         bounds: &bounds,
     };
-    let ms = multistart(&problem, &bounds, Some(&z0), options)?;
+    multistart(&problem, &bounds, Some(&z0), options)
+}
+
+/// The start at the structural optimum `ms`: its noise scale (refined on the full
+/// likelihood for general models with shared noise, [`refine_noise_scale`]) and the
+/// Gauss-Newton axes of the initial ball.
+fn start_at(post: &FrfPosterior, ms: &MultistartResult) -> Result<StartPoint> {
+    let n_free = post.n_free();
+    let prior = post.prior();
+    let bounds = Bounds::new(
+        prior.lower()[..n_free].to_vec(),
+        prior.upper()[..n_free].to_vec(),
+    )?;
+    let problem = Residuals {
+        post,
+        bounds: &bounds,
+    };
     let n_evaluations = ms
         .starts
         .iter()

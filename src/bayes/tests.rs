@@ -123,6 +123,7 @@ fn shared_noise_is_the_dense_gaussian() {
                 len,
                 rank,
                 loadings,
+                magnitude: Vec::new(),
             }
         };
         data.correlated = vec![
@@ -174,6 +175,7 @@ fn simulated_shared_noise_has_the_stated_covariance() {
         len: n,
         rank: 1,
         loadings: loadings.clone(),
+        magnitude: Vec::new(),
     }];
     let post = base.with_data(data.clone()).unwrap();
     let z = inside(&post);
@@ -334,4 +336,61 @@ fn stuck_walkers_are_found() {
         *v += 40.0;
     }
     assert!(stuck_walkers(&draws).is_empty());
+}
+
+/// The two-stage plug-in (`LoadingMagnitude::Model`): each shared-noise row becomes
+/// `|H^A_k(theta_ML)| a_k` (the model's magnitude at the start, exactly), so it no longer
+/// follows the point's own measured magnitude. Raising one measured magnitude by 10 %
+/// scales its row by exactly 1.1 with measured-magnitude loadings; with the plug-in the
+/// row moves only as the fitted model does there, by the point's leverage times 10 %
+/// (80 points, 4 parameters: 0.05 on average); the bound 2.5 % allows a leverage of 0.25.
+#[test]
+fn plug_in_loadings_do_not_follow_the_point_s_own_magnitude() {
+    let base = small_problem(ResidualForm::Magnitude, PriorKind::Uniform).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let y = base.simulate(&inside(&base), &mut rng).unwrap();
+    let n = y.len();
+    let rel: Vec<f64> = (0..n).map(|k| 0.01 * (1.0 + k as f64 / n as f64)).collect();
+    let with_shared = |y: &[f64]| {
+        let mut data = base.data().clone();
+        data.magnitude = y.to_vec();
+        data.correlated = vec![CorrelatedNoise {
+            start: 0,
+            len: n,
+            rank: 1,
+            loadings: rel.iter().zip(y).map(|(a, m)| a * m).collect(),
+            magnitude: y.to_vec(),
+        }];
+        base.with_data(data).unwrap()
+    };
+    let ms = MultistartOptions {
+        n_starts: 4,
+        seed: 1,
+        ..Default::default()
+    };
+    let (post, start) = plug_in_start(with_shared(&y), LoadingMagnitude::Model, &ms).unwrap();
+    let mut z = start.z.clone();
+    *z.last_mut().unwrap() = 0.0;
+    let h = post.magnitudes(&z).unwrap();
+    let c = &post.data().correlated[0];
+    for k in 0..n {
+        assert!((c.loadings[k] - rel[k] * h[k]).abs() <= 1e-12 * c.loadings[k]);
+        assert_eq!(c.magnitude[k], h[k]);
+    }
+    // the start is that of the unscaled posterior (the loadings do not enter its fit)
+    let plain = find_start(&with_shared(&y), &ms).unwrap();
+    assert_eq!(start.z[..4], plain.z[..4]);
+    let k0 = 37;
+    let mut y2 = y.clone();
+    y2[k0] *= 1.1;
+    let (measured, _) = plug_in_start(with_shared(&y2), LoadingMagnitude::Measured, &ms).unwrap();
+    let ratio = measured.data().correlated[0].loadings[k0] / (rel[k0] * y[k0]);
+    assert!((ratio - 1.1).abs() < 1e-12, "measured: {ratio}");
+    let (model, _) = plug_in_start(with_shared(&y2), LoadingMagnitude::Model, &ms).unwrap();
+    let moved = model.data().correlated[0].loadings[k0] / c.loadings[k0] - 1.0;
+    assert!(moved.abs() < 0.025, "plug-in row moved by {moved}");
+    // log residuals: loadings `a_k`, no magnitude, nothing to rescale
+    let log = small_problem(ResidualForm::LogMagnitude, PriorKind::Uniform).unwrap();
+    let (same, _) = plug_in_start(log.clone(), LoadingMagnitude::Model, &ms).unwrap();
+    assert_eq!(same.data(), log.data());
 }

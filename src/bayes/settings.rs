@@ -1,0 +1,139 @@
+//! The settings of a sampling run (`settings.toml`) and which tests it uses.
+
+use super::data::{InputNoiseModel, LoadingMagnitude, DEFAULT_REL_SIGMA_FLOOR};
+use super::moves::default_moves;
+use super::posterior::PosteriorOptions;
+use crate::error::{Error, Result};
+use crate::frf::FrfKind;
+use crate::mcmc::WeightedMove;
+use crate::signal::{EstimateSection, InputKind, TestFrf};
+use crate::update::{DampingModel, ResidualForm, VariablesConfig};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Which tests a run uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TestSelection {
+    /// Impact-hammer tests (force input).
+    Hammer,
+    /// Shake-table tests (ground input).
+    ShakeTable,
+    /// Both.
+    All,
+}
+
+impl TestSelection {
+    /// Whether a test estimate is selected.
+    pub fn includes(self, frf: &TestFrf) -> bool {
+        matches!(
+            (self, &frf.input),
+            (TestSelection::All, _)
+                | (TestSelection::Hammer, InputKind::Force { .. })
+                | (TestSelection::ShakeTable, InputKind::Ground { .. })
+        )
+    }
+}
+
+/// Everything that defines a run; stored as `settings.toml`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SampleSettings {
+    /// Campaign folder or `bundled:four-story`.
+    pub campaign: String,
+    /// Measured FRFs instead of the campaign's recordings: the path of a measured-FRF
+    /// manifest ([`crate::signal::measured`]; UFF 58/58b, `.mat` or CSV files mapped to
+    /// model DOFs). The campaign is then not read; the manifest names the model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frfs: Option<String>,
+    pub damping: DampingModel,
+    pub frf: FrfKind,
+    pub tests: TestSelection,
+    /// Master seed (start design, initial ball, sampler).
+    pub seed: u64,
+    pub residual: ResidualForm,
+    /// Floor on the relative standard deviation of a magnitude.
+    pub rel_sigma_floor: f64,
+    /// How the force noise of hammer tests enters the likelihood ([`SampleSettings::new`]:
+    /// shared by the points of a test; a settings file without the key: per point, as
+    /// runs before it was added did, so they resume unchanged).
+    #[serde(default)]
+    pub input_noise: InputNoiseModel,
+    /// The magnitude that scales the shared force noise's loadings
+    /// ([`SampleSettings::new`]: the model's at the maximum-likelihood start; a settings
+    /// file without the key: the measured one, as runs before it was added did, so they
+    /// resume unchanged).
+    #[serde(default)]
+    pub loading_magnitude: LoadingMagnitude,
+    /// Multistart local solves for the start point.
+    pub n_starts: usize,
+    /// Initial ball: this many Gauss-Newton standard deviations.
+    pub ball_factor: f64,
+    /// Walkers per ensemble = this x dimension.
+    pub walkers_per_dim: usize,
+    pub n_ensembles: usize,
+    pub max_steps: u64,
+    pub check_every: u64,
+    /// Store every this many steps (default 5: the autocorrelation times here are ~50
+    /// steps, so tau and the draws lose nothing, and checkpoints are 5 times smaller).
+    pub thin_by: u64,
+    /// Checkpoint every this many steps.
+    pub checkpoint_every: u64,
+    /// Posterior draws behind the predictive bands.
+    pub predictive_draws: usize,
+    pub moves: Vec<WeightedMove>,
+    pub posterior: PosteriorOptions,
+    pub estimate: EstimateSection,
+    pub variables: VariablesConfig,
+}
+
+impl SampleSettings {
+    /// Defaults: the default FRF estimation ([`EstimateSection::default`]) and bounds
+    /// ([`VariablesConfig::default`]), which are those of `experiments/paper_repro.toml`
+    /// (a test in `crate::experiment::config` keeps them equal), default noise model and
+    /// prior, 4 ensembles of 12 x dim walkers, [`default_moves`].
+    pub fn new(
+        campaign: String,
+        damping: DampingModel,
+        frf: FrfKind,
+        tests: TestSelection,
+        seed: u64,
+    ) -> Result<Self> {
+        Ok(SampleSettings {
+            campaign,
+            frfs: None,
+            damping,
+            frf,
+            tests,
+            seed,
+            residual: ResidualForm::Magnitude,
+            rel_sigma_floor: DEFAULT_REL_SIGMA_FLOOR,
+            input_noise: InputNoiseModel::Shared,
+            loading_magnitude: LoadingMagnitude::Model,
+            n_starts: 32,
+            ball_factor: 1.0,
+            walkers_per_dim: 12,
+            n_ensembles: 4,
+            max_steps: 20_000,
+            check_every: 100,
+            thin_by: 5,
+            checkpoint_every: 500,
+            predictive_draws: 200,
+            moves: default_moves(),
+            posterior: PosteriorOptions::default(),
+            estimate: EstimateSection::default(),
+            variables: VariablesConfig::default(),
+        })
+    }
+
+    /// Reads `settings.toml`.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        toml::from_str(&text).map_err(|e| Error::invalid(path, e.to_string()))
+    }
+
+    /// The TOML text of [`Self::load`].
+    pub fn to_toml(&self) -> Result<String> {
+        toml::to_string(self).map_err(|e| Error::Usage(format!("settings: {e}")))
+    }
+}
