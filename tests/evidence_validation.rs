@@ -2,18 +2,24 @@
 //! warp-III bridge sampling (`frfbayes::infer::nested`) against the exact Bayes factors
 //! of the nested linear-Gaussian problems of `frfbayes::infer::validation`.
 //!
-//! Default tests: the bridge on every problem, one seed each, within a tolerance from
-//! its own standard error. Ignored: the measurement over seeds (bias and sd of `ln Z`
-//! and `Delta ln Z` of both estimators, time and likelihood evaluations), and the export
-//! of the problems for `experiments/evidence/tmcmc_pymc.py`.
+//! Default tests: the generalised stepping-stone and the bridge on every problem, one
+//! seed each, within a tolerance from their own standard errors; the screen that
+//! `diagnose` uses (`frfbayes::infer::screened`: gain bound, Laplace in logit
+//! coordinates, generalised stepping-stone) on every problem and on a clear null.
+//! Ignored: the measurement over seeds (bias and sd of `ln Z` and `Delta ln Z` of the
+//! estimators, time and likelihood evaluations), and the export of the problems for
+//! `experiments/evidence/tmcmc_pymc.py`.
 
 use std::time::Instant;
 
+use frfbayes::discrepancy::model_evidence::LAPLACE_ALLOWANCE_NATS;
+use frfbayes::discrepancy::verdict::decisive_ln_bayes_factor;
 use frfbayes::infer::validation::{NestedModel, NestedProblem, ProblemSpec};
 use frfbayes::infer::TemperedTarget;
 use frfbayes::infer::{
-    bridge_evidence, gain_bound, referenced_evidence, stepping_stone, BridgeOptions,
-    EvidenceOptions,
+    bridge_evidence, choose_estimator, gain_bound, laplace_of, referenced_evidence,
+    screened_evidence, stepping_stone, BaseEvidence, BridgeOptions, Estimator, EvidenceOptions,
+    Extension, ScreenOptions, GSS_REPLICATES,
 };
 
 /// Seed of the problem data (the same problems for every estimator and tool).
@@ -40,9 +46,8 @@ fn bridge(t: &NestedModel<'_>, seed: u64) -> Estimate {
     }
 }
 
-/// Replicates of the generalised stepping-stone (4: three degrees of freedom for its
-/// standard error, at a fraction of the prior-referenced run's cost).
-const GSS_REPLICATES: usize = 4;
+// Replicates of the generalised stepping-stone: `GSS_REPLICATES` (4: three degrees of
+// freedom for its standard error, at a fraction of the prior-referenced run's cost).
 
 fn referenced(t: &NestedModel<'_>, seed: u64) -> Estimate {
     let t0 = Instant::now();
@@ -132,6 +137,136 @@ fn bridge_matches_exact_evidence_on_single_peaks() {
                 e.ln_z,
                 e.se
             );
+        }
+    }
+}
+
+/// The validation problems and a clear null: 4 effects inside their box whose best fit
+/// gains 8 nats, above `ln 150`, so that the bound does not rule it out, while the
+/// effects' Occam factor (about 5 nats each) puts `Delta ln Z` near -12.
+fn screen_problems() -> Vec<NestedProblem> {
+    let mut specs = ProblemSpec::all();
+    let interior = specs
+        .iter()
+        .find(|s| s.name == "decisive_interior")
+        .cloned()
+        .unwrap();
+    specs.push(ProblemSpec {
+        name: "clear_interior_null",
+        gain: 8.0,
+        ..interior
+    });
+    specs
+        .iter()
+        .map(|s| s.build(PROBLEM_SEED).unwrap())
+        .collect()
+}
+
+fn screen_options(seed: u64, dim: usize) -> ScreenOptions {
+    let mut evidence = EvidenceOptions::new(dim, seed);
+    evidence.final_steps = 0;
+    ScreenOptions {
+        threshold_nats: decisive_ln_bayes_factor(),
+        laplace_allowance_nats: LAPLACE_ALLOWANCE_NATS,
+        evidence,
+        gss_replicates: GSS_REPLICATES,
+    }
+}
+
+/// The screen of `diagnose` on problems with exact Bayes factors:
+/// - the estimator is the one its rule names from the exact gain: the bound where the
+///   gain is below `ln 150` (the two nulls), otherwise Laplace or the generalised
+///   stepping-stone;
+/// - a bound holds: the exact `Delta ln Z` is at most the bound, and so is the reported
+///   value;
+/// - Laplace's `Delta` (in logit coordinates) is within the stated allowance of the
+///   exact one on every problem (the allowance's claim), and where Laplace decides, the
+///   decision (not decisive) is the exact one's;
+/// - the generalised stepping-stone is within `t_3(0.9995) sd + 0.2` of the exact value
+///   (0.2: the bias of `ln` of an unbiased estimate plus the finite ensemble's, measured
+///   up to 0.29 per model on the corner problems; see the README).
+#[test]
+fn the_screen_chooses_its_estimator_by_rule_and_is_right() {
+    let thr = decisive_ln_bayes_factor();
+    for (k, p) in screen_problems().iter().enumerate() {
+        let (base, ext) = (p.base(), p.extension());
+        let seed = 31 + 10 * k as u64;
+        let lap_b = laplace_of(&base, base.bounds(), &base.best_fit().unwrap()).unwrap();
+        let so_b = screen_options(seed, base.dim());
+        let eb = screened_evidence(
+            &base,
+            base.bounds(),
+            Some(&lap_b),
+            &[],
+            Estimator::GeneralisedSteppingStone,
+            None,
+            &so_b,
+            None,
+        )
+        .unwrap();
+        let lap_e = laplace_of(&ext, ext.bounds(), &ext.best_fit().unwrap()).unwrap();
+        let x = Extension {
+            base: BaseEvidence {
+                ln_z: eb.ln_z,
+                ln_z_laplace: Some(lap_b.laplace.ln_z),
+                max_ln_likelihood: 0.0,
+            },
+            gain_bound_nats: gain_bound(p.gain, 0.0),
+        };
+        let so_e = screen_options(seed + 1, ext.dim());
+        let d_lap = x.delta_laplace(Some(lap_e.laplace.ln_z)).unwrap();
+        let exact = p.ln_bayes_factor();
+        eprintln!(
+            "{}: gain {:.2}, exact {exact:.3}, Laplace {d_lap:.3} (error {:+.3})",
+            p.name,
+            p.gain,
+            d_lap - exact
+        );
+        assert!(
+            (d_lap - exact).abs() < LAPLACE_ALLOWANCE_NATS,
+            "{}: Laplace Delta {d_lap:.3} against exact {exact:.3}",
+            p.name
+        );
+        let est = choose_estimator(x.gain_bound_nats, Some(d_lap), &so_e);
+        if p.gain < thr {
+            assert_eq!(est, Estimator::GainBound, "{}", p.name);
+        } else if p.name.starts_with("clear") {
+            // There to take the Laplace branch: exact Delta ~ -12, gain 8.
+            assert_eq!(est, Estimator::Laplace, "{}", p.name);
+        } else {
+            assert_ne!(est, Estimator::GainBound, "{}", p.name);
+        }
+        let effect: Vec<usize> = (ext.n_base()..ext.dim()).collect();
+        let e = screened_evidence(
+            &ext,
+            ext.bounds(),
+            Some(&lap_e),
+            &effect,
+            est,
+            Some(&x),
+            &so_e,
+            None,
+        )
+        .unwrap();
+        let delta = e.ln_z - eb.ln_z;
+        let sd = e.ln_z_sd.hypot(eb.ln_z_sd);
+        eprintln!(
+            "  {}: Delta {delta:.3} +- {sd:.3} by {}",
+            p.name,
+            e.estimator.label()
+        );
+        assert!(exact <= x.gain_bound_nats + 1e-9 && delta <= x.gain_bound_nats + 1e-9);
+        match est {
+            Estimator::GainBound => assert_eq!(e.ln_z_sd, 0.0),
+            Estimator::Laplace => {
+                assert!(exact < thr, "{}: Laplace ruled out a decisive one", p.name);
+                assert!(delta + 2.0 * sd < thr);
+            }
+            _ => assert!(
+                (delta - exact).abs() < T3_9995 * sd + 0.2,
+                "{}: Delta {delta:.4} +- {sd:.4}, exact {exact:.4}",
+                p.name
+            ),
         }
     }
 }

@@ -2,17 +2,20 @@
 //!
 //! 1. **Data**: FRF estimates of every test (every impact of a hammer test on its own),
 //!    complex, with Bendat-Piersol errors ([`super::data`]).
-//! 2. **Nominal model**: multistart MAP, then its marginal likelihood by stepping-stone
-//!    over tempered ensembles ([`super::evidence`]) with posterior draws; residual map.
+//! 2. **Nominal model**: multistart MAP, Laplace at the mode in logit coordinates, then
+//!    its marginal likelihood by the generalised stepping-stone from there
+//!    ([`super::model_evidence`]) with posterior draws; residual map.
 //! 3. **Hypotheses**: each one is fitted at every candidate location
-//!    ([`super::search`]); its best location gets the same evidence computation.
+//!    ([`super::search`]); its best location gets Laplace in logit coordinates and the
+//!    estimator the screen of [`crate::infer::screened`] picks (none where the gain
+//!    bound rules it out, Laplace clearly below the threshold, the generalised
+//!    stepping-stone elsewhere).
 //! 4. **Decision** ([`super::verdict`]): decisive Bayes factor, plausible effect,
 //!    better prediction of held-out segments ([`super::heldout`]).
 
 use super::consistency::{check_campaign, ConsistencyOptions};
 use super::data::{DataOptions, DiagnosisData};
 pub use super::effect_summary::effect_columns;
-use super::effect_summary::effect_summaries;
 use super::fit::{fit_map, frame_starts, MapFit, MapOptions};
 use super::forward::frame_system;
 use super::heldout::{held_out, HeldOut};
@@ -20,14 +23,17 @@ use super::hypotheses::all_hypotheses;
 use super::hypothesis::Hypothesis;
 use super::locate::LocateReport;
 use super::location::Location;
+use super::model_evidence::{
+    completion, evidence_key, extension_of, laplace_u, model_result, LaplaceOutcome,
+};
 use super::posterior::ModelPosterior;
 use super::refine::{refit_in_time_domain, TimeDomainRefit};
 use super::residual_map::{ResidualMap, ResidualRow};
 use super::search::{search, HypothesisSearch, SearchOptions};
 use super::verdict::{decide, held_out_passes, Candidate, Decision, EffectSummary, FitQuality};
 use crate::error::Result;
-use crate::infer::evidence::{stepping_stone, Evidence, EvidenceOptions, EvidenceProgress};
-use crate::infer::laplace::laplace;
+use crate::infer::evidence::{EvidenceOptions, EvidenceProgress};
+use crate::infer::screened::ScreenedEvidence;
 use crate::io::stages::{staged, Stages};
 use crate::io::Campaign;
 use crate::update::fdac;
@@ -101,9 +107,11 @@ pub struct ModelResult {
     pub location: Location,
     pub posterior: ModelPosterior,
     pub map: MapFit,
-    pub evidence: Option<Evidence>,
+    /// Its log evidence, the estimator that gave it, and its sd
+    /// ([`super::model_evidence`]).
+    pub evidence: Option<ScreenedEvidence>,
     /// Effect parameters' posterior summaries (physical units), from the evidence run's
-    /// draws.
+    /// draws (or Laplace's Gaussian in logit coordinates without a run).
     pub effect: Vec<(String, EffectSummary)>,
     pub plausible: bool,
     pub implausible_because: String,
@@ -129,9 +137,9 @@ pub struct Diagnosis {
     pub finalists: Vec<ModelResult>,
     /// Every hypothesis' location search.
     pub searches: Vec<HypothesisSearch>,
-    /// Laplace approximation of the log evidence of the nominal model (`"nominal"`) and
-    /// of every hypothesis at its best location (`None` where the Hessian at the MAP is
-    /// not negative definite, e.g. a MAP on the prior's edge).
+    /// Laplace approximation of the log evidence, at the mode in logit coordinates, of
+    /// the nominal model (`"nominal"`) and of every hypothesis at its best location
+    /// (`None` where no mode was found or the curvature there is not positive definite).
     pub laplace: Vec<(String, Option<f64>)>,
     pub decision: Decision,
     /// Index into `finalists` of the verdict.
@@ -208,94 +216,6 @@ pub fn fit_quality(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> FitQu
     }
 }
 
-fn evidence_options(opts: &DiagnoseOptions, dim: usize, model_index: u64) -> EvidenceOptions {
-    let mut e = opts
-        .evidence
-        .clone()
-        .unwrap_or_else(|| EvidenceOptions::new(dim, 0));
-    if e.n_walkers < 2 * dim + 2 {
-        e.n_walkers = EvidenceOptions::new(dim, 0).n_walkers;
-    }
-    e.seed = opts.seed.wrapping_mul(1_000_003).wrapping_add(model_index);
-    e
-}
-
-/// The resumable part of [`complete`]: the evidence run and what follows from its draws.
-#[derive(serde::Serialize, serde::Deserialize)]
-struct Completion {
-    evidence: Evidence,
-    effect: Vec<(String, EffectSummary)>,
-    plausible: bool,
-    why: String,
-}
-
-/// The stage key of model `name`'s evidence run.
-fn evidence_key(name: &str) -> String {
-    format!("evidence-{name}")
-}
-
-/// Evidence, draws and summaries of one model at its MAP (read back from `stages` when
-/// an interrupted run finished it).
-fn completion(
-    name: &str,
-    post: &ModelPosterior,
-    map: &MapFit,
-    opts: &DiagnoseOptions,
-    model_index: u64,
-    stages: Option<&Stages>,
-    progress: &mut dyn FnMut(DiagnoseStage<'_>),
-) -> Result<Completion> {
-    let run = || -> Result<Completion> {
-        let eopts = evidence_options(opts, post.dim(), model_index);
-        let mut cb = |p: EvidenceProgress| {
-            progress(DiagnoseStage::Evidence {
-                model: name,
-                progress: p,
-            })
-        };
-        let evidence = stepping_stone(post, &eopts, Some(&mut cb))?;
-        let draws: Vec<Vec<f64>> = match &evidence.posterior {
-            Some(p) => p
-                .draws
-                .values
-                .chunks_exact(p.draws.dim)
-                .map(<[f64]>::to_vec)
-                .collect(),
-            None => vec![map.z.clone()],
-        };
-        let (effect, plausible, why) = effect_summaries(post, &draws)?;
-        Ok(Completion {
-            evidence,
-            effect,
-            plausible,
-            why,
-        })
-    };
-    staged(stages, &evidence_key(name), run)
-}
-
-/// One model's result from its evidence run.
-fn model_result(
-    name: &str,
-    location: Location,
-    posterior: ModelPosterior,
-    map: MapFit,
-    done: Completion,
-) -> ModelResult {
-    ModelResult {
-        name: name.to_string(),
-        location,
-        posterior,
-        map,
-        evidence: Some(done.evidence),
-        effect: done.effect,
-        plausible: done.plausible,
-        implausible_because: done.why,
-        held_out: None,
-        time_domain: None,
-    }
-}
-
 /// Runs the diagnosis of `campaign` (see the module docs).
 pub fn diagnose(
     campaign: &Campaign,
@@ -332,7 +252,10 @@ pub fn diagnose_resumable(
         fit_map(&post0, &starts, &opts.map)
     })?;
     mark("nominal MAP", &mut timings);
-    let done = completion("nominal", &post0, &map0, opts, 0, stages, progress)?;
+    let lap0 = laplace_u(&post0, &map0.z);
+    let done = completion(
+        "nominal", &post0, &map0, &lap0, None, opts, 0, stages, progress,
+    )?;
     let nominal = model_result("nominal", Location::Whole, post0, map0.clone(), done);
     mark("nominal evidence", &mut timings);
 
@@ -380,17 +303,28 @@ pub fn diagnose_resumable(
         })
         .collect();
 
+    // Laplace at the mode in logit coordinates of every hypothesis' best location: the
+    // screen of the evidence and the reference of its generalised stepping-stone.
+    let mut posts: Vec<Option<(ModelPosterior, LaplaceOutcome)>> = Vec::new();
+    for (h, s) in &searches {
+        posts.push(match s.best() {
+            Some(b) => {
+                let post =
+                    ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())))?;
+                let lap = laplace_u(&post, &b.map.z);
+                Some((post, lap))
+            }
+            None => None,
+        });
+    }
     let mut laplace_z = vec![(
         "nominal".to_string(),
-        laplace(&nominal.posterior, &map0.z).ok().map(|l| l.ln_z),
+        lap0.as_ref().ok().map(|l| l.laplace.ln_z),
     )];
-    for (h, s) in &searches {
-        let v = s.best().and_then(|b| {
-            let post = ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())));
-            post.ok()
-                .and_then(|p| laplace(&p, &b.map.z).ok())
-                .map(|l| l.ln_z)
-        });
+    for ((h, _), p) in searches.iter().zip(&posts) {
+        let v = p
+            .as_ref()
+            .and_then(|(_, l)| l.as_ref().ok().map(|l| l.laplace.ln_z));
         laplace_z.push((h.name().to_string(), v));
     }
     mark("Laplace", &mut timings);
@@ -415,20 +349,23 @@ pub fn diagnose_resumable(
     // Their evidence runs, one farmed task each.
     let picked: Vec<_> = order
         .iter()
-        .filter_map(|&i| searches[i].1.best().map(|b| (&searches[i].0, b)))
-        .map(|(h, b)| {
-            let post = ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())));
-            post.map(|p| (h, b, p))
+        .filter_map(|&i| {
+            let b = searches[i].1.best()?;
+            let (post, lap) = posts[i].take()?;
+            Some((&searches[i].0, b, post, lap))
         })
-        .collect::<Result<_>>()?;
+        .collect();
     let done = crate::dist::farm(
         picked.len(),
         |k| {
-            let (h, best, post) = &picked[k];
+            let (h, best, post, lap) = &picked[k];
+            let x = extension_of(&nominal, lap0.as_ref().ok(), &best.map);
             completion(
                 h.name(),
                 post,
                 &best.map,
+                lap,
+                Some(&x),
                 opts,
                 k as u64 + 1,
                 stages,
@@ -444,7 +381,7 @@ pub fn diagnose_resumable(
     let mut finalists: Vec<ModelResult> = picked
         .into_iter()
         .zip(done)
-        .map(|((h, best, post), done)| {
+        .map(|((h, best, post, _), done)| {
             model_result(
                 h.name(),
                 best.location.clone(),
@@ -461,12 +398,14 @@ pub fn diagnose_resumable(
     });
 
     let nominal_ln_z = nominal.ln_z().unwrap_or(f64::NEG_INFINITY);
-    let nominal_se = nominal.evidence.as_ref().map_or(0.0, |e| e.ln_z_se);
+    let nominal_se = nominal.evidence.as_ref().map_or(0.0, |e| e.ln_z_sd);
     let decisive = |f: &ModelResult| {
         let ev = f.evidence.as_ref();
         let delta = ev.map_or(f64::NEG_INFINITY, |e| e.ln_z - nominal_ln_z);
-        let se = ev.map_or(0.0, |e| (e.ln_z_se.powi(2) + nominal_se.powi(2)).sqrt());
-        delta - 2.0 * se >= super::verdict::decisive_ln_bayes_factor()
+        let se = ev.map_or(0.0, |e| e.ln_z_sd.hypot(nominal_se));
+        let bound = ev.and_then(|e| e.gain_bound_nats).unwrap_or(f64::INFINITY);
+        let thr = super::verdict::decisive_ln_bayes_factor();
+        delta - 2.0 * se >= thr && bound >= thr
     };
     // Amplitude-dependent hypotheses that are decisive when linearised: refit by
     // replaying the tests in the time domain, and judge the effect on that fit.
@@ -548,7 +487,16 @@ pub fn diagnose_resumable(
             heldout_skipped,
             name: f.name.clone(),
             log_evidence: f.ln_z().unwrap_or(f64::NEG_INFINITY),
-            log_evidence_se: f.evidence.as_ref().map_or(0.0, |e| e.ln_z_se),
+            log_evidence_se: f.evidence.as_ref().map_or(0.0, |e| e.ln_z_sd),
+            gain_bound: f
+                .evidence
+                .as_ref()
+                .and_then(|e| e.gain_bound_nats)
+                .unwrap_or(f64::INFINITY),
+            estimator: f
+                .evidence
+                .as_ref()
+                .map_or(String::new(), |e| e.estimator.label().to_string()),
             plausible: f.plausible,
             implausible_because: f.implausible_because.clone(),
             heldout_gain: f.held_out.as_ref().map_or(f64::NEG_INFINITY, |h| h.gain),

@@ -189,7 +189,12 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> Result<Vec<String>> {
     // The effect's posterior (the verdict's, or the best finalist's).
     let shown_model = winner.or(d.finalists.first());
     if let Some(f) = shown_model {
-        if let Some(p) = f.evidence.as_ref().and_then(|e| e.posterior.as_ref()) {
+        if let Some(p) = f
+            .evidence
+            .as_ref()
+            .and_then(|e| e.run.as_ref())
+            .and_then(|r| r.posterior.as_ref())
+        {
             let columns = effect_columns(&f.posterior, p.draws.values.chunks_exact(p.draws.dim))?;
             let mut params = Vec::new();
             for (ep, values) in f.posterior.effect_params().iter().zip(columns) {

@@ -18,6 +18,7 @@ pub mod hypothesis;
 mod input_noise;
 pub mod locate;
 pub mod location;
+pub mod model_evidence;
 pub mod output;
 pub mod posterior;
 pub mod refine;

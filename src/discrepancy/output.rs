@@ -23,13 +23,15 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
 fn model_row(m: &ModelResult, nominal_ln_z: f64, laplace: Option<f64>, reason: &str) -> String {
     let ev = m.evidence.as_ref();
     format!(
-        "| {} | {} | {:.1} | {} | {} | {} | {} | {} |",
+        "| {} | {} | {:.1} | {} | {} | {} | {} | {} | {} | {} |",
         m.name.replace('_', " "),
         m.location,
         m.map.ln_likelihood,
+        fmt_opt(ev.and_then(|e| e.gain_bound_nats), 1),
         fmt_opt(laplace, 1),
-        ev.map_or("-".into(), |e| format!("{:.1} +- {:.1}", e.ln_z, e.ln_z_se)),
-        ev.map_or("-".into(), |e| format!("{:.1}", e.ln_z_ti)),
+        ev.map_or("-".into(), |e| e.estimator.label().replace('_', " ")),
+        ev.map_or("-".into(), |e| format!("{:.1} +- {:.1}", e.ln_z, e.ln_z_sd)),
+        fmt_opt(ev.and_then(|e| e.ln_z_ti()), 1),
         ev.map_or("-".into(), |e| format!("{:.1}", e.ln_z - nominal_ln_z)),
         reason
     )
@@ -72,9 +74,9 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
     };
     let _ = writeln!(
         s,
-        "| model | location | max ln L | ln Z (Laplace) | ln Z (stepping-stone) | ln Z (TI) | delta ln Z | decision |"
+        "| model | location | max ln L | gain bound | ln Z (Laplace, logit) | estimator | ln Z +- sd | ln Z (TI) | delta ln Z | decision |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
     let _ = writeln!(
         s,
         "{}",
@@ -95,10 +97,11 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
             };
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.1} | {} | - | - | {} | {why} |",
+                "| {} | {} | {:.1} | {:.1} | {} | laplace | - | - | {} | {why} |",
                 sr.name.replace('_', " "),
                 b.location,
                 b.map.ln_likelihood,
+                b.map.ln_likelihood - d.nominal.map.ln_likelihood,
                 fmt_opt(lap(sr.name), 1),
                 fmt_opt(lap(sr.name).map(|v| v - nominal_ln_z), 1),
             );
@@ -106,13 +109,29 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
     }
     let _ = writeln!(
         s,
-        "\nDecisive means delta ln Z >= ln 150 = {:.2} after two standard errors (Kass & Raftery's \
-         'very strong'). Stepping-stone over an adaptive ladder of tempered ensembles; \
-         thermodynamic integration (TI) on the same ladder as a check; standard errors from \
-         independent replicate ensembles. The Laplace column is the cheap approximation at the \
-         MAP, shown beside the full computation where both exist.\n",
-        decisive_ln_bayes_factor()
+        "\nDecisive means delta ln Z >= ln 150 = {:.2} after two standard deviations (Kass & \
+         Raftery's 'very strong'), with a gain bound (max ln L over the nominal model's, which \
+         bounds delta ln Z) of ln 150 or more. Estimators: `gain bound` (no run: the bound \
+         rules the hypothesis out; its ln Z is Laplace's capped at the bound, sd 0), \
+         `laplace` (at the mode in logit coordinates, far below the threshold; its sd is a \
+         stated allowance of {:.0} nats), `generalised stepping-stone` (tempered ensembles \
+         from a reference at the posterior; sd from {} independent replicates), \
+         `stepping stone` (from the prior, where no mode was found; thermodynamic \
+         integration (TI) on its ladder as a check).\n",
+        decisive_ln_bayes_factor(),
+        super::model_evidence::LAPLACE_ALLOWANCE_NATS,
+        crate::infer::screened::GSS_REPLICATES,
     );
+    for m in std::iter::once(&d.nominal).chain(&d.finalists) {
+        if let Some(why) = m.evidence.as_ref().and_then(|e| e.laplace_failure.as_ref()) {
+            let _ = writeln!(
+                s,
+                "- {}: no Laplace in logit coordinates ({why}).",
+                m.name.replace('_', " ")
+            );
+        }
+    }
+    let _ = writeln!(s);
     for (stem, cap) in [("ranking", "Hypothesis ranking")] {
         if figures.iter().any(|f| f == stem) {
             let _ = writeln!(s, "![{cap}]({stem}.png)\n");
@@ -260,7 +279,7 @@ pub fn write_diagnosis(d: &Diagnosis, title: &str, out: &Path) -> Result<PathBuf
 fn write_effect_inference_data(d: &Diagnosis, dir: &Path) -> Result<()> {
     let shown = d.winner.map(|w| &d.finalists[w]).or(d.finalists.first());
     let Some((f, p)) = shown.and_then(|f| {
-        let p = f.evidence.as_ref()?.posterior.as_ref()?;
+        let p = f.evidence.as_ref()?.run.as_ref()?.posterior.as_ref()?;
         Some((f, p))
     }) else {
         return Ok(());

@@ -131,8 +131,10 @@ pub fn refit_in_time_domain(
         n_evaluations,
         elapsed_s: t0.elapsed().as_secs_f64(),
     };
+    // The replay's gain in maximum log-likelihood raises the evidence and its bound.
     if let Some(ev) = result.evidence.as_mut() {
         ev.ln_z += gain;
+        ev.gain_bound_nats = ev.gain_bound_nats.map(|b| b + gain);
     }
     result.posterior = post;
     result.map = map;

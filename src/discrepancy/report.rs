@@ -6,31 +6,38 @@ use super::verdict::{decisive_ln_bayes_factor, DiagnosisRecord, HypothesisEviden
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
-/// Log evidence of every hypothesis: the stepping-stone value for those whose evidence
-/// was computed, otherwise the Laplace approximation at its best location's MAP (the
-/// report shows where both exist that they agree), otherwise `-inf` when neither could be
-/// computed (a hypothesis whose every fit failed).
+/// Log evidence of every hypothesis: the screened value (with its estimator, sd and
+/// gain bound) for those whose evidence was computed, otherwise the Laplace
+/// approximation at its best location's mode in logit coordinates, otherwise `-inf`
+/// when neither could be computed (a hypothesis whose every fit failed).
 pub fn hypothesis_evidence(d: &Diagnosis) -> Vec<HypothesisEvidence> {
     let nominal = d.nominal.ln_z().unwrap_or(f64::NAN);
+    let nominal_sd = d.nominal.evidence.as_ref().map_or(0.0, |e| e.ln_z_sd);
     let mut rows: Vec<HypothesisEvidence> = d
         .searches
         .iter()
         .map(|s| {
-            let ss = d
+            let found = d
                 .finalists
                 .iter()
                 .find(|f| f.name == s.name)
-                .and_then(ModelResult::ln_z);
+                .and_then(|f| f.evidence.as_ref());
             let lap = d
                 .laplace
                 .iter()
                 .find(|(n, _)| n == s.name)
                 .and_then(|(_, v)| *v);
-            let ln_z = ss.or(lap).unwrap_or(f64::MIN);
+            let ln_z = found.map(|e| e.ln_z).or(lap).unwrap_or(f64::MIN);
             HypothesisEvidence {
                 name: s.name.to_string(),
                 log_evidence: ln_z,
                 delta_log_evidence: ln_z - nominal,
+                delta_log_evidence_sd: found.map(|e| e.ln_z_sd.hypot(nominal_sd)),
+                estimator: found.map_or(
+                    if lap.is_some() { "laplace" } else { "" }.to_string(),
+                    |e| e.estimator.label().to_string(),
+                ),
+                gain_bound: found.and_then(|e| e.gain_bound_nats),
             }
         })
         .collect();
@@ -62,7 +69,7 @@ pub fn explanation(d: &Diagnosis) -> String {
                 .unwrap_or_default();
             let ev = f.evidence.as_ref();
             let delta = f.ln_z().unwrap_or(f64::NAN) - n0;
-            let se = ev.map_or(0.0, |e| e.ln_z_se);
+            let se = ev.map_or(0.0, |e| e.ln_z_sd);
             let _ = write!(
                 s,
                 "The nominal model leaves out {name} at {loc}: {physics}. Adding it raises the log \
@@ -152,7 +159,7 @@ pub fn explanation(d: &Diagnosis) -> String {
             };
             s.push_str(opening);
             if let Some(b) = best {
-                let se = |m: &ModelResult| m.evidence.as_ref().map(|e| e.ln_z_se);
+                let se = |m: &ModelResult| m.evidence.as_ref().map(|e| e.ln_z_sd);
                 let delta_se = d
                     .finalists
                     .iter()
@@ -169,7 +176,7 @@ pub fn explanation(d: &Diagnosis) -> String {
                 let _ = match delta_se {
                     Some(se) => write!(
                         s,
-                        " +- {se:.1} (decisive needs {:.1} or more after two standard errors)",
+                        " +- {se:.1} (decisive needs {:.1} or more after two standard deviations)",
                         decisive_ln_bayes_factor()
                     ),
                     None => write!(s, " (decisive needs {:.1})", decisive_ln_bayes_factor()),

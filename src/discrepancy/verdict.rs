@@ -5,7 +5,12 @@
 //! benchmark):
 //! 1. a hypothesis is *decisive* when its log evidence exceeds the nominal model's by at
 //!    least `ln 150` (Kass & Raftery 1995: a Bayes factor above 150 is "very strong"
-//!    evidence), counting two standard errors of the difference against it;
+//!    evidence), counting two standard deviations of the difference against it, and its
+//!    gain in maximum log-likelihood over the nominal model, which bounds the
+//!    difference ([`crate::infer::nested::gain_bound`]), reaches `ln 150` too. Whatever
+//!    estimator gave the evidence ([`crate::infer::screened`]: none for a hypothesis the
+//!    bound rules out, Laplace in logit coordinates far below the threshold, the
+//!    generalised stepping-stone elsewhere), it comes with its sd;
 //! 2. it must be *physically plausible*: the 95 % interval of every effect parameter lies
 //!    inside its prior range without piling up at a bound, and excludes the no-effect
 //!    value (checked by the hypothesis, reported in [`Candidate::plausible`]);
@@ -59,6 +64,18 @@ pub struct HypothesisEvidence {
     pub log_evidence: f64,
     /// `log_evidence` minus the nominal model's.
     pub delta_log_evidence: f64,
+    /// Standard deviation of `delta_log_evidence` (hypothesis and nominal model), nats:
+    /// replicates of a stepping-stone, the stated allowance of Laplace, or 0 for a
+    /// `gain_bound` (then `delta_log_evidence` is Laplace's value capped at the bound).
+    #[serde(default)]
+    pub delta_log_evidence_sd: Option<f64>,
+    /// `gain_bound`, `laplace`, `generalised_stepping_stone` or `stepping_stone`
+    /// ([`crate::infer::screened::Estimator`]).
+    #[serde(default)]
+    pub estimator: String,
+    /// Upper bound on `delta_log_evidence`: the gain in maximum log-likelihood, nats.
+    #[serde(default)]
+    pub gain_bound: Option<f64>,
 }
 
 /// `diagnosis.json`, exactly the schema of issue 5.
@@ -80,8 +97,15 @@ pub struct DiagnosisRecord {
 pub struct Candidate {
     pub name: String,
     pub log_evidence: f64,
-    /// Standard error of `log_evidence` (0 for an approximation without one).
+    /// Standard deviation of `log_evidence`, nats (0 for a bound).
     pub log_evidence_se: f64,
+    /// Upper bound on `log_evidence` minus the nominal model's (the gain in maximum
+    /// log-likelihood; infinite when unknown).
+    #[serde(default = "infinite")]
+    pub gain_bound: f64,
+    /// The estimator of `log_evidence` ([`crate::infer::screened::Estimator::label`]).
+    #[serde(default)]
+    pub estimator: String,
     /// Every effect parameter's 95 % interval is inside its prior and excludes no effect.
     pub plausible: bool,
     /// Why not plausible (empty when plausible).
@@ -96,6 +120,10 @@ pub struct Candidate {
     /// The held-out check was skipped: it replays the tests (minutes) and a candidate
     /// with more evidence had already passed every test, so this one cannot win.
     pub heldout_skipped: bool,
+}
+
+fn infinite() -> f64 {
+    f64::INFINITY
 }
 
 /// Level of the held-out signed-rank test.
@@ -145,11 +173,17 @@ pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidat
     for (i, c) in candidates.iter().enumerate() {
         let delta = c.log_evidence - nominal_log_evidence;
         let se = (c.log_evidence_se.powi(2) + nominal_se.powi(2)).sqrt();
-        let reason = if !delta.is_finite() {
+        let reason = if c.gain_bound < threshold {
+            format!(
+                "cannot be decisive: its gain in max ln L, {:.1} nats, bounds delta ln Z below {threshold:.1}",
+                c.gain_bound
+            )
+        } else if !delta.is_finite() {
             "its evidence could not be computed".to_string()
         } else if delta - 2.0 * se < threshold {
             format!(
-                "not decisive: delta ln Z = {delta:.1} +- {se:.1} (needs >= {threshold:.1} after two standard errors)"
+                "not decisive: delta ln Z = {delta:.1} +- {se:.1} by {} (needs >= {threshold:.1} after two standard deviations)",
+                c.estimator.replace('_', " ")
             )
         } else if !c.plausible {
             format!(
@@ -193,6 +227,8 @@ mod tests {
             name: name.into(),
             log_evidence: ln_z,
             log_evidence_se: 0.5,
+            gain_bound: f64::INFINITY,
+            estimator: "generalised_stepping_stone".into(),
             plausible: true,
             implausible_because: String::new(),
             heldout_gain: 10.0,
@@ -227,6 +263,23 @@ mod tests {
         assert_eq!(d.winner, None);
         let d = decide(0.0, 0.5, &[cand("a", 6.5)]);
         assert_eq!(d.winner, Some(0));
+    }
+
+    #[test]
+    fn a_hypothesis_whose_gain_bound_is_below_the_threshold_is_not_decisive() {
+        // An estimate above the threshold that contradicts the bound (an estimator's
+        // error) does not make it decisive: the bound holds whatever the estimator.
+        let mut a = cand("a", 30.0);
+        a.gain_bound = 4.9;
+        let d = decide(0.0, 0.5, &[a.clone()]);
+        assert_eq!(d.winner, None);
+        assert!(
+            d.reasons[0].starts_with("cannot be decisive"),
+            "{}",
+            d.reasons[0]
+        );
+        a.gain_bound = 5.1;
+        assert_eq!(decide(0.0, 0.5, &[a]).winner, Some(0));
     }
 
     #[test]
@@ -304,6 +357,9 @@ mod tests {
                 name: "sensor_timing".into(),
                 log_evidence: -10.0,
                 delta_log_evidence: 50.0,
+                delta_log_evidence_sd: Some(0.2),
+                estimator: "generalised_stepping_stone".into(),
+                gain_bound: Some(60.0),
             }],
             explanation: "x".into(),
         };

@@ -21,6 +21,7 @@ pub mod posterior;
 pub mod prior;
 pub mod reference;
 pub mod sample;
+pub mod screened;
 mod tempering;
 #[cfg(test)]
 mod tests;
@@ -39,7 +40,13 @@ pub use nested::{
 };
 pub use posterior::Posterior;
 pub use prior::BoxPrior;
-pub use reference::{referenced_evidence, Referenced, ReferencedEvidence};
+pub use reference::{
+    referenced_evidence, referenced_evidence_at_mode, Referenced, ReferencedEvidence,
+};
 pub use sample::{sample_to_targets, Sampled, Sampling, Targets};
+pub use screened::{
+    choose_estimator, laplace_of, screened_evidence, BaseEvidence, Estimator, Extension,
+    LaplaceInU, ScreenOptions, ScreenedEvidence, GSS_REPLICATES,
+};
 pub use tempering::TemperingRun;
 pub use unconstrained::{sample_in_unconstrained, LogitMap, Unconstrained};

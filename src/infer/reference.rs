@@ -25,9 +25,13 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use statrs::function::gamma::ln_gamma;
 
-use super::evidence::{stepping_stone, Evidence, EvidenceOptions, TemperedTarget};
+use super::evidence::{
+    stepping_stone, Evidence, EvidenceOptions, EvidenceProgress, PosteriorDraws, TemperedTarget,
+};
+use super::laplace::LaplaceEvidence;
 use super::nested::{laplace_in_u, InUnconstrained};
 use super::tempering::log_sum_exp;
+use super::unconstrained::LogitMap;
 use crate::error::{Error, Result};
 
 /// Degrees of freedom of the reference's t parts.
@@ -189,7 +193,7 @@ impl<T: TemperedTarget> TemperedTarget for Referenced<'_, T> {
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct ReferencedEvidence {
     /// The generalised stepping-stone run (its `ln_z`, replicate `ln_z_se`, ladders;
-    /// posterior draws, if any, in logit coordinates).
+    /// posterior draws, if any, in box coordinates with the target's `ln L` and `ln pi`).
     pub evidence: Evidence,
     /// Laplace's `ln Z` at the mode in `u`.
     pub ln_z_laplace: f64,
@@ -215,13 +219,12 @@ pub fn referenced_evidence<T: TemperedTarget>(
     let inner = InUnconstrained::new(target, bounds)?;
     let (u_mode, lap, n_newton) = laplace_in_u(&inner, start)?;
     let mode = inner.to_box(&u_mode);
-    let r = Referenced::new(inner, &u_mode, &lap.covariance, effect)?;
-    let evidence = stepping_stone(&r, opts, None)?;
+    let evidence = referenced_evidence_at_mode(target, bounds, &u_mode, &lap, effect, opts, None)?;
     let draws = evidence.posterior.as_ref().map_or_else(Vec::new, |p| {
         p.draws
             .values
             .chunks_exact(p.draws.dim)
-            .map(|u| r.to_box(u))
+            .map(<[f64]>::to_vec)
             .collect()
     });
     Ok(ReferencedEvidence {
@@ -231,4 +234,47 @@ pub fn referenced_evidence<T: TemperedTarget>(
         n_likelihood_evaluations: evidence.n_likelihood_evaluations + n_newton,
         evidence,
     })
+}
+
+/// The generalised stepping-stone of [`referenced_evidence`] from a mode in logit
+/// coordinates `u_mode` and Laplace's approximation `lap` there, already found (by
+/// [`laplace_in_u`]); `progress` as for [`stepping_stone`]. The posterior draws, if any,
+/// are returned in box coordinates, with the target's own `ln L` and `ln pi` (not the
+/// referenced path's `ln q/g` and `ln g`). The count of likelihood evaluations leaves out
+/// those that found the mode.
+pub fn referenced_evidence_at_mode<T: TemperedTarget>(
+    target: &T,
+    bounds: &[(f64, f64)],
+    u_mode: &[f64],
+    lap: &LaplaceEvidence,
+    effect: &[usize],
+    opts: &EvidenceOptions,
+    progress: Option<&mut dyn FnMut(EvidenceProgress)>,
+) -> Result<Evidence> {
+    let inner = InUnconstrained::new(target, bounds)?;
+    let map = inner.map().clone();
+    let r = Referenced::new(inner, u_mode, &lap.covariance, effect)?;
+    let mut evidence = stepping_stone(&r, opts, progress)?;
+    if let Some(p) = evidence.posterior.as_mut() {
+        draws_to_box(target, &map, p);
+    }
+    Ok(evidence)
+}
+
+/// Posterior draws of the referenced path (logit `u`; terms `ln q/g` and `ln g`) moved to
+/// box coordinates with the target's `ln L` and `ln pi`: `ln q = ln pi(z) + ln |dz/du| +
+/// ln L(z)` in `u`, so `ln L = (ln q/g + ln g) - ln pi(z) - ln |dz/du|`.
+fn draws_to_box<T: TemperedTarget>(target: &T, map: &LogitMap, p: &mut PosteriorDraws) {
+    let dim = p.draws.dim;
+    let mut z = vec![0.0; dim];
+    for (k, u) in p.draws.values.chunks_exact_mut(dim).enumerate() {
+        map.to_box(u, &mut z);
+        let ln_prior = target.ln_prior(&z);
+        let ln_q = p.ln_likelihood[k] + p.ln_prior[k];
+        let ln_l = ln_q - ln_prior - map.ln_jacobian(u);
+        p.ln_likelihood[k] = ln_l;
+        p.ln_prior[k] = ln_prior;
+        p.draws.ln_density[k] = ln_l + ln_prior;
+        u.copy_from_slice(&z);
+    }
 }
