@@ -694,7 +694,9 @@ fn benchmark_killed_mid_case_resumes_to_the_same_diagnosis() {
     let reference = tmp.path().join("reference");
     assert_ok(&run(benchmark(&cases, &reference, false)));
     let work = tmp.path().join("work");
-    let stage = work.join("diagnoses/.tiny.frfbayes-partial/evidence-nominal.stage");
+    // The nominal model's evidence stage, named as `diagnose` names it.
+    let nominal = frfbayes::discrepancy::model_evidence::evidence_key("nominal");
+    let stage = work.join(format!("diagnoses/.tiny.frfbayes-partial/{nominal}.stage"));
     let killed = kill_when(
         benchmark(&cases, &work, false),
         Duration::from_secs(60),
