@@ -195,18 +195,22 @@ pub fn plug_in_start(
 
 /// The multistart weighted least-squares optimum of the structural coordinates
 /// (standardised per-point residuals, noise scale 1; the shared noise is not involved).
+/// The prior box of the free updating variables (the noise scale left out).
+fn structural_bounds(post: &FrfPosterior) -> Result<Bounds> {
+    let (n_free, prior) = (post.n_free(), post.prior());
+    Bounds::new(
+        prior.lower()[..n_free].to_vec(),
+        prior.upper()[..n_free].to_vec(),
+    )
+}
+
 fn structural_optimum(
     post: &FrfPosterior,
     options: &MultistartOptions,
 ) -> Result<MultistartResult> {
     let vars = post.variables();
     let z0 = vars.to_internal(&vars.initial());
-    let n_free = post.n_free();
-    let prior = post.prior();
-    let bounds = Bounds::new(
-        prior.lower()[..n_free].to_vec(),
-        prior.upper()[..n_free].to_vec(),
-    )?;
+    let bounds = structural_bounds(post)?;
     let problem = Residuals {
         post,
         bounds: &bounds,
@@ -218,12 +222,8 @@ fn structural_optimum(
 /// likelihood for general models with shared noise, [`refine_noise_scale`]) and the
 /// Gauss-Newton axes of the initial ball.
 fn start_at(post: &FrfPosterior, ms: &MultistartResult) -> Result<StartPoint> {
-    let n_free = post.n_free();
-    let prior = post.prior();
-    let bounds = Bounds::new(
-        prior.lower()[..n_free].to_vec(),
-        prior.upper()[..n_free].to_vec(),
-    )?;
+    let (n_free, prior) = (post.n_free(), post.prior());
+    let bounds = structural_bounds(post)?;
     let problem = Residuals {
         post,
         bounds: &bounds,
