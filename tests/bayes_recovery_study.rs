@@ -732,9 +732,15 @@ fn residuals_at_the_truth() {
     println!("  correlation of d at lags 1..8 bins: {}", lags.join(" "));
 }
 
-/// [`oracle_posterior`], with `FRFBAYES_STUDY_SELECT=truth`: the bands and selected bins
-/// of the noise-free campaign of the same seed (oracle: the selection does not see the
-/// noise); `measured` (default): the estimator's own.
+/// The posterior of `frfbayes sample`'s data and noise model (correlated bins as the
+/// settings say), with the oracles of the ten-story study (README, "Fixed: the ten-story
+/// check"): `FRFBAYES_STUDY_SELECT=truth`, the bands and selected bins of the noise-free
+/// campaign of the same seed (`measured`, the default: the estimator's own);
+/// `FRFBAYES_STUDY_TAIL=off`, no tail correction; `FRFBAYES_STUDY_THIN=k`, every k-th
+/// selected bin; `FRFBAYES_STUDY_SIGMA=true`, each point's sd from the model file's
+/// acceleration noise and the windowed force spectrum (response noise only, accelerance);
+/// `FRFBAYES_STUDY_DEBIAS=c`, magnitudes divided by `1 + c r_k^2` (the Rice bias at
+/// `c = 0.5`).
 fn selected_posterior(
     campaign: &frfbayes::io::Campaign,
     model: &SimModel,
