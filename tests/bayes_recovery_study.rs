@@ -784,41 +784,7 @@ fn selected_posterior(
     )
     .unwrap();
     if env_or("FRFBAYES_STUDY_SIGMA", "estimated") == "true" {
-        // oracle: the true sd of |H1| from white response noise of the model's std:
-        // radial sd = std sqrt(sum w^2 / 2) / |F_k| (exponential window from the start)
-        let std = model.noise.acceleration_m_per_s2;
-        let mut at = 0;
-        let mut ratios = Vec::new();
-        let blocks = data.blocks.clone();
-        for (f, b) in chosen.iter().zip(&blocks) {
-            let tau = f.exp_window_tau_s.unwrap();
-            let df = f.freq_hz[1];
-            let fs = 2.0 * f.freq_hz[f.freq_hz.len() - 1];
-            let nsamp = (f.block_s * fs).round() as usize;
-            let w2: f64 = (0..nsamp)
-                .map(|m| (-2.0 * m as f64 / (tau * fs)).exp())
-                .sum();
-            for _ in &b.pairs {
-                for &w in &b.omega_rad_s {
-                    let k = (w / (2.0 * std::f64::consts::PI) / df).round() as usize;
-                    let st = std * (w2 / 2.0).sqrt() / f.input_power[k].sqrt();
-                    ratios.push(data.sigma[at] / st);
-                    data.sigma[at] = st;
-                    at += 1;
-                }
-            }
-        }
-        assert_eq!(at, data.len());
-        ratios.sort_by(f64::total_cmp);
-        let q = |p: f64| ratios[((ratios.len() - 1) as f64 * p) as usize];
-        println!(
-            "estimated / true sigma: 5 % {:.3}, 25 % {:.3}, median {:.3}, 75 % {:.3}, 95 % {:.3}",
-            q(0.05),
-            q(0.25),
-            q(0.5),
-            q(0.75),
-            q(0.95)
-        );
+        true_sigma(&mut data, &chosen, model.noise.acceleration_m_per_s2);
     }
     if let Ok(c) = std::env::var("FRFBAYES_STUDY_DEBIAS") {
         // oracle of the Rice bias: |H1| ~ |H| (1 + c r^2), r the point's relative sd
@@ -837,6 +803,50 @@ fn selected_posterior(
         settings.posterior,
     )
     .unwrap()
+}
+
+/// Oracle of [`selected_posterior`]: each point's sd from white response noise of `std`
+/// per sample, `std sqrt(sum w^2 / 2) / |F_k|` (the exponential window from the
+/// transform start, the windowed force spectrum); prints the estimated over the true.
+fn true_sigma(
+    data: &mut frfbayes::bayes::FrfData,
+    chosen: &[&frfbayes::signal::TestFrf],
+    std: f64,
+) {
+    // oracle: the true sd of |H1| from white response noise of the model's std:
+    // radial sd = std sqrt(sum w^2 / 2) / |F_k| (exponential window from the start)
+    let mut at = 0;
+    let mut ratios = Vec::new();
+    let blocks = data.blocks.clone();
+    for (f, b) in chosen.iter().zip(&blocks) {
+        let tau = f.exp_window_tau_s.unwrap();
+        let df = f.freq_hz[1];
+        let fs = 2.0 * f.freq_hz[f.freq_hz.len() - 1];
+        let nsamp = (f.block_s * fs).round() as usize;
+        let w2: f64 = (0..nsamp)
+            .map(|m| (-2.0 * m as f64 / (tau * fs)).exp())
+            .sum();
+        for _ in &b.pairs {
+            for &w in &b.omega_rad_s {
+                let k = (w / (2.0 * std::f64::consts::PI) / df).round() as usize;
+                let st = std * (w2 / 2.0).sqrt() / f.input_power[k].sqrt();
+                ratios.push(data.sigma[at] / st);
+                data.sigma[at] = st;
+                at += 1;
+            }
+        }
+    }
+    assert_eq!(at, data.len());
+    ratios.sort_by(f64::total_cmp);
+    let q = |p: f64| ratios[((ratios.len() - 1) as f64 * p) as usize];
+    println!(
+        "estimated / true sigma: 5 % {:.3}, 25 % {:.3}, median {:.3}, 75 % {:.3}, 95 % {:.3}",
+        q(0.05),
+        q(0.25),
+        q(0.5),
+        q(0.75),
+        q(0.95)
+    );
 }
 
 /// Oracle without sampling: the maximum-likelihood point (the start of `frfbayes

@@ -350,6 +350,22 @@ impl FrfData {
         }
     }
 
+    /// [`Self::bin_correlation`]: empty or one value per point, each in `[0, 1)`.
+    fn validate_bin_correlation(&self, n: usize) -> Result<()> {
+        let rho = &self.bin_correlation;
+        if !(rho.is_empty() || rho.len() == n)
+            || rho
+                .iter()
+                .any(|r| !(r.is_finite() && (0.0..1.0).contains(r)))
+        {
+            return Err(Error::Usage(format!(
+                "{} bin correlations for {n} points, each in [0, 1)",
+                rho.len()
+            )));
+        }
+        Ok(())
+    }
+
     /// Number of points.
     pub fn len(&self) -> usize {
         self.magnitude.len()
@@ -465,17 +481,7 @@ impl FrfData {
             }
             end = c.start + c.len;
         }
-        if !(self.bin_correlation.is_empty() || self.bin_correlation.len() == n)
-            || self
-                .bin_correlation
-                .iter()
-                .any(|r| !(r.is_finite() && (0.0..1.0).contains(r)))
-        {
-            return Err(Error::Usage(format!(
-                "{} bin correlations for {n} points, each in [0, 1)",
-                self.bin_correlation.len()
-            )));
-        }
+        self.validate_bin_correlation(n)?;
         if let Some(k) = self.sigma.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
             return Err(Error::Usage(format!(
                 "sigma {k} is {}; every sigma must be finite and positive",

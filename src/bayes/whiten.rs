@@ -54,9 +54,9 @@ impl Whitening {
     pub fn colour(&self, x: &mut [f64]) {
         debug_assert_eq!(x.len(), self.rho.len());
         let mut prev = 0.0;
-        for k in 0..x.len() {
-            prev = self.rho[k] * prev + x[k] / self.scale[k];
-            x[k] = prev;
+        for ((v, r), sc) in x.iter_mut().zip(&self.rho).zip(&self.scale) {
+            prev = r * prev + *v / sc;
+            *v = prev;
         }
     }
 
