@@ -81,10 +81,11 @@ mod start;
 pub mod summary;
 #[cfg(test)]
 mod tests;
+mod whiten;
 
 pub use data::{
-    CorrelatedNoise, FrfData, InputNoiseModel, LoadingMagnitude, DEFAULT_REL_SIGMA_FLOOR,
-    SHARED_NOISE_REL_TOL,
+    BinCorrelation, CorrelatedNoise, FrfData, InputNoiseModel, LoadingMagnitude,
+    DEFAULT_REL_SIGMA_FLOOR, SHARED_NOISE_REL_TOL,
 };
 pub use forward::{ForwardModel, ForwardWorkspace};
 pub use posterior::{FrfPosterior, PosteriorOptions};

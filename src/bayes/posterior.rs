@@ -5,6 +5,7 @@ use super::data::FrfData;
 use super::forward::{ForwardModel, ForwardWorkspace};
 use super::likelihood::ResidualLayout;
 use super::prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
+use super::whiten::Whitening;
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
 use crate::model::StructuralModel;
@@ -51,8 +52,12 @@ pub struct FrfPosterior {
     options: PosteriorOptions,
     /// `y_k` (magnitude residuals) or `ln y_k` (log residuals).
     target: Vec<f64>,
-    /// `1 / sigma_k`.
+    /// `1 / sigma_k` (1 when whitened: `target` and the residuals are then in units of
+    /// `sigma`, whitened along each chain of correlated bins).
     inv_sigma: Vec<f64>,
+    /// Correlated neighbouring bins ([`FrfData::bin_correlation`]) and the raw
+    /// `1 / sigma_k`: the model's magnitudes are standardised and whitened like `target`.
+    whitening: Option<(Whitening, Vec<f64>)>,
     /// Per point: `-ln sigma_k - ln(2 pi)/2`, and `- ln y_k` for log residuals (so every
     /// pointwise term is a log density of `y_k` itself, comparable across residual forms).
     ln_norm: Vec<f64>,
@@ -71,6 +76,7 @@ impl Clone for FrfPosterior {
             options: self.options,
             target: self.target.clone(),
             inv_sigma: self.inv_sigma.clone(),
+            whitening: self.whitening.clone(),
             ln_norm: self.ln_norm.clone(),
             ln_norm_sum: self.ln_norm_sum,
             layout: self.layout.clone(),
@@ -116,21 +122,33 @@ impl FrfPosterior {
         )?;
         let log = data.residual == ResidualForm::LogMagnitude;
         let half_ln_2pi = 0.5 * (2.0 * std::f64::consts::PI).ln();
-        let target = data
+        let target: Vec<f64> = data
             .magnitude
             .iter()
             .map(|&y| if log { y.ln() } else { y })
             .collect();
-        let inv_sigma = data.sigma.iter().map(|s| 1.0 / s).collect();
+        let inv_sigma: Vec<f64> = data.sigma.iter().map(|s| 1.0 / s).collect();
         let ln_norm: Vec<f64> = data
             .sigma
             .iter()
             .zip(&data.magnitude)
             .map(|(s, y)| -s.ln() - half_ln_2pi - if log { y.ln() } else { 0.0 })
             .collect();
-        let layout = ResidualLayout::new(data.len(), &data.correlated, &data.sigma)?;
+        let whitening = Whitening::new(&data.bin_correlation)?;
+        let (target, inv_sigma, ln_norm, layout, whitening) = match whitening {
+            None => {
+                let layout = ResidualLayout::new(data.len(), &data.correlated, &data.sigma)?;
+                (target, inv_sigma, ln_norm, layout, None)
+            }
+            Some(w) => {
+                let t = w.transform(&data, &target, &inv_sigma, &ln_norm)?;
+                let layout = ResidualLayout::new(data.len(), &t.correlated, &t.unit)?;
+                (t.target, t.unit, t.ln_norm, layout, Some((w, inv_sigma)))
+            }
+        };
         Ok(FrfPosterior {
             layout,
+            whitening,
             forward,
             ln_norm_sum: ln_norm.iter().sum(),
             data,
@@ -288,6 +306,10 @@ impl FrfPosterior {
                     *h = h.ln();
                 }
             }
+            if let Some((w, inv_sigma)) = &self.whitening {
+                mag.iter_mut().zip(inv_sigma).for_each(|(h, s)| *h *= s);
+                w.whiten(&mut mag);
+            }
             // one pass over the points, the same with or without the pointwise terms
             let sums = self.layout.sums(&mag, &self.target, &self.inv_sigma, s2);
             if !pointwise.is_empty() {
@@ -319,14 +341,17 @@ impl FrfPosterior {
 
     /// Magnitudes simulated from the likelihood at `z`: `|H^A_k| + s sigma_k e_k + c_k`
     /// (magnitude residuals) or `|H^A_k| exp(s sigma_k e_k + c_k)` (log residuals), `e_k`
-    /// standard normal, `c = L eta` the shared noise of [`FrfData::correlated`] at its
+    /// standard normal (a chain along correlated bins, [`FrfData::bin_correlation`]), `c = L eta` the shared noise of [`FrfData::correlated`] at its
     /// known size, not scaled by `s` (`eta` standard normal, drawn after the `e`).
     /// Magnitude-residual draws below zero are kept (the Gaussian model allows them).
     pub fn simulate(&self, z: &[f64], rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
         let h = self.magnitudes(z)?;
         let s = self.noise_scale(z);
         let log = self.data.residual == ResidualForm::LogMagnitude;
-        let e: Vec<f64> = (0..h.len()).map(|_| rng.sample(StandardNormal)).collect();
+        let mut e: Vec<f64> = (0..h.len()).map(|_| rng.sample(StandardNormal)).collect();
+        if let Some((w, _)) = &self.whitening {
+            w.colour(&mut e);
+        }
         // the shared noise after every point's own (without it, the draws of before)
         let mut shared = vec![0.0; h.len()];
         for c in &self.data.correlated {
