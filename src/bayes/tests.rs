@@ -68,6 +68,28 @@ fn log_density_is_the_stated_gaussian() {
     }
 }
 
+/// At two noise scales: the posterior's log-likelihood equals the dense Gaussian's
+/// (1e-9 relative), its pointwise terms sum to it, and it is the same without them.
+fn assert_dense_gaussian(post: &FrfPosterior, data: &FrfData, label: &str) {
+    for s in [1.3, 0.4] {
+        let mut z = inside(post);
+        z[4] = f64::ln(s);
+        let expect = dense_ln_likelihood(data, &post.magnitudes(&z).unwrap(), s);
+        let mut pw = vec![0.0; data.len()];
+        let ll = post.ln_likelihood(&z, &mut pw).unwrap();
+        assert!(
+            (ll - expect).abs() < 1e-9 * expect.abs(),
+            "{label}, s {s}: {ll} vs {expect}"
+        );
+        let sum: f64 = pw.iter().sum();
+        assert!(
+            (sum - ll).abs() < 1e-9 * ll.abs(),
+            "pointwise {sum} vs {ll}"
+        );
+        assert_eq!(post.ln_likelihood(&z, &mut []).unwrap(), ll);
+    }
+}
+
 /// The dense Gaussian log density of `data` at model magnitudes `h` with covariance
 /// `s^2 D^1/2 C D^1/2 + L L^T` (`D = diag(sigma^2)`, `C` the chain of
 /// [`FrfData::bin_correlation`], the identity without it), by Cholesky (the oracle of
@@ -139,23 +161,7 @@ fn shared_noise_is_the_dense_gaussian() {
             block(n / 2 + 1, n / 2 - 2, 3),
         ];
         let post = base.with_data(data.clone()).unwrap();
-        for s in [1.3, 0.4] {
-            let mut z = inside(&post);
-            z[4] = f64::ln(s);
-            let expect = dense_ln_likelihood(&data, &post.magnitudes(&z).unwrap(), s);
-            let mut pw = vec![0.0; n];
-            let ll = post.ln_likelihood(&z, &mut pw).unwrap();
-            assert!(
-                (ll - expect).abs() < 1e-9 * expect.abs(),
-                "{residual:?}, s {s}: {ll} vs {expect}"
-            );
-            let sum: f64 = pw.iter().sum();
-            assert!(
-                (sum - ll).abs() < 1e-9 * ll.abs(),
-                "pointwise {sum} vs {ll}"
-            );
-            assert_eq!(post.ln_likelihood(&z, &mut []).unwrap(), ll);
-        }
+        assert_dense_gaussian(&post, &data, &format!("{residual:?}"));
         // without shared noise, the same bits as the independent posterior
         data.correlated.clear();
         let plain = base.with_data(data).unwrap();
@@ -204,22 +210,7 @@ fn correlated_bins_are_the_dense_gaussian() {
                 }],
             };
             let post = base.with_data(data.clone()).unwrap();
-            for s in [1.3, 0.4] {
-                let mut z = inside(&post);
-                z[4] = f64::ln(s);
-                let expect = dense_ln_likelihood(&data, &post.magnitudes(&z).unwrap(), s);
-                let mut pw = vec![0.0; n];
-                let ll = post.ln_likelihood(&z, &mut pw).unwrap();
-                assert!(
-                    (ll - expect).abs() < 1e-9 * expect.abs(),
-                    "{residual:?}, shared {shared}, s {s}: {ll} vs {expect}"
-                );
-                let sum: f64 = pw.iter().sum();
-                assert!(
-                    (sum - ll).abs() < 1e-9 * ll.abs(),
-                    "pointwise {sum} vs {ll}"
-                );
-            }
+            assert_dense_gaussian(&post, &data, &format!("{residual:?}, shared {shared}"));
         }
         // a shared run that cuts a chain is refused
         data.correlated[0].start = half - 1;
