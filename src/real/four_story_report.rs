@@ -100,9 +100,29 @@ pub fn write(s: &FourStoryStudy, out: &Path, timings: &[(String, f64)]) -> Resul
     crate::io::write_atomic(&out.join("report.md"), md.as_bytes())
 }
 
+/// `report.md`: the data and model, the three posteriors with their
+/// posterior-predictive checks, the paper's models against the data, the verdict, the
+/// figures and the stage timings.
 fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String {
-    let d = &s.data;
     let mut r = String::new();
+    intro_section(&mut r, s);
+    let _ = writeln!(r, "## Posterior (fixed masses, all four modes)\n");
+    let _ = writeln!(r, "{}", posterior_table(&s.main.rows));
+    let _ = writeln!(r, "Sampler: {}\n", run_line(&s.main.sampled));
+    frequencies_section(&mut r, s, f);
+    paper_models_section(&mut r, s);
+    main_ppc_section(&mut r, s, f);
+    holdout_section(&mut r, s, f);
+    free_mass_section(&mut r, s, f);
+    let _ = writeln!(r, "## Verdict\n");
+    let _ = writeln!(r, "{}", verdict(s, f));
+    figures_and_timings_section(&mut r, timings);
+    r
+}
+
+/// The title, the data's provenance and the model (fixed masses, likelihood, priors).
+fn intro_section(r: &mut String, s: &FourStoryStudy) {
+    let d = &s.data;
     let _ = writeln!(
         r,
         "# Four-story frame: identified modes against a shear-frame model\n"
@@ -136,11 +156,12 @@ fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String
             .collect::<Vec<_>>()
             .join(", ")
     );
+}
 
-    let _ = writeln!(r, "## Posterior (fixed masses, all four modes)\n");
-    let _ = writeln!(r, "{}", posterior_table(&s.main.rows));
-    let _ = writeln!(r, "Sampler: {}\n", run_line(&s.main.sampled));
-
+/// Measured frequencies against the posterior-median and paper models (with MACs),
+/// the paper's own spread, and the exact frequency-only fit.
+fn frequencies_section(r: &mut String, s: &FourStoryStudy, f: &Findings) {
+    let d = &s.data;
     let _ = writeln!(
         r,
         "## Frequencies and shapes: posterior, paper models, measurement\n"
@@ -211,7 +232,10 @@ fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String
             .collect::<Vec<_>>()
             .join(", ")
     );
+}
 
+/// Chi-square of the paper's models (and the posterior median) against these data.
+fn paper_models_section(r: &mut String, s: &FourStoryStudy) {
     let _ = writeln!(r, "## The paper's models against these data\n");
     let rows: Vec<Vec<String>> = s
         .chi2
@@ -236,6 +260,11 @@ fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String
          (the paper's models are not fitted to these data: 16 dof; the posterior median \
          has 4 fitted stiffnesses: 12 dof).\n"
     );
+}
+
+/// The posterior-predictive check of the main variant and the noise scales it needs.
+fn main_ppc_section(r: &mut String, s: &FourStoryStudy, f: &Findings) {
+    let d = &s.data;
     let _ = writeln!(
         r,
         "## Posterior-predictive check (fixed masses, all four modes)\n"
@@ -264,7 +293,11 @@ fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String
         100.0 * sf,
         ss
     );
+}
 
+/// The posterior fitted to modes 1-3 and its prediction of mode 4.
+fn holdout_section(r: &mut String, s: &FourStoryStudy, f: &Findings) {
+    let d = &s.data;
     let _ = writeln!(r, "## Held-out mode 4 (fit to modes 1-3, predict mode 4)\n");
     let _ = writeln!(r, "{}", posterior_table(&s.holdout.rows));
     let _ = writeln!(r, "Sampler: {}\n", run_line(&s.holdout.sampled));
@@ -293,7 +326,12 @@ fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String
         h4.mac_model[0],
         h4.mac_rep_q2_5
     );
+}
 
+/// The posterior with a free mass distribution and its noise scales against the fixed
+/// masses'.
+fn free_mass_section(r: &mut String, s: &FourStoryStudy, f: &Findings) {
+    let d = &s.data;
     let _ = writeln!(
         r,
         "## Free mass distribution (m2-m4 relative to m1 = {} kg)\n",
@@ -306,6 +344,7 @@ fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String
         "{}",
         ppc_table(&s.free_mass_ppc, &d.freq_hz, "measured f (Hz)")
     );
+    let (sf, ss) = (f.noise_fixed_masses.sigma_f, f.noise_fixed_masses.sigma_s);
     let (sf2, ss2) = (f.noise_free_masses.sigma_f, f.noise_free_masses.sigma_s);
     let _ = writeln!(
         r,
@@ -319,9 +358,10 @@ fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String
         s.free_mass_ppc.t_dof,
         s.free_mass_ppc.p_t
     );
+}
 
-    let _ = writeln!(r, "## Verdict\n");
-    let _ = writeln!(r, "{}", verdict(s, f));
+/// The list of figures and the stage timings (seconds).
+fn figures_and_timings_section(r: &mut String, timings: &[(String, f64)]) {
     let _ = writeln!(r, "## Figures\n");
     for (f, what) in [
         (
@@ -351,26 +391,13 @@ fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String
     for (stage, t) in timings {
         let _ = writeln!(r, "- {stage}: {t:.2} s");
     }
-    r
 }
 
+/// The verdict: the rules stated before reading the numbers, then one line each on the
+/// best compromise, the outliers, the held-out mode, the shear-frame form, the
+/// stiffnesses against Table 1 and the free mass distribution.
 fn verdict(s: &FourStoryStudy, f: &Findings) -> String {
-    let d = &s.data;
     let mut v = String::new();
-    let flagged: Vec<String> = f
-        .flagged
-        .iter()
-        .map(|g| match g.quantity {
-            "frequency" => format!("f{} (p = {:.3})", g.mode, g.p),
-            _ => format!("shape {} (p = {:.3})", g.mode, g.p),
-        })
-        .collect();
-    let (smin, smax) = f
-        .paper_spread
-        .iter()
-        .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
-    let (sf, ss) = (f.noise_fixed_masses.sigma_f, f.noise_fixed_masses.sigma_s);
-    let (sf2, ss2) = (f.noise_free_masses.sigma_f, f.noise_free_masses.sigma_s);
     let _ = writeln!(
         v,
         "Rules (stated before reading the numbers): the shear frame explains the data when \
@@ -379,6 +406,24 @@ fn verdict(s: &FourStoryStudy, f: &Findings) -> String {
          compromise misses no frequency by more than the paper's own test-to-test spread \
          of updated-model frequencies.\n"
     );
+    best_compromise_line(&mut v, s, f);
+    outliers_line(&mut v, f);
+    holdout_line(&mut v, s, f);
+    form_line(&mut v, f);
+    stiffness_line(&mut v, f);
+    free_mass_line(&mut v, f);
+    v
+}
+
+/// The verdict's line on the posterior-median model: frequency errors against the
+/// paper's spread, MACs and the noise scales it needs.
+fn best_compromise_line(v: &mut String, s: &FourStoryStudy, f: &Findings) {
+    let d = &s.data;
+    let (smin, smax) = f
+        .paper_spread
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
+    let (sf, ss) = (f.noise_fixed_masses.sigma_f, f.noise_fixed_masses.sigma_s);
     let _ = writeln!(
         v,
         "- Best compromise (posterior median, fixed masses): frequency errors {} %, largest \
@@ -401,6 +446,18 @@ fn verdict(s: &FourStoryStudy, f: &Findings) -> String {
         100.0 * sf,
         ss
     );
+}
+
+/// The verdict's line listing the data with a posterior-predictive p below the flag.
+fn outliers_line(v: &mut String, f: &Findings) {
+    let flagged: Vec<String> = f
+        .flagged
+        .iter()
+        .map(|g| match g.quantity {
+            "frequency" => format!("f{} (p = {:.3})", g.mode, g.p),
+            _ => format!("shape {} (p = {:.3})", g.mode, g.p),
+        })
+        .collect();
     let _ = writeln!(
         v,
         "- Posterior-predictive outliers at p < {P_FLAG} (all four modes): {}.",
@@ -410,21 +467,10 @@ fn verdict(s: &FourStoryStudy, f: &Findings) -> String {
             flagged.join(", ")
         }
     );
-    holdout_line(&mut v, s, f);
-    let ratios: Vec<String> = f
-        .stiffness_vs_table1
-        .iter()
-        .enumerate()
-        .map(|(r, x)| {
-            format!(
-                "k{} {} % [{}, {}]",
-                r + 1,
-                pct(x.mean),
-                pct(x.q2_5),
-                pct(x.q97_5)
-            )
-        })
-        .collect();
+}
+
+/// The verdict's line on whether a shear frame explains all four modes and shapes.
+fn form_line(v: &mut String, f: &Findings) {
     if f.adequate {
         let _ = writeln!(
             v,
@@ -448,6 +494,24 @@ fn verdict(s: &FourStoryStudy, f: &Findings) -> String {
             f.table1_chi2_p.0
         );
     }
+}
+
+/// The verdict's line on this frame's stiffnesses against Table 1 (same masses).
+fn stiffness_line(v: &mut String, f: &Findings) {
+    let ratios: Vec<String> = f
+        .stiffness_vs_table1
+        .iter()
+        .enumerate()
+        .map(|(r, x)| {
+            format!(
+                "k{} {} % [{}, {}]",
+                r + 1,
+                pct(x.mean),
+                pct(x.q2_5),
+                pct(x.q97_5)
+            )
+        })
+        .collect();
     let t1_err: Vec<String> = f
         .table1_freq_error
         .iter()
@@ -468,6 +532,12 @@ fn verdict(s: &FourStoryStudy, f: &Findings) -> String {
         list(&f.stories_below_table1, "k"),
         list(&f.stories_above_table1, "k"),
     );
+}
+
+/// The verdict's line on whether freeing the mass distribution absorbs the misfit.
+fn free_mass_line(v: &mut String, f: &Findings) {
+    let (sf, ss) = (f.noise_fixed_masses.sigma_f, f.noise_fixed_masses.sigma_s);
+    let (sf2, ss2) = (f.noise_free_masses.sigma_f, f.noise_free_masses.sigma_s);
     let _ = writeln!(
         v,
         "- Freeing the mass distribution {} (sigma_f {:.2} % -> {:.2} %, sigma_s {:.3} -> \
@@ -484,7 +554,6 @@ fn verdict(s: &FourStoryStudy, f: &Findings) -> String {
         ss,
         ss2
     );
-    v
 }
 
 /// The held-out line of the verdict: mode 4 predicted from modes 1-3.
