@@ -158,6 +158,7 @@ pub mod nonlinear;
 pub mod sensor;
 pub mod sensor_effects;
 pub mod system;
+mod validate;
 
 pub use campaign::{resolve_seed, ChannelPlan, Simulator};
 pub use config::{
