@@ -114,9 +114,20 @@ pub fn write(
     crate::io::write_atomic(&out.join("report.md"), md.as_bytes())
 }
 
+/// `report.md`: the data and model, each band's posterior, the frequency-against-damping
+/// comparison with Au's law, the channel-to-channel scatter, figures and timings.
 fn report(s: &WheelStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
     let mut r = String::new();
-    let cmp = &fd.modes;
+    intro_section(&mut r);
+    band_posteriors_section(&mut r, s);
+    au_law_section(&mut r, fd);
+    scatter_section(&mut r, s, fd);
+    figures_and_timings_section(&mut r, s, timings);
+    r
+}
+
+/// The title, the data's provenance and the model and likelihood.
+fn intro_section(r: &mut String) {
     let _ = writeln!(
         r,
         "# Light-rail wheel: Bayesian modal parameters from measured accelerance\n"
@@ -142,6 +153,10 @@ fn report(s: &WheelStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
          Gaussian. Priors: `f_r` uniform over the band (ordered within the pair), `xi` \
          log-uniform in [1e-4, 0.2], `s` log-uniform in [1e-3, 1e4].\n"
     );
+}
+
+/// Each band's posterior table, sampler line and whitened residual RMS per channel.
+fn band_posteriors_section(r: &mut String, s: &WheelStudy) {
     let _ = writeln!(r, "## Posterior per band\n");
     for (bi, b) in s.bands.iter().enumerate() {
         let _ = writeln!(
@@ -166,6 +181,12 @@ fn report(s: &WheelStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
                 .join(", ")
         );
     }
+}
+
+/// The ratio of damping to frequency c.o.v. per mode against Au's law (`1/xi`), and the
+/// verdict.
+fn au_law_section(r: &mut String, fd: &Findings) {
+    let cmp = &fd.modes;
     let _ = writeln!(r, "## Frequency against damping uncertainty (Au's law)\n");
     let _ = writeln!(
         r,
@@ -211,6 +232,12 @@ fn report(s: &WheelStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
         )
     );
     let _ = writeln!(r, "{}", verdict(fd));
+}
+
+/// The channel-by-channel fits: the scatter of their estimates against the posterior's
+/// c.o.v.s.
+fn scatter_section(r: &mut String, s: &WheelStudy, fd: &Findings) {
+    let cmp = &fd.modes;
     let _ = writeln!(r, "### Channel-to-channel scatter\n");
     let _ = writeln!(
         r,
@@ -277,6 +304,10 @@ fn report(s: &WheelStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
         sc.xi_scatter_over_posterior.min,
         sc.xi_scatter_over_posterior.max,
     );
+}
+
+/// The list of figures and the stage timings (seconds).
+fn figures_and_timings_section(r: &mut String, s: &WheelStudy, timings: &[(String, f64)]) {
     let _ = writeln!(r, "## Figures\n");
     let _ = writeln!(
         r,
@@ -298,7 +329,6 @@ fn report(s: &WheelStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
     for (stage, t) in timings {
         let _ = writeln!(r, "- {stage}: {t:.2} s");
     }
-    r
 }
 
 fn verdict(fd: &Findings) -> String {
@@ -322,7 +352,19 @@ fn verdict(fd: &Findings) -> String {
     )
 }
 
+/// Every figure of the study: the overview, each band's FRF posterior, the c.o.v.s and
+/// the close pair's corner plot and traces.
 fn figures(s: &WheelStudy, fd: &Findings, data: &WheelData, out: &Path) -> Result<()> {
+    overview_figure(s, data, out)?;
+    for (bi, b) in s.bands.iter().enumerate() {
+        band_figure(bi, b, out)?;
+    }
+    cov_figure(fd, out)?;
+    pair_figures(s, out)
+}
+
+/// `overview`: measured |H| and coherence of channels 1-3, the analysis bands shaded.
+fn overview_figure(s: &WheelStudy, data: &WheelData, out: &Path) -> Result<()> {
     let chans = [0usize, 1, 2];
     frf_magnitudes(
         &FrfMagnitudesSpec {
@@ -348,49 +390,57 @@ fn figures(s: &WheelStudy, fd: &Findings, data: &WheelData, out: &Path) -> Resul
             size_px: None,
         },
         &out.join("overview"),
-    )?;
-    for (bi, b) in s.bands.iter().enumerate() {
-        let f = &b.lik.data.freq_hz;
-        let panels = PLOT_CHANNELS
-            .iter()
-            .enumerate()
-            .map(|(i, &c)| {
-                let q = &b.bands_abs[i];
-                BandPanel {
-                    title: format!("channel {} ({} deg)", c + 1, 15 * c),
-                    y_label: "|H| ((m/s²)/N)".into(),
-                    y_scale: Scale::Log,
+    )
+}
+
+/// `band<k>_frf` of band `bi` (0-based): measured |H| and the posterior of the model's
+/// (median, 50 % and 95 % bands) on the plotted channels.
+fn band_figure(bi: usize, b: &BandResult, out: &Path) -> Result<()> {
+    let f = &b.lik.data.freq_hz;
+    let panels = PLOT_CHANNELS
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| {
+            let q = &b.bands_abs[i];
+            BandPanel {
+                title: format!("channel {} ({} deg)", c + 1, 15 * c),
+                y_label: "|H| ((m/s²)/N)".into(),
+                y_scale: Scale::Log,
+                freq_hz: f.clone(),
+                median: q[2].clone(),
+                band_50: Some(Interval {
+                    lo: q[1].clone(),
+                    hi: q[3].clone(),
+                }),
+                band_95: Some(Interval {
+                    lo: q[0].clone(),
+                    hi: q[4].clone(),
+                }),
+                measured: Some(Curve {
                     freq_hz: f.clone(),
-                    median: q[2].clone(),
-                    band_50: Some(Interval {
-                        lo: q[1].clone(),
-                        hi: q[3].clone(),
-                    }),
-                    band_95: Some(Interval {
-                        lo: q[0].clone(),
-                        hi: q[4].clone(),
-                    }),
-                    measured: Some(Curve {
-                        freq_hz: f.clone(),
-                        values: b.lik.data.y[c].iter().map(|h| h.norm()).collect(),
-                    }),
-                    bands: vec![],
-                }
-            })
-            .collect();
-        band_overlay(
-            &BandOverlaySpec {
-                title: format!(
-                    "Band {}: {} — model posterior and measurement",
-                    bi + 1,
-                    b.lik.spec.label
-                ),
-                panels,
-                size_px: None,
-            },
-            &out.join(format!("band{}_frf", bi + 1)),
-        )?;
-    }
+                    values: b.lik.data.y[c].iter().map(|h| h.norm()).collect(),
+                }),
+                bands: vec![],
+            }
+        })
+        .collect();
+    band_overlay(
+        &BandOverlaySpec {
+            title: format!(
+                "Band {}: {} — model posterior and measurement",
+                bi + 1,
+                b.lik.spec.label
+            ),
+            panels,
+            size_px: None,
+        },
+        &out.join(format!("band{}_frf", bi + 1)),
+    )
+}
+
+/// `cov`: the posterior c.o.v. of natural frequency and damping ratio per mode, and
+/// cov(f) / xi (the damping c.o.v. Au's law predicts).
+fn cov_figure(fd: &Findings, out: &Path) -> Result<()> {
     let cmp = &fd.modes;
     bar_chart(
         &BarChartSpec {
@@ -417,7 +467,12 @@ fn figures(s: &WheelStudy, fd: &Findings, data: &WheelData, out: &Path) -> Resul
             size_px: None,
         },
         &out.join("cov"),
-    )?;
+    )
+}
+
+/// `pair_corner` and `pair_traces`: the posterior and walker traces of the band with the
+/// close pair of modes (if any).
+fn pair_figures(s: &WheelStudy, out: &Path) -> Result<()> {
     if let Some(pair) = s.bands.iter().find(|b| b.lik.n_modes() == 2) {
         let names = ["f_a", "xi_a", "f_b", "xi_b", "s"];
         let units = ["Hz", "", "Hz", "", ""];
