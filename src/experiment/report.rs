@@ -22,6 +22,23 @@ fn table_section(
     runs: &[VariantRun],
 ) {
     let p = paper.to_param_table(4);
+    values_table(out, id, ours, paper, &p);
+    mass_stiffness_agreement(out, ours, &p);
+    modal_damping(out, id, ours, runs);
+    bounds(out, id, runs, &p);
+    fdac(out, id, paper, runs);
+    let _ = writeln!(out);
+}
+
+/// The table's heading and every parameter beside the paper's (`p`: the paper's table
+/// as a [`ParamTable`]), with the RSDs across the four variants.
+fn values_table(
+    out: &mut String,
+    id: TableId,
+    ours: &ParamTable,
+    paper: &PaperTable,
+    p: &ParamTable,
+) {
     let _ = writeln!(
         out,
         "## {} ({})\n",
@@ -53,10 +70,14 @@ fn table_section(
                 .map(|r| format!("{r:.3}"))
                 .unwrap_or_else(|| "-".into())
         };
-        line += &format!(" {} / {} |", rsd(&p), rsd(ours));
+        line += &format!(" {} / {} |", rsd(p), rsd(ours));
         let _ = writeln!(out, "{line}");
     }
-    // Agreement of mass and stiffness.
+}
+
+/// The largest differences of our masses and stiffnesses from the paper's (`p`), and
+/// the largest RSDs across variants of both.
+fn mass_stiffness_agreement(out: &mut String, ours: &ParamTable, p: &ParamTable) {
     let mut worst_m = (0.0_f64, String::new());
     let mut worst_k = (0.0_f64, String::new());
     for row in &ours.rows {
@@ -87,12 +108,16 @@ fn table_section(
     let _ = writeln!(
         out,
         "Largest RSD across variants: paper {:.3} % (masses) and {:.3} % (stiffnesses); ours {:.3} % and {:.3} %.",
-        max_rsd(&p, 'm'),
-        max_rsd(&p, 'k'),
+        max_rsd(p, 'm'),
+        max_rsd(p, 'k'),
         max_rsd(ours, 'm'),
         max_rsd(ours, 'k')
     );
-    // Modal damping implied by each variant.
+}
+
+/// The natural frequency (Hz) and damping ratio (%) of every mode each variant of table
+/// `id` implies, and the spread between the two Caughey variants.
+fn modal_damping(out: &mut String, id: TableId, ours: &ParamTable, runs: &[VariantRun]) {
     let mine: Vec<&VariantRun> = runs.iter().filter(|r| r.variant.table == id).collect();
     if let Some(first) = mine.first() {
         let _ = writeln!(out, "\n**Modal damping each variant implies** (natural frequency of its updated model in Hz / damping ratio in %, window contribution removed):\n");
@@ -128,7 +153,11 @@ fn table_section(
             spread(&caughey, 'k')
         );
     }
-    // Bounds.
+}
+
+/// The variables of each variant of table `id` that end on a bound, and how many of the
+/// paper's masses (`p`) sit on its upper bound.
+fn bounds(out: &mut String, id: TableId, runs: &[VariantRun], p: &ParamTable) {
     let _ = writeln!(
         out,
         "\n**Bounds.** Variables that end on a bound of the box (ours):\n"
@@ -150,7 +179,7 @@ fn table_section(
             r.wall_s
         );
     }
-    let pr = &p;
+    let pr = p;
     let paper_at_bound = p
         .rows
         .iter()
@@ -162,7 +191,11 @@ fn table_section(
         out,
         "\nIn the paper's table, {paper_at_bound} of the 16 masses equal {PAPER_MASS_BOUND_KG} kg = 4.64 x 1.111: that is the upper bound of the paper's box, not an estimate; our box uses the same bound (beta <= 0.111)."
     );
-    // FDAC.
+}
+
+/// The paper's FDAC figure pairs against ours, and our mean FDAC before and after
+/// updating, per variant of table `id`.
+fn fdac(out: &mut String, id: TableId, paper: &PaperTable, runs: &[VariantRun]) {
     let _ = writeln!(out, "\n**FDAC** over the selected bands (paper figure pair: paper / ours; mean over all FRFs of the variant, initial -> updated):\n");
     for (variant, f) in &paper.fdac {
         if let Some(r) = runs
@@ -185,7 +218,6 @@ fn table_section(
             );
         }
     }
-    let _ = writeln!(out);
 }
 
 /// The whole `comparison.md`.
