@@ -129,8 +129,19 @@ fn fit_section(r: &mut String, f: &TowerFit) {
     );
 }
 
+/// `report.md`: the data, the FRF estimation and model, the two posteriors, where the
+/// shear model fails, the figures and the stage timings.
 fn report(s: &TowerStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
     let mut r = String::new();
+    intro_section(&mut r, s);
+    posteriors_section(&mut r, s, fd);
+    failures_section(&mut r, s, fd);
+    figures_and_timings_section(&mut r, timings);
+    r
+}
+
+/// The title, the data's provenance, the FRF estimation and the model.
+fn intro_section(r: &mut String, s: &TowerStudy) {
     let f = &s.full;
     let _ = writeln!(
         r,
@@ -187,8 +198,14 @@ fn report(s: &TowerStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
         f.lik.data.freq_hz.len(),
         band_label(s.low.band_hz)
     );
+}
+
+/// The whole-band posterior with its gain signs and ratios, then the posterior of the
+/// first two modes.
+fn posteriors_section(r: &mut String, s: &TowerStudy, fd: &Findings) {
+    let f = &s.full;
     let _ = writeln!(r, "## Posterior, whole band {}\n", band_label(f.band_hz));
-    fit_section(&mut r, f);
+    fit_section(r, f);
     let flipped = &fd.negative_gain_floors;
     let _ = writeln!(
         r,
@@ -212,8 +229,13 @@ fn report(s: &TowerStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
         "## Posterior, first two modes only ({})\n",
         band_label(s.low.band_hz)
     );
-    fit_section(&mut r, &s.low);
+    fit_section(r, &s.low);
+}
 
+/// Per measured resonance and floor, the MAC and standardised residuals of both fits,
+/// and the account of where the fit fails.
+fn failures_section(r: &mut String, s: &TowerStudy, fd: &Findings) {
+    let f = &s.full;
     let _ = writeln!(
         r,
         "## Where the shear model fails: per mode and per floor\n"
@@ -247,6 +269,10 @@ fn report(s: &TowerStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
     );
     let _ = writeln!(r, "{}", peak_table(&s.residuals_low));
     let _ = writeln!(r, "{}", failure_summary(s, fd));
+}
+
+/// The list of figures and the stage timings (seconds).
+fn figures_and_timings_section(r: &mut String, timings: &[(String, f64)]) {
     let _ = writeln!(r, "## Figures\n");
     let _ = writeln!(r, "- `frf_fit.png/.svg`: measured |H1| and the posterior of the whole-band model |H| per floor");
     let _ = writeln!(r, "- `residual_map.png/.svg`, `residual_map_low.png/.svg`: log10 RMS standardised residual per floor at each measured peak (whole-band fit; fit to the first two modes)");
@@ -258,13 +284,36 @@ fn report(s: &TowerStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
     for (stage, t) in timings {
         let _ = writeln!(r, "- {stage}: {t:.2} s");
     }
-    r
 }
 
 /// The account of where the fit fails.
 fn failure_summary(s: &TowerStudy, fd: &Findings) -> String {
-    let f = &s.full;
     let mut out = String::new();
+    whole_band_failures(&mut out, s, fd);
+    low_band_failures(&mut out, s, fd);
+    let _ = writeln!(
+        out,
+        "{}",
+        fd.frequency_ratios
+            .as_ref()
+            .map(frequency_ratios)
+            .unwrap_or_default()
+    );
+    let _ = writeln!(
+        out,
+        "- Reading: residuals an order of magnitude above the estimator noise at resonances \
+         the chain cannot place, or with shapes it cannot form, are missing physics, not \
+         noise. Candidates to test as model extensions (the `diagnose` command): \
+         flexural (cantilever) behaviour; more storeys than the five measured; torsion \
+         from an eccentric damper; a local response of the damper floor; and, where one \
+         floor stands out, calibration or mounting of that channel."
+    );
+    out
+}
+
+/// The failure account's lines on the whole-band fit: resonances reproduced and missed,
+/// the residuals per floor, and parameters at a prior bound.
+fn whole_band_failures(out: &mut String, s: &TowerStudy, fd: &Findings) {
     let _ = writeln!(
         out,
         "- Whole-band fit: {} of {} measured resonances reproduced ({}); not reproduced: \
@@ -312,6 +361,12 @@ fn failure_summary(s: &TowerStudy, fd: &Findings) -> String {
             list_or_none(&fd.at_bound, |b| format!("{} ({})", b.name, b.side), ", ")
         );
     }
+}
+
+/// The failure account's line on the fit to the first two modes, inside its band and
+/// above it.
+fn low_band_failures(out: &mut String, s: &TowerStudy, fd: &Findings) {
+    let f = &s.full;
     let (lo_in, lo_out) = (&fd.low_inside, &fd.low_above);
     let _ = writeln!(
         out,
@@ -338,24 +393,6 @@ fn failure_summary(s: &TowerStudy, fd: &Findings) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    let _ = writeln!(
-        out,
-        "{}",
-        fd.frequency_ratios
-            .as_ref()
-            .map(frequency_ratios)
-            .unwrap_or_default()
-    );
-    let _ = writeln!(
-        out,
-        "- Reading: residuals an order of magnitude above the estimator noise at resonances \
-         the chain cannot place, or with shapes it cannot form, are missing physics, not \
-         noise. Candidates to test as model extensions (the `diagnose` command): \
-         flexural (cantilever) behaviour; more storeys than the five measured; torsion \
-         from an eccentric damper; a local response of the damper floor; and, where one \
-         floor stands out, calibration or mounting of that channel."
-    );
-    out
 }
 
 fn frequency_ratios(q: &FrequencyRatios) -> String {
