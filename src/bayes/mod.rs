@@ -67,6 +67,7 @@ pub mod figures;
 pub mod fit;
 mod forward;
 pub mod inference_data;
+pub mod layer;
 mod likelihood;
 mod moves;
 mod posterior;

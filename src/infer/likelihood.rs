@@ -30,11 +30,19 @@
 //!   A real channel gain ([`Block::complex_gain`], one column: the prediction itself,
 //!   `-ln ||h~||`) and complex modal residues ([`Block::complex_linear`], two columns
 //!   `g`, `j g` per unknown) are its two uses.
+//! - [`BlockKind::SharedNoise`]: values as [`BlockKind::Values`] whose noise has, besides
+//!   each value's own part scaled by `sigma`, a low-rank part of known size shared by
+//!   all of them (one test's force noise in every FRF magnitude of the test):
+//!   `cov = sigma^2 diag(sd^2) + L L^T`, evaluated by Woodbury ([`shared`]). Its
+//!   least-squares view ([`super::Posterior::least_squares`]) is the per-value part
+//!   only, the weighted least squares that starts the plug-in of the loadings.
 
 use std::ops::Range;
 
 pub mod linear;
+pub mod shared;
 pub use linear::LinearFit;
+pub use shared::SharedFactors;
 
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -98,6 +106,13 @@ pub enum BlockKind {
         /// Columns `k`; the block's predictions are `k x m`, column-major.
         n_columns: usize,
     },
+    SharedNoise {
+        /// Observed values, already transformed.
+        observed: Vec<f64>,
+        inv_sd: Vec<f64>,
+        transform: Transform,
+        factors: SharedFactors,
+    },
 }
 
 /// One block of observations (see the module docs).
@@ -158,6 +173,35 @@ impl Block {
             },
             scale,
         )
+    }
+
+    /// Values as [`Self::values`] with noise shared at a known size: `loadings` is `L`
+    /// (`n x rank`, row-major, in the transformed unit), `cov = sigma^2 diag(sd^2) + L L^T`.
+    pub fn shared_noise(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        sd: &[f64],
+        transform: Transform,
+        (loadings, rank): (&[f64], usize),
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        let values = Self::values(name, predictions, observed, sd, transform, scale)?;
+        let BlockKind::Values {
+            observed, inv_sd, ..
+        } = values.kind
+        else {
+            unreachable!("Block::values builds a Values block")
+        };
+        let factors = SharedFactors::new(loadings, rank, sd)
+            .map_err(|e| Error::Usage(format!("{name}: {e}")))?;
+        let kind = BlockKind::SharedNoise {
+            observed,
+            inv_sd,
+            transform,
+            factors,
+        };
+        Self::checked(name, values.predictions, kind, scale)
     }
 
     /// A measured shape against a predicted one, amplitude integrated out.
@@ -339,7 +383,9 @@ impl Block {
     /// Degrees of freedom `nu_b`.
     pub fn dof(&self) -> f64 {
         match &self.kind {
-            BlockKind::Values { .. } => self.predictions.len() as f64,
+            BlockKind::Values { .. } | BlockKind::SharedNoise { .. } => {
+                self.predictions.len() as f64
+            }
             BlockKind::LinearMarginal {
                 observed,
                 n_columns,
@@ -353,7 +399,9 @@ impl Block {
     pub fn ln_norm(&self) -> f64 {
         let base = -self.dof() * HALF_LN_2PI;
         match &self.kind {
-            BlockKind::Values { inv_sd, .. } => base + inv_sd.iter().map(|w| w.ln()).sum::<f64>(),
+            BlockKind::Values { inv_sd, .. } | BlockKind::SharedNoise { inv_sd, .. } => {
+                base + inv_sd.iter().map(|w| w.ln()).sum::<f64>()
+            }
             BlockKind::ShapeMac { .. } => base,
             BlockKind::LinearMarginal { inv_sd, .. } => {
                 base + inv_sd.iter().map(|w| w.ln()).sum::<f64>()
@@ -392,6 +440,12 @@ impl Block {
                 observed,
                 inv_sd,
                 transform,
+            }
+            | BlockKind::SharedNoise {
+                observed,
+                inv_sd,
+                transform,
+                ..
             } => {
                 for i in 0..p.len() {
                     out[i] = (transform.apply(p[i]) - observed[i]) * inv_sd[i];
@@ -435,6 +489,9 @@ impl Block {
         let n_par = dpred.ncols();
         match &self.kind {
             BlockKind::Values {
+                inv_sd, transform, ..
+            }
+            | BlockKind::SharedNoise {
                 inv_sd, transform, ..
             } => {
                 for i in 0..p.len() {
@@ -498,149 +555,50 @@ impl Block {
         }
     }
 
+    /// [`Self::ln_likelihood`] spread over the residuals into `out` (one term each,
+    /// summing to `ln L_b`): for [`BlockKind::Values`] and [`BlockKind::SharedNoise`]
+    /// each value's own Gaussian term `ln w_i - ln(2 pi)/2 - ln sigma - r_i^2 / (2
+    /// sigma^2)`, with a shared block's Woodbury correction and log determinant spread
+    /// evenly over its values (so those terms are not each a conditional density); for
+    /// the other kinds the block's term spread evenly.
+    pub fn ln_likelihood_pointwise(&self, residuals: &[f64], sigma: f64, out: &mut [f64]) {
+        let (BlockKind::Values { inv_sd, .. } | BlockKind::SharedNoise { inv_sd, .. }) = &self.kind
+        else {
+            let each = self.ln_likelihood(residuals, sigma) / residuals.len() as f64;
+            out.iter_mut().for_each(|v| *v = each);
+            return;
+        };
+        let (ln_s, s2) = (sigma.ln(), sigma * sigma);
+        for ((o, r), w) in out.iter_mut().zip(residuals).zip(inv_sd) {
+            *o = w.ln() - HALF_LN_2PI - ln_s - 0.5 * r * r / s2;
+        }
+        if let BlockKind::SharedNoise { factors, .. } = &self.kind {
+            let (correction, ln_det) = factors.terms(residuals, s2);
+            let each = 0.5 * (correction / s2 - ln_det) / residuals.len() as f64;
+            out.iter_mut().for_each(|v| *v += each);
+        }
+    }
+
     /// `ln L_b` given the residuals and `sigma`.
     pub fn ln_likelihood(&self, residuals: &[f64], sigma: f64) -> f64 {
+        self.ln_likelihood_with_norm(residuals, sigma, self.ln_norm())
+    }
+
+    /// [`Self::ln_likelihood`] with [`Self::ln_norm`] computed by the caller (once, for
+    /// many evaluations).
+    pub fn ln_likelihood_with_norm(&self, residuals: &[f64], sigma: f64, ln_norm: f64) -> f64 {
         let ss: f64 = residuals.iter().map(|r| r * r).sum();
-        self.ln_norm() - self.dof() * sigma.ln() - 0.5 * ss / (sigma * sigma)
+        let s2 = sigma * sigma;
+        let base = ln_norm - self.dof() * sigma.ln();
+        match &self.kind {
+            BlockKind::SharedNoise { factors, .. } => {
+                let (correction, ln_det) = factors.terms(residuals, s2);
+                base - 0.5 * (ss - correction) / s2 - 0.5 * ln_det
+            }
+            _ => base - 0.5 * ss / s2,
+        }
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// `||(I - P_phi) psi||^2 = 1 - MAC` for every pair of shapes, and the block is
-    /// invariant to the sign and scale of the prediction.
-    #[test]
-    fn mac_residual_norm_is_one_minus_mac() {
-        let psi = [0.3, -0.7, 1.0, 0.2];
-        let b = Block::shape_mac("s", 0..4, &psi, NoiseScale::Fixed(1.0)).unwrap();
-        let phi = [0.25, -0.8, 0.9, 0.35];
-        let mut r = [0.0; 4];
-        b.residuals(&phi, &mut r);
-        let ss: f64 = r.iter().map(|v| v * v).sum();
-        let mac = crate::modal::mac(&psi, &phi);
-        assert!((ss - (1.0 - mac)).abs() < 1e-15);
-        let flipped: Vec<f64> = phi.iter().map(|v| -3.0 * v).collect();
-        let mut r2 = [0.0; 4];
-        b.residuals(&flipped, &mut r2);
-        assert!(r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < 1e-15));
-    }
-
-    /// A Values block is the Gaussian density of its observations: sum of
-    /// `ln N(t(y_i); t(pred_i), (sd_i sigma)^2)`.
-    #[test]
-    fn values_block_is_the_gaussian_density() {
-        let (y, sd, pred, sigma) = ([2.0, 3.0], [0.1, 0.2], [2.1, 2.7], 1.5);
-        let b = Block::values("v", 0..2, &y, &sd, Transform::Ln, NoiseScale::Fixed(sigma)).unwrap();
-        let mut r = [0.0; 2];
-        b.residuals(&pred, &mut r);
-        let direct: f64 = (0..2)
-            .map(|i| {
-                let s = sd[i] * sigma;
-                let z = pred[i].ln() - y[i].ln();
-                -0.5 * (z / s).powi(2) - s.ln() - HALF_LN_2PI
-            })
-            .sum();
-        assert!((b.ln_likelihood(&r, sigma) - direct).abs() < 1e-12);
-    }
-
-    /// The complex-gain block is the gain integral of the complex Gaussian density:
-    /// `ln int prod_k (pi s^2 v_k)^-1 exp(-|y_k - g h_k|^2 / (s^2 v_k)) dg`, by the
-    /// trapezoidal rule over the gain, equals `ln L_b + ln_marginal`.
-    #[test]
-    fn complex_gain_block_is_the_gain_integral() {
-        let y = [1.0, 0.5, -0.3, 0.8, 0.2, -1.1];
-        let h = [0.9, 0.6, -0.2, 0.7, 0.3, -1.0];
-        let v = [0.04, 0.09, 0.05];
-        let sd: Vec<f64> = v.iter().map(|x: &f64| x.sqrt()).collect();
-        let sigma = 1.3;
-        let b = Block::complex_gain("c", 0..6, &y, &sd, NoiseScale::Fixed(sigma)).unwrap();
-        let mut r = [0.0; 6];
-        b.residuals(&h, &mut r);
-        let got = b.ln_likelihood(&r, sigma) + b.ln_marginal(&h);
-        let density = |g: f64| -> f64 {
-            (0..3)
-                .map(|k| {
-                    let var = sigma * sigma * v[k];
-                    let e2 = (y[2 * k] - g * h[2 * k]).powi(2)
-                        + (y[2 * k + 1] - g * h[2 * k + 1]).powi(2);
-                    -(std::f64::consts::PI * var).ln() - e2 / var
-                })
-                .sum::<f64>()
-                .exp()
-        };
-        let (lo, hi, n) = (-3.0, 5.0, 200_000);
-        let dg = (hi - lo) / n as f64;
-        let integral: f64 = (0..=n)
-            .map(|i| {
-                let w = if i == 0 || i == n { 0.5 } else { 1.0 };
-                w * density(lo + i as f64 * dg)
-            })
-            .sum::<f64>()
-            * dg;
-        assert!(
-            (got - integral.ln()).abs() < 1e-9,
-            "{got} vs {}",
-            integral.ln()
-        );
-        let (g, sd_g) = b.conditional_gain(&h, sigma).unwrap();
-        assert!(g > 0.9 && g < 1.3 && sd_g > 0.0);
-    }
-
-    /// The complex-gain residual Jacobian against central differences, for predictions
-    /// `p(t) = (t0 + t1 k, sin(t0 k))` in k.
-    #[test]
-    fn complex_gain_residual_jacobian_matches_differences() {
-        let y = [1.0, 0.5, -0.3, 0.8, 0.2, -1.1];
-        let b =
-            Block::complex_gain("c", 0..6, &y, &[0.2, 0.3, 0.25], NoiseScale::Fixed(1.0)).unwrap();
-        let pred = |t: &[f64]| -> Vec<f64> {
-            (0..3)
-                .flat_map(|k| [t[0] + t[1] * k as f64, (t[0] * k as f64).sin()])
-                .collect()
-        };
-        let t = [0.7, -0.4];
-        let dpred = DMatrix::from_fn(6, 2, |i, j| {
-            let k = (i / 2) as f64;
-            match (i % 2, j) {
-                (0, 0) => 1.0,
-                (0, _) => k,
-                (_, 0) => k * (t[0] * k).cos(),
-                _ => 0.0,
-            }
-        });
-        let mut jac = DMatrix::zeros(6, 2);
-        b.residual_jacobian(&pred(&t), &dpred, 1.0, 0, &mut jac);
-        for j in 0..2 {
-            let (mut up, mut dn) = (t, t);
-            up[j] += 1e-6;
-            dn[j] -= 1e-6;
-            let (mut ru, mut rd) = ([0.0; 6], [0.0; 6]);
-            b.residuals(&pred(&up), &mut ru);
-            b.residuals(&pred(&dn), &mut rd);
-            for i in 0..6 {
-                let fd = (ru[i] - rd[i]) / 2e-6;
-                assert!(
-                    (jac[(i, j)] - fd).abs() < 1e-7,
-                    "({i}, {j}): {} vs {fd}",
-                    jac[(i, j)]
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn shape_difference_is_zero_for_a_scaled_copy_and_skips_the_reference() {
-        let psi = [0.5, 1.0, -0.25];
-        let b =
-            Block::shape_difference("d", 0..3, &psi, 1, &[2.0, 9.0, 4.0], NoiseScale::Fixed(1.0))
-                .unwrap();
-        let mut r = [1.0; 2];
-        b.residuals(&[-1.0, -2.0, 0.5], &mut r);
-        assert_eq!(r, [0.0, 0.0]);
-        b.residuals(&[0.6, 1.0, -0.25], &mut r);
-        assert!((r[0] - 2.0 * 0.1).abs() < 1e-15 && r[1] == 0.0);
-        assert!((b.ln_norm() - (-2.0 * HALF_LN_2PI + 2f64.ln() + 4f64.ln())).abs() < 1e-15);
-    }
-}
+mod tests;

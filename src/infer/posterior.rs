@@ -38,6 +38,8 @@ pub struct Posterior<P: Predict> {
     predictor: P,
     prior: BoxPrior,
     blocks: Vec<Block>,
+    /// [`Block::ln_norm`] of each block.
+    ln_norms: Vec<f64>,
     /// Offset of each block's residuals.
     offsets: Vec<usize>,
     n_residuals: usize,
@@ -50,6 +52,7 @@ impl<P: Predict + Clone> Clone for Posterior<P> {
             predictor: self.predictor.clone(),
             prior: self.prior.clone(),
             blocks: self.blocks.clone(),
+            ln_norms: self.ln_norms.clone(),
             offsets: self.offsets.clone(),
             n_residuals: self.n_residuals,
             scratch: ThreadLocal::new(),
@@ -115,6 +118,7 @@ impl<P: Predict> Posterior<P> {
         Ok(Posterior {
             predictor,
             prior,
+            ln_norms: blocks.iter().map(Block::ln_norm).collect(),
             blocks,
             offsets,
             n_residuals,
@@ -139,6 +143,7 @@ impl<P: Predict> Posterior<P> {
             predictor,
             prior: self.prior.clone(),
             blocks: self.blocks.clone(),
+            ln_norms: self.ln_norms.clone(),
             offsets: self.offsets.clone(),
             n_residuals: self.n_residuals,
             scratch: ThreadLocal::new(),
@@ -232,12 +237,53 @@ impl<P: Predict> Posterior<P> {
             }
             let mut total = 0.0;
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
-                let l = b.ln_likelihood(&s.res[o..o + b.n_residuals()], self.sigma(b, z))
+                let res = &s.res[o..o + b.n_residuals()];
+                let l = b.ln_likelihood_with_norm(res, self.sigma(b, z), self.ln_norms[i])
                     + s.marginal[i];
                 if !terms.is_empty() {
                     terms[i] = l;
                 }
                 total += l;
+            }
+            Ok(if total.is_nan() {
+                f64::NEG_INFINITY
+            } else {
+                total
+            })
+        })
+    }
+
+    /// Log-likelihood at `z` (inside the prior box, the same value as
+    /// [`Self::ln_likelihood_terms`]), one term per residual into `out` (length
+    /// [`Self::n_residuals`], [`Block::ln_likelihood_pointwise`], summing to it up to
+    /// rounding); an inadmissible model gives `-inf` everywhere.
+    pub fn ln_likelihood_pointwise(&self, z: &[f64], out: &mut [f64]) -> Result<f64> {
+        if out.len() != self.n_residuals {
+            return Err(Error::Usage(format!(
+                "{} pointwise slots for {} residuals",
+                out.len(),
+                self.n_residuals
+            )));
+        }
+        self.with_scratch(|s| {
+            match self.fill_residuals(&z[..self.n_model()], s) {
+                Ok(()) => {}
+                Err(Error::Model(_)) => {
+                    out.fill(f64::NEG_INFINITY);
+                    return Ok(f64::NEG_INFINITY);
+                }
+                Err(e) => return Err(e),
+            }
+            let mut total = 0.0;
+            for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
+                let (range, sigma) = (o..o + b.n_residuals(), self.sigma(b, z));
+                let out = &mut out[range.clone()];
+                b.ln_likelihood_pointwise(&s.res[range.clone()], sigma, out);
+                let each = s.marginal[i] / out.len() as f64;
+                out.iter_mut().for_each(|v| *v += each);
+                // the same total as without the pointwise terms
+                let res = &s.res[range];
+                total += b.ln_likelihood_with_norm(res, sigma, self.ln_norms[i]) + s.marginal[i];
             }
             Ok(if total.is_nan() {
                 f64::NEG_INFINITY
