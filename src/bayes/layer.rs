@@ -17,9 +17,9 @@ use crate::update::{self, DampingModel, VariableKind, Variables};
 /// window of `window_tau_s[b]` s) as a function of the free variables of `vars` in their
 /// internal coordinates, the `n_modes` lowest modes in the sums.
 ///
-/// Multipliers must be on a linear scale and damping free on a log scale (as
-/// [`super::FrfPosterior`] sets them); a fixed multiplier keeps its value 0 (the
-/// model's nominal), other fixed values are refused.
+/// Multipliers must be on a linear scale and free damping on a log scale (as
+/// [`super::FrfPosterior`] sets them); fixed damping keeps its value, a fixed multiplier
+/// its value 0 (the model's nominal; other fixed multipliers are refused).
 pub fn frf_predictor(
     model: &StructuralModel,
     vars: &Variables,
@@ -27,18 +27,19 @@ pub fn frf_predictor(
     blocks: &[FrfBlock],
     window_tau_s: &[Option<f64>],
 ) -> Result<FrfPredictor<DenseModes>> {
-    let mut coordinates = Vec::new();
+    let (mut coordinates, mut fixed_damping) = (Vec::new(), Vec::new());
     for v in vars.variables() {
         let variable = match v.kind {
             VariableKind::Alpha(r) => Variable::Alpha(r),
             VariableKind::Beta(r) => Variable::Beta(r),
             _ => {
-                if v.fixed.is_some() || v.scale != update::Scale::Log {
+                if v.fixed.is_none() && v.scale != update::Scale::Log {
                     return Err(Error::Usage(format!(
-                        "damping variable `{}` must be free and on a log scale here",
+                        "damping variable `{}` must be on a log scale here",
                         v.name
                     )));
                 }
+                fixed_damping.push(v.fixed);
                 continue;
             }
         };
@@ -74,5 +75,6 @@ pub fn frf_predictor(
         n_modes,
     };
     let solver = DenseModes::new(model.clone());
-    FrfPredictor::new(solver, model, params, options, blocks, window_tau_s)
+    FrfPredictor::new(solver, model, params, options, blocks, window_tau_s)?
+        .with_fixed_damping(fixed_damping)
 }

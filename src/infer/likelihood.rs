@@ -573,7 +573,7 @@ impl Block {
             *o = w.ln() - HALF_LN_2PI - ln_s - 0.5 * r * r / s2;
         }
         if let BlockKind::SharedNoise { factors, .. } = &self.kind {
-            let (correction, ln_det) = factors.terms(residuals, s2);
+            let (_, correction, ln_det) = factors.terms(residuals, s2);
             let each = 0.5 * (correction / s2 - ln_det) / residuals.len() as f64;
             out.iter_mut().for_each(|v| *v += each);
         }
@@ -584,18 +584,41 @@ impl Block {
         self.ln_likelihood_with_norm(residuals, sigma, self.ln_norm())
     }
 
+    /// `ln L_b` straight from the whole prediction vector `pred`, the residuals formed in
+    /// the same pass as the sums (the density's inner loop), for a
+    /// [`BlockKind::SharedNoise`] block compared without transform; `None` for the
+    /// others, whose callers form the residuals first.
+    pub fn ln_likelihood_fused(&self, pred: &[f64], sigma: f64, ln_norm: f64) -> Option<f64> {
+        let BlockKind::SharedNoise {
+            observed,
+            inv_sd,
+            transform: Transform::Identity,
+            factors,
+        } = &self.kind
+        else {
+            return None;
+        };
+        let s2 = sigma * sigma;
+        let a = &pred[self.predictions.clone()];
+        let (ss, correction, ln_det) = factors.terms_of(a, observed, inv_sd, s2);
+        let base = ln_norm - self.dof() * sigma.ln();
+        Some(base - 0.5 * (ss - correction) / s2 - 0.5 * ln_det)
+    }
+
     /// [`Self::ln_likelihood`] with [`Self::ln_norm`] computed by the caller (once, for
     /// many evaluations).
     pub fn ln_likelihood_with_norm(&self, residuals: &[f64], sigma: f64, ln_norm: f64) -> f64 {
-        let ss: f64 = residuals.iter().map(|r| r * r).sum();
         let s2 = sigma * sigma;
         let base = ln_norm - self.dof() * sigma.ln();
         match &self.kind {
             BlockKind::SharedNoise { factors, .. } => {
-                let (correction, ln_det) = factors.terms(residuals, s2);
+                let (ss, correction, ln_det) = factors.terms(residuals, s2);
                 base - 0.5 * (ss - correction) / s2 - 0.5 * ln_det
             }
-            _ => base - 0.5 * ss / s2,
+            _ => {
+                let ss: f64 = residuals.iter().map(|r| r * r).sum();
+                base - 0.5 * ss / s2
+            }
         }
     }
 }

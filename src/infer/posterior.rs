@@ -230,16 +230,25 @@ impl<P: Predict> Posterior<P> {
     /// when it is not empty; `-inf` for an inadmissible model.
     pub fn ln_likelihood_terms(&self, z: &[f64], terms: &mut [f64]) -> Result<f64> {
         self.with_scratch(|s| {
-            match self.fill_residuals(&z[..self.n_model()], s) {
+            match self
+                .predictor
+                .predict(&z[..self.n_model()], &mut s.ws, &mut s.pred)
+            {
                 Ok(()) => {}
                 Err(Error::Model(_)) => return Ok(f64::NEG_INFINITY),
                 Err(e) => return Err(e),
             }
             let mut total = 0.0;
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
-                let res = &s.res[o..o + b.n_residuals()];
-                let l = b.ln_likelihood_with_norm(res, self.sigma(b, z), self.ln_norms[i])
-                    + s.marginal[i];
+                let (sigma, norm) = (self.sigma(b, z), self.ln_norms[i]);
+                let l = match b.ln_likelihood_fused(&s.pred, sigma, norm) {
+                    Some(l) => l,
+                    None => {
+                        let res = &mut s.res[o..o + b.n_residuals()];
+                        let marginal = b.residuals_and_marginal(&s.pred, res);
+                        b.ln_likelihood_with_norm(res, sigma, norm) + marginal
+                    }
+                };
                 if !terms.is_empty() {
                     terms[i] = l;
                 }
@@ -282,8 +291,11 @@ impl<P: Predict> Posterior<P> {
                 let each = s.marginal[i] / out.len() as f64;
                 out.iter_mut().for_each(|v| *v += each);
                 // the same total as without the pointwise terms
-                let res = &s.res[range];
-                total += b.ln_likelihood_with_norm(res, sigma, self.ln_norms[i]) + s.marginal[i];
+                let norm = self.ln_norms[i];
+                total += match b.ln_likelihood_fused(&s.pred, sigma, norm) {
+                    Some(l) => l,
+                    None => b.ln_likelihood_with_norm(&s.res[range], sigma, norm) + s.marginal[i],
+                };
             }
             Ok(if total.is_nan() {
                 f64::NEG_INFINITY

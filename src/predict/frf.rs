@@ -93,6 +93,9 @@ pub struct FrfPredictor<S: ModeSolver> {
     model: Arc<StructuralModel>,
     params: Parametrisation,
     damping: FrfDamping,
+    /// Per damping variable (`a0`, `a1` or `xi_i`): its value when held fixed (no
+    /// coordinate), `None` when sampled.
+    fixed_damping: Vec<Option<f64>>,
     output: FrfOutput,
     n_modes: usize,
     /// Model DOFs whose shape entries are solved for (all of them under ground excitation).
@@ -118,6 +121,8 @@ pub struct FrfWorkspace<W> {
     shapes: Vec<f64>,
     participation: Vec<f64>,
     modal_c: Vec<f64>,
+    /// Damping variables in their units (`a0`, `a1` or `xi_i`).
+    damping: Vec<f64>,
     /// The modes at the observed DOFs (shape rows in the order of `dofs`).
     modes: Modes,
     /// Unwindowed natural frequencies while `modes` holds windowed ones.
@@ -174,11 +179,16 @@ impl<S: ModeSolver> FrfPredictor<S> {
             unit_gain.push(gains.iter().all(|&g| g == 1.0));
             window_gain.extend(gains);
         }
+        let n_vars = match damping {
+            FrfDamping::Rayleigh => 2,
+            FrfDamping::Modal => n_modes,
+        };
         Ok(FrfPredictor {
             solver,
             model,
             params,
             damping,
+            fixed_damping: vec![None; n_vars],
             output,
             n_modes,
             dofs,
@@ -191,11 +201,39 @@ impl<S: ModeSolver> FrfPredictor<S> {
         })
     }
 
+    /// The same predictor with damping variables held fixed: `values[j]` is variable
+    /// `j`'s value (`a0` in 1/s, `a1` in s, or `xi_j`) or `None` to keep it sampled.
+    pub fn with_fixed_damping(mut self, values: Vec<Option<f64>>) -> Result<Self> {
+        let bad = values
+            .iter()
+            .flatten()
+            .any(|x| !(x.is_finite() && *x > 0.0));
+        if values.len() != self.fixed_damping.len() || bad {
+            return Err(Error::Usage(format!(
+                "{} fixed damping values (positive, or none) for {} damping variables",
+                values.len(),
+                self.fixed_damping.len()
+            )));
+        }
+        self.fixed_damping = values;
+        Ok(self)
+    }
+
     /// Number of damping coordinates (after the structural ones).
     pub fn n_damping(&self) -> usize {
-        match self.damping {
-            FrfDamping::Rayleigh => 2,
-            FrfDamping::Modal => self.n_modes,
+        self.fixed_damping.iter().filter(|v| v.is_none()).count()
+    }
+
+    /// The damping variables in their units from the damping coordinates (logarithms)
+    /// and the fixed values.
+    fn damping_values(&self, theta_damping: &[f64], out: &mut Vec<f64>) {
+        let mut free = theta_damping.iter();
+        out.clear();
+        for v in &self.fixed_damping {
+            out.push(match v {
+                Some(x) => *x,
+                None => free.next().map_or(f64::NAN, |t| t.exp()),
+            });
         }
     }
 
@@ -203,36 +241,36 @@ impl<S: ModeSolver> FrfPredictor<S> {
         &self.params
     }
 
-    /// Modal damping coefficients `c_i` (1/s) from the damping coordinates.
-    fn modal_damping(&self, theta_damping: &[f64], eigenvalues: &[f64], c: &mut [f64]) {
+    /// Modal damping coefficients `c_i` (1/s) from the damping variables `d` (units).
+    fn modal_damping(&self, d: &[f64], eigenvalues: &[f64], c: &mut [f64]) {
         match self.damping {
             FrfDamping::Rayleigh => {
-                let (a0, a1) = (theta_damping[0].exp(), theta_damping[1].exp());
+                let (a0, a1) = (d[0], d[1]);
                 for (ci, &l) in c.iter_mut().zip(eigenvalues) {
                     *ci = a0 + a1 * l;
                 }
             }
             FrfDamping::Modal => {
-                for ((ci, &l), &ln_xi) in c.iter_mut().zip(eigenvalues).zip(theta_damping) {
-                    *ci = 2.0 * ln_xi.exp() * l.sqrt();
+                for ((ci, &l), &xi) in c.iter_mut().zip(eigenvalues).zip(d) {
+                    *ci = 2.0 * xi * l.sqrt();
                 }
             }
         }
     }
 
-    /// Modal damping coefficients `c_i` (1/s) from the damping coordinates and the natural
-    /// frequencies `omega_i` (rad/s): `a0 + a1 omega_i^2` or `2 xi_i omega_i`.
-    fn modal_damping_of_omega(&self, theta_damping: &[f64], omega: &[f64], c: &mut [f64]) {
+    /// Modal damping coefficients `c_i` (1/s) from the damping variables `d` (units) and
+    /// the natural frequencies `omega_i` (rad/s): `a0 + a1 omega_i^2` or `2 xi_i omega_i`.
+    fn modal_damping_of_omega(&self, d: &[f64], omega: &[f64], c: &mut [f64]) {
         match self.damping {
             FrfDamping::Rayleigh => {
-                let (a0, a1) = (theta_damping[0].exp(), theta_damping[1].exp());
+                let (a0, a1) = (d[0], d[1]);
                 for (ci, &w) in c.iter_mut().zip(omega) {
                     *ci = a0 + a1 * w * w;
                 }
             }
             FrfDamping::Modal => {
-                for ((ci, &w), &ln_xi) in c.iter_mut().zip(omega).zip(theta_damping) {
-                    *ci = 2.0 * ln_xi.exp() * w;
+                for ((ci, &w), &xi) in c.iter_mut().zip(omega).zip(d) {
+                    *ci = 2.0 * xi * w;
                 }
             }
         }
@@ -330,13 +368,8 @@ impl<S: ModeSolver> FrfPredictor<S> {
         Ok(())
     }
 
-    /// Complex values from the solver's eigenvalues and shapes.
-    fn predict_complex(
-        &self,
-        theta_damping: &[f64],
-        ws: &mut FrfWorkspace<S::Workspace>,
-        out: &mut [f64],
-    ) -> Result<()> {
+    /// Complex values from the solver's eigenvalues and shapes (damping in `ws.damping`).
+    fn predict_complex(&self, ws: &mut FrfWorkspace<S::Workspace>, out: &mut [f64]) -> Result<()> {
         self.solver.lowest_modes(
             &ws.alpha,
             &ws.beta,
@@ -358,7 +391,7 @@ impl<S: ModeSolver> FrfPredictor<S> {
             self.participation(ws);
         }
         let mut c = std::mem::take(&mut ws.modal_c);
-        self.modal_damping(theta_damping, &ws.eigenvalues, &mut c);
+        self.modal_damping(&ws.damping, &ws.eigenvalues, &mut c);
         ws.modal_c = c;
         let mut start = 0;
         for b in &self.blocks {
@@ -519,10 +552,12 @@ impl<S: ModeSolver> Predict for FrfPredictor<S> {
 
     fn param_names(&self) -> Vec<String> {
         let mut names = self.params.names();
-        match self.damping {
-            FrfDamping::Rayleigh => names.extend(["ln_a0".to_string(), "ln_a1".to_string()]),
-            FrfDamping::Modal => names.extend((1..=self.n_modes).map(|i| format!("ln_xi{i}"))),
-        }
+        let all: Vec<String> = match self.damping {
+            FrfDamping::Rayleigh => vec!["ln_a0".to_string(), "ln_a1".to_string()],
+            FrfDamping::Modal => (1..=self.n_modes).map(|i| format!("ln_xi{i}")).collect(),
+        };
+        let free = all.into_iter().zip(&self.fixed_damping);
+        names.extend(free.filter(|(_, f)| f.is_none()).map(|(n, _)| n));
         names
     }
 
@@ -536,6 +571,7 @@ impl<S: ModeSolver> Predict for FrfPredictor<S> {
             shapes: vec![0.0; n * nd],
             participation: vec![0.0; n],
             modal_c: vec![0.0; n],
+            damping: Vec::with_capacity(self.fixed_damping.len()),
             modes: Modes {
                 omega_rad_s: vec![0.0; n],
                 phi: nalgebra::DMatrix::zeros(nd, n),
@@ -564,12 +600,13 @@ impl<S: ModeSolver> Predict for FrfPredictor<S> {
         }
         self.params
             .apply(&theta[..n_struct], &mut ws.alpha, &mut ws.beta);
+        self.damping_values(&theta[n_struct..], &mut ws.damping);
         if self.output == FrfOutput::Complex {
-            return self.predict_complex(&theta[n_struct..], ws, out);
+            return self.predict_complex(ws, out);
         }
         self.local_modes(ws)?;
         let mut c = std::mem::take(&mut ws.modal_c);
-        self.modal_damping_of_omega(&theta[n_struct..], &ws.modes.omega_rad_s, &mut c);
+        self.modal_damping_of_omega(&ws.damping, &ws.modes.omega_rad_s, &mut c);
         ws.modal_c = c;
         self.write_magnitudes(ws, out)?;
         if self.output == FrfOutput::LogMagnitude {
