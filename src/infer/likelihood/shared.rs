@@ -10,9 +10,10 @@
 //! - `ln det cov = ln det D + 2 n ln sigma + sum_i ln(1 + lambda_i / sigma^2)`
 //!
 //! (Woodbury and the matrix determinant lemma on `sigma^2 I + V V^T`), so an evaluation
-//! costs `O(n rank)`. One pass over the residuals computes `d^T d` and every `u_i`, four
-//! values per step (AVX when the CPU has it; the same operations in the same order
-//! either way, so the same bits).
+//! costs `O(n rank)`. In the density's inner loop ([`SharedFactors::terms_of`]) one pass
+//! forms the residuals and computes `d^T d` and every `u_i`, four values per step (AVX
+//! when the CPU has it; the same operations in the same order either way, so the same
+//! bits).
 
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, SymmetricEigen};
@@ -89,27 +90,30 @@ impl SharedFactors {
     }
 
     /// `(d^T d, sum_i u_i^2 / (s2 + lambda_i), sum_i ln(1 + lambda_i / s2))` for the
-    /// standardised residuals `d` at `sigma^2 = s2`, in one pass over `d`.
+    /// standardised residuals `d` at `sigma^2 = s2`, value by value.
     pub fn terms(&self, d: &[f64], s2: f64) -> (f64, f64, f64) {
-        self.terms_in(Residuals::Formed(d), s2)
+        let mut u = vec![0.0; self.rank];
+        let mut ss = 0.0;
+        for (k, &d) in d.iter().enumerate() {
+            ss += d * d;
+            for (i, u) in u.iter_mut().enumerate() {
+                *u += self.p[(k / L) * self.rank + i][k % L] * d;
+            }
+        }
+        let (correction, ln_det) = self.woodbury(&u, s2);
+        (ss, correction, ln_det)
     }
 
-    /// [`Self::terms`] of the residuals `d_k = (a_k - t_k) w_k`, formed in the same pass.
+    /// [`Self::terms`] of the residuals `d_k = (a_k - t_k) w_k`, formed in one pass with
+    /// the sums, four values per step (the density's inner loop).
     pub fn terms_of(&self, a: &[f64], t: &[f64], w: &[f64], s2: f64) -> (f64, f64, f64) {
-        self.terms_in(Residuals::Unformed { a, t, w }, s2)
-    }
-
-    fn terms_in(&self, d: Residuals<'_>, s2: f64) -> (f64, f64, f64) {
+        if self.rank > MAX_FIXED_RANK {
+            let d: Vec<f64> = (0..a.len()).map(|k| (a[k] - t[k]) * w[k]).collect();
+            return self.terms(&d, s2);
+        }
         let mut u = [0.0; MAX_FIXED_RANK];
-        let mut u_any = Vec::new();
-        let u: &mut [f64] = if self.rank <= MAX_FIXED_RANK {
-            &mut u[..self.rank]
-        } else {
-            u_any.resize(self.rank, 0.0);
-            &mut u_any
-        };
-        let ss = project(&self.p, d, u);
-        let (correction, ln_det) = self.woodbury(u, s2);
+        let ss = project(self, a, t, w, &mut u);
+        let (correction, ln_det) = self.woodbury(&u[..self.rank], s2);
         (ss, correction, ln_det)
     }
 
@@ -126,83 +130,65 @@ impl SharedFactors {
     }
 }
 
-/// The residuals a kernel pass reads: formed, or `(a_k - t_k) w_k` formed on the way.
-#[derive(Clone, Copy)]
-enum Residuals<'a> {
-    Formed(&'a [f64]),
-    Unformed {
-        a: &'a [f64],
-        t: &'a [f64],
-        w: &'a [f64],
-    },
-}
-
-impl Residuals<'_> {
-    fn len(&self) -> usize {
-        match self {
-            Residuals::Formed(d) => d.len(),
-            Residuals::Unformed { a, .. } => a.len(),
-        }
-    }
-
-    /// The residuals `k0..k0 + L` (zero beyond the end).
-    #[inline(always)]
-    fn lanes(&self, k0: usize) -> Lanes {
-        let n = self.len();
-        if k0 + L <= n {
-            match *self {
-                Residuals::Formed(d) => {
-                    let d = &d[k0..k0 + L];
-                    std::array::from_fn(|l| d[l])
-                }
-                Residuals::Unformed { a, t, w } => {
-                    let (a, t, w) = (&a[k0..k0 + L], &t[k0..k0 + L], &w[k0..k0 + L]);
-                    std::array::from_fn(|l| (a[l] - t[l]) * w[l])
-                }
-            }
-        } else {
-            std::array::from_fn(|l| match *self {
-                _ if k0 + l >= n => 0.0,
-                Residuals::Formed(d) => d[k0 + l],
-                Residuals::Unformed { a, t, w } => (a[k0 + l] - t[k0 + l]) * w[k0 + l],
-            })
-        }
-    }
-}
-
-/// `d^T d` and `u = P d` into `u` (length the rank; `p` in the layout of
-/// [`SharedFactors`]).
-fn project(p: &[Lanes], d: Residuals<'_>, u: &mut [f64]) -> f64 {
+/// `d^T d` and `u = P d` (into `u[..rank]`) of `d = (a - t) w`, rank at most
+/// [`MAX_FIXED_RANK`].
+fn project(
+    f: &SharedFactors,
+    a: &[f64],
+    t: &[f64],
+    w: &[f64],
+    u: &mut [f64; MAX_FIXED_RANK],
+) -> f64 {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx") {
         // SAFETY: the CPU supports AVX, checked just above.
-        return unsafe { project_avx(p, d, u) };
+        return unsafe { project_avx(f, a, t, w, u) };
     }
-    project_any(p, d, u)
+    project_any(f, a, t, w, u)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
-unsafe fn project_avx(p: &[Lanes], d: Residuals<'_>, u: &mut [f64]) -> f64 {
-    project_any(p, d, u)
+unsafe fn project_avx(
+    f: &SharedFactors,
+    a: &[f64],
+    t: &[f64],
+    w: &[f64],
+    u: &mut [f64; MAX_FIXED_RANK],
+) -> f64 {
+    project_any(f, a, t, w, u)
 }
 
 #[inline(always)]
-fn project_any(p: &[Lanes], d: Residuals<'_>, u: &mut [f64]) -> f64 {
-    match u.len() {
-        0 => project_fixed::<0>(p, d, u),
-        1 => project_fixed::<1>(p, d, u),
-        2 => project_fixed::<2>(p, d, u),
-        3 => project_fixed::<3>(p, d, u),
-        4 => project_fixed::<4>(p, d, u),
-        _ => project_dyn(p, d, u),
+fn project_any(
+    f: &SharedFactors,
+    a: &[f64],
+    t: &[f64],
+    w: &[f64],
+    u: &mut [f64; MAX_FIXED_RANK],
+) -> f64 {
+    match f.rank {
+        0 => project_fixed::<0>(&f.p, a, t, w, u),
+        1 => project_fixed::<1>(&f.p, a, t, w, u),
+        2 => project_fixed::<2>(&f.p, a, t, w, u),
+        3 => project_fixed::<3>(&f.p, a, t, w, u),
+        _ => project_fixed::<4>(&f.p, a, t, w, u),
     }
 }
 
-/// One step of [`L`] values: `ss += d^2`, `acc_i += P_i d`.
+/// One step of [`L`] values: `d = (a - t) w`, `ss += d^2`, `acc_i += P_i d`.
 #[inline(always)]
-fn step<const R: usize>(d: &Lanes, p: &[Lanes], ss: &mut Lanes, acc: &mut [Lanes; R]) {
+fn step<const R: usize>(
+    a: &[f64],
+    t: &[f64],
+    w: &[f64],
+    p: &[Lanes],
+    ss: &mut Lanes,
+    acc: &mut [Lanes; R],
+) {
+    let mut d = [0.0; L];
     for l in 0..L {
+        d[l] = (a[l] - t[l]) * w[l];
         ss[l] += d[l] * d[l];
     }
     for (acc, p) in acc.iter_mut().zip(p) {
@@ -213,35 +199,48 @@ fn step<const R: usize>(d: &Lanes, p: &[Lanes], ss: &mut Lanes, acc: &mut [Lanes
 }
 
 /// [`project`] for rank `R`: four partial sums per quantity, added pairwise at the end;
-/// a last partial step padded with zeros.
+/// a last partial step padded with `w = 0`.
 #[inline(always)]
-fn project_fixed<const R: usize>(p: &[Lanes], d: Residuals<'_>, u: &mut [f64]) -> f64 {
+fn project_fixed<const R: usize>(
+    p: &[Lanes],
+    a: &[f64],
+    t: &[f64],
+    w: &[f64],
+    u: &mut [f64; MAX_FIXED_RANK],
+) -> f64 {
+    let n = a.len() / L * L;
     let mut ss = [0.0; L];
     let mut acc = [[0.0; L]; R];
-    let steps = d.len().div_ceil(L);
-    for c in 0..steps {
-        let lanes = d.lanes(c * L);
-        step::<R>(&lanes, &p[c * R..c * R + R], &mut ss, &mut acc);
+    let full = a[..n]
+        .chunks_exact(L)
+        .zip(t[..n].chunks_exact(L))
+        .zip(w[..n].chunks_exact(L));
+    for (c, ((a, t), w)) in full.enumerate() {
+        let p = if R == 0 {
+            &[][..]
+        } else {
+            &p[c * R..c * R + R]
+        };
+        step::<R>(a, t, w, p, &mut ss, &mut acc);
+    }
+    if n < a.len() {
+        let (mut at, mut tt, mut wt) = ([0.0; L], [0.0; L], [0.0; L]);
+        let rest = a.len() - n;
+        at[..rest].copy_from_slice(&a[n..]);
+        tt[..rest].copy_from_slice(&t[n..]);
+        wt[..rest].copy_from_slice(&w[n..]);
+        let c = n / L;
+        let p = if R == 0 {
+            &[][..]
+        } else {
+            &p[c * R..c * R + R]
+        };
+        step::<R>(&at, &tt, &wt, p, &mut ss, &mut acc);
     }
     for (u, acc) in u.iter_mut().zip(&acc) {
         *u = (acc[0] + acc[1]) + (acc[2] + acc[3]);
     }
     (ss[0] + ss[1]) + (ss[2] + ss[3])
-}
-
-/// [`project`] for any rank, value by value.
-fn project_dyn(p: &[Lanes], d: Residuals<'_>, u: &mut [f64]) -> f64 {
-    let rank = u.len();
-    u.iter_mut().for_each(|v| *v = 0.0);
-    let mut ss = 0.0;
-    for k in 0..d.len() {
-        let d = d.lanes(k / L * L)[k % L];
-        ss += d * d;
-        for (i, u) in u.iter_mut().enumerate() {
-            *u += p[(k / L) * rank + i][k % L] * d;
-        }
-    }
-    ss
 }
 
 #[cfg(test)]
