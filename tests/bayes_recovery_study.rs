@@ -639,3 +639,369 @@ fn oracle_posterior(
     )
     .unwrap()
 }
+
+/// Oracle on the data, without sampling: the standardised residuals at the truth,
+/// `d_k = (y_k - |H^A_k|) / sigma_k`, over noise draws, grouped by where the point sits
+/// in its resonance band (`|H^A_k|` over the band's largest), and the correlation of
+/// neighbouring bins' `d`. A calibrated noise model: mean 0, mean square 1, no
+/// correlation.
+#[test]
+#[ignore = "diagnostic: about 1 s per campaign"]
+fn residuals_at_the_truth() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model_file = env_or(
+        "FRFBAYES_STUDY_MODEL",
+        "experiments/models/ten-story-hammer.toml",
+    );
+    let n: usize = env_or("FRFBAYES_STUDY_N", "8").parse().unwrap();
+    let noise = env_or("FRFBAYES_STUDY_NOISE", "responses_only");
+    let base = SimModel::from_path(&root.join(&model_file)).unwrap();
+    let settings = study_settings(&model_file);
+    let edges = [0.0, 0.6, 0.7, 0.8, 0.9, 0.97, 1.01];
+    // per group: count, sum d, sum d^2, sum rel err, sum r
+    let mut g = vec![[0.0f64; 5]; edges.len() - 1];
+    let (mut lag_num, mut lag_den) = ([0.0; 8], [0.0; 8]);
+    for i in 0..n {
+        let (model, t) = campaign_model(&base, i, "fixed", &noise);
+        let sim = Simulator::new(model.clone()).unwrap();
+        let campaign = sim.run(base.seed.unwrap() + i as u64, &|_| {}).unwrap();
+        let post = selected_posterior(&campaign, &model, base.seed.unwrap() + i as u64, &settings);
+        let h = post.magnitudes(&truth_coords(&post, &model, &t)).unwrap();
+        let d = post.data();
+        let mut at = 0;
+        for b in &d.blocks {
+            let nw = b.omega_rad_s.len();
+            let dw = b
+                .omega_rad_s
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .fold(f64::INFINITY, f64::min);
+            for _ in &b.pairs {
+                // contiguous runs of bins
+                let mut s = 0;
+                while s < nw {
+                    let mut e = s + 1;
+                    while e < nw && b.omega_rad_s[e] - b.omega_rad_s[e - 1] < 1.5 * dw {
+                        e += 1;
+                    }
+                    let hmax = (s..e).map(|q| h[at + q]).fold(0.0, f64::max);
+                    for q in s..e {
+                        let k = at + q;
+                        let dk = (d.magnitude[k] - h[k]) / d.sigma[k];
+                        let ratio = h[k] / hmax;
+                        let gi = edges
+                            .windows(2)
+                            .position(|w| w[0] <= ratio && ratio < w[1])
+                            .unwrap();
+                        let gg = &mut g[gi];
+                        gg[0] += 1.0;
+                        gg[1] += dk;
+                        gg[2] += dk * dk;
+                        gg[3] += d.magnitude[k] / h[k] - 1.0;
+                        gg[4] += d.sigma[k] / d.magnitude[k];
+                        for (l, (num, den)) in
+                            lag_num.iter_mut().zip(lag_den.iter_mut()).enumerate()
+                        {
+                            let l = l + 1;
+                            if q >= s + l {
+                                let dp = (d.magnitude[k - l] - h[k - l]) / d.sigma[k - l];
+                                *num += dk * dp;
+                                *den += 0.5 * (dk * dk + dp * dp);
+                            }
+                        }
+                    }
+                    s = e;
+                }
+                at += nw;
+            }
+        }
+    }
+    println!("noise {noise}, {n} draws: by |H|/max|H| in the band");
+    for (w, gg) in edges.windows(2).zip(&g) {
+        let c = gg[0].max(1.0);
+        println!(
+            "  [{:.2}, {:.2}): {:>6} points, mean d {:+.3}, mean d^2 {:.3}, mean rel err {:+.4} %, mean r {:.4} %",
+            w[0], w[1], gg[0], gg[1] / c, gg[2] / c, 100.0 * gg[3] / c, 100.0 * gg[4] / c
+        );
+    }
+    let lags: Vec<String> = lag_num
+        .iter()
+        .zip(&lag_den)
+        .map(|(a, b)| format!("{:.3}", a / b))
+        .collect();
+    println!("  correlation of d at lags 1..8 bins: {}", lags.join(" "));
+}
+
+/// The posterior of `frfbayes sample`'s data and noise model (correlated bins as the
+/// settings say), with the oracles of the ten-story study (README, "Fixed: the ten-story
+/// check"): `FRFBAYES_STUDY_SELECT=truth`, the bands and selected bins of the noise-free
+/// campaign of the same seed (`measured`, the default: the estimator's own);
+/// `FRFBAYES_STUDY_TAIL=off`, no tail correction; `FRFBAYES_STUDY_THIN=k`, every k-th
+/// selected bin; `FRFBAYES_STUDY_SIGMA=true`, each point's sd from the model file's
+/// acceleration noise and the windowed force spectrum (response noise only, accelerance);
+/// `FRFBAYES_STUDY_DEBIAS=c`, magnitudes divided by `1 + c r_k^2` (the Rice bias at
+/// `c = 0.5`).
+fn selected_posterior(
+    campaign: &frfbayes::io::Campaign,
+    model: &SimModel,
+    seed: u64,
+    settings: &SampleSettings,
+) -> frfbayes::bayes::FrfPosterior {
+    use frfbayes::bayes::{FrfData, FrfPosterior, InputNoiseModel};
+    let mut opts = settings.estimate.options();
+    opts.hammer.tail_correction = env_or("FRFBAYES_STUDY_TAIL", "on") == "on";
+    let mut frfs = frfbayes::signal::estimate_campaign(campaign, &opts).unwrap();
+    if env_or("FRFBAYES_STUDY_SELECT", "measured") == "truth" {
+        let mut clean_model = model.clone();
+        clean_model.noise.force_n = 0.0;
+        clean_model.noise.acceleration_m_per_s2 = 0.0;
+        clean_model.noise.displacement_m = 0.0;
+        let clean = Simulator::new(clean_model)
+            .unwrap()
+            .run(seed, &|_| {})
+            .unwrap();
+        let cf = frfbayes::signal::estimate_campaign(&clean, &opts).unwrap();
+        for (f, c) in frfs.iter_mut().zip(&cf) {
+            assert_eq!(f.freq_hz.len(), c.freq_hz.len(), "same grid");
+            f.selected = c.selected.clone();
+            f.bands = c.bands.clone();
+        }
+    }
+    if let Ok(step) = std::env::var("FRFBAYES_STUDY_THIN") {
+        let step: usize = step.parse().unwrap();
+        for f in frfs.iter_mut() {
+            f.selected = f.selected.iter().cloned().step_by(step).collect();
+        }
+    }
+    let chosen: Vec<_> = frfs.iter().filter(|f| settings.tests.includes(f)).collect();
+    let mut data = FrfData::with_noise_model(
+        &chosen,
+        settings.frf,
+        settings.residual,
+        settings.rel_sigma_floor,
+        InputNoiseModel::Shared,
+        settings.bin_correlation,
+    )
+    .unwrap();
+    if env_or("FRFBAYES_STUDY_SIGMA", "estimated") == "true" {
+        true_sigma(&mut data, &chosen, model.noise.acceleration_m_per_s2);
+    }
+    if let Ok(c) = std::env::var("FRFBAYES_STUDY_DEBIAS") {
+        // oracle of the Rice bias: |H1| ~ |H| (1 + c r^2), r the point's relative sd
+        let c: f64 = c.parse().unwrap();
+        for (m, s) in data.magnitude.iter_mut().zip(&data.sigma) {
+            let r = s / *m;
+            *m /= 1.0 + c * r * r;
+        }
+    }
+    let m = campaign.nominal.structural_model().unwrap();
+    FrfPosterior::new(
+        m,
+        data,
+        settings.damping,
+        &settings.variables,
+        settings.posterior,
+    )
+    .unwrap()
+}
+
+/// Oracle of [`selected_posterior`]: each point's sd from white response noise of `std`
+/// per sample, `std sqrt(sum w^2 / 2) / |F_k|` (the exponential window from the
+/// transform start, the windowed force spectrum); prints the estimated over the true.
+fn true_sigma(
+    data: &mut frfbayes::bayes::FrfData,
+    chosen: &[&frfbayes::signal::TestFrf],
+    std: f64,
+) {
+    // oracle: the true sd of |H1| from white response noise of the model's std:
+    // radial sd = std sqrt(sum w^2 / 2) / |F_k| (exponential window from the start)
+    let mut at = 0;
+    let mut ratios = Vec::new();
+    let blocks = data.blocks.clone();
+    for (f, b) in chosen.iter().zip(&blocks) {
+        let tau = f.exp_window_tau_s.unwrap();
+        let df = f.freq_hz[1];
+        let fs = 2.0 * f.freq_hz[f.freq_hz.len() - 1];
+        let nsamp = (f.block_s * fs).round() as usize;
+        let w2: f64 = (0..nsamp)
+            .map(|m| (-2.0 * m as f64 / (tau * fs)).exp())
+            .sum();
+        for _ in &b.pairs {
+            for &w in &b.omega_rad_s {
+                let k = (w / (2.0 * std::f64::consts::PI) / df).round() as usize;
+                let st = std * (w2 / 2.0).sqrt() / f.input_power[k].sqrt();
+                ratios.push(data.sigma[at] / st);
+                data.sigma[at] = st;
+                at += 1;
+            }
+        }
+    }
+    assert_eq!(at, data.len());
+    ratios.sort_by(f64::total_cmp);
+    let q = |p: f64| ratios[((ratios.len() - 1) as f64 * p) as usize];
+    println!(
+        "estimated / true sigma: 5 % {:.3}, 25 % {:.3}, median {:.3}, 75 % {:.3}, 95 % {:.3}",
+        q(0.05),
+        q(0.25),
+        q(0.5),
+        q(0.75),
+        q(0.95)
+    );
+}
+
+/// Oracle without sampling: the maximum-likelihood point (the start of `frfbayes
+/// sample`) over noise draws, its mean relative offset of the alphas and betas
+/// (`(x - t) / (1 + t)`, about the mass-stiffness scale) and of `a0`, with the selection
+/// of `FRFBAYES_STUDY_SELECT` ([`selected_posterior`]).
+#[test]
+#[ignore = "diagnostic: a few s per campaign"]
+fn ml_offset_over_noise_draws() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model_file = env_or(
+        "FRFBAYES_STUDY_MODEL",
+        "experiments/models/ten-story-hammer.toml",
+    );
+    let n: usize = env_or("FRFBAYES_STUDY_N", "8").parse().unwrap();
+    let noise = env_or("FRFBAYES_STUDY_NOISE", "all");
+    let base = SimModel::from_path(&root.join(&model_file)).unwrap();
+    let settings = study_settings(&model_file);
+    let ms = frfbayes::update::MultistartOptions {
+        n_starts: settings.n_starts,
+        seed: settings.seed,
+        ..Default::default()
+    };
+    let (mut offs, mut a0s, mut zs, mut rms) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for i in 0..n {
+        let seed = base.seed.unwrap() + i as u64;
+        let (model, t) = campaign_model(&base, i, "fixed", &noise);
+        let campaign = Simulator::new(model.clone())
+            .unwrap()
+            .run(seed, &|_| {})
+            .unwrap();
+        let post = selected_posterior(&campaign, &model, seed, &settings);
+        let zt = truth_coords(&post, &model, &t);
+        let (post, start) = plug_in_start(post, LoadingMagnitude::Model, &ms).unwrap();
+        let names = post.names();
+        let (mut off, mut zsum, mut cnt) = (0.0, 0.0, 0.0);
+        let mut z2 = 0.0;
+        let mut a0 = 0.0;
+        for (j, nm) in names.iter().enumerate() {
+            match &nm[..1] {
+                "k" | "m" => {
+                    off += (start.z[j] - zt[j]) / (1.0 + zt[j]);
+                    zsum += (start.z[j] - zt[j]) / start.sd[j];
+                    z2 += ((start.z[j] - zt[j]) / start.sd[j]).powi(2);
+                    cnt += 1.0;
+                }
+                _ if nm == "ln_a0" => a0 = start.z[j] - zt[j],
+                _ => {}
+            }
+        }
+        rms.push(z2 / cnt);
+        println!(
+            "seed {seed}: mean offset {:+.3} %, mean z {:+.2}, rms z {:.2}, a0 {:+.2} %, {} points",
+            100.0 * off / cnt,
+            zsum / cnt,
+            (z2 / cnt).sqrt(),
+            100.0 * a0,
+            post.data().len()
+        );
+        offs.push(100.0 * off / cnt);
+        a0s.push(100.0 * a0);
+        zs.push(zsum / cnt);
+    }
+    let (m, se, _) = stats(&offs);
+    let (a, ase, _) = stats(&a0s);
+    let (zm, zse, zsd) = stats(&zs);
+    println!(
+        "noise {noise}, select {}: mean offset {m:+.3} % (se {se:.3}), a0 {a:+.2} % (se {ase:.2}), mean z {zm:+.2} (se {zse:.2}, sd {zsd:.2}), rms z {:.2}",
+        env_or("FRFBAYES_STUDY_SELECT", "measured"),
+        (rms.iter().sum::<f64>() / rms.len() as f64).sqrt()
+    );
+}
+
+/// Oracle on the estimator: the complex error of the noisy H1 against the noise-free H1
+/// of the same seed, `e_k = (H1_k - H1clean_k) / H1clean_k`, at the selected bins of the
+/// accelerance responses, grouped by where the bin sits in its band (`|H1clean|` over
+/// the band's largest): the radial bias `E Re e`, the radial and tangential variances
+/// against the Bendat & Piersol `r_k^2`, and the magnitude's relative error.
+#[test]
+#[ignore = "diagnostic: about 1 s per campaign"]
+fn complex_errors_of_the_estimates() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let model_file = env_or(
+        "FRFBAYES_STUDY_MODEL",
+        "experiments/models/ten-story-hammer.toml",
+    );
+    let n: usize = env_or("FRFBAYES_STUDY_N", "8").parse().unwrap();
+    let noise = env_or("FRFBAYES_STUDY_NOISE", "responses_only");
+    let base = SimModel::from_path(&root.join(&model_file)).unwrap();
+    let settings = study_settings(&model_file);
+    let opts = settings.estimate.options();
+    let edges = [0.0, 0.6, 0.7, 0.8, 0.9, 0.97, 1.01];
+    // count, Re e, (Re e)^2, (Im e)^2, r^2, |y|/|h| - 1, r^2 from coherence (per point)
+    let mut g = vec![[0.0f64; 7]; edges.len() - 1];
+    for i in 0..n {
+        let seed = base.seed.unwrap() + i as u64;
+        let (model, _) = campaign_model(&base, i, "fixed", &noise);
+        let (clean_model, _) = campaign_model(&base, i, "fixed", "none");
+        let noisy = Simulator::new(model).unwrap().run(seed, &|_| {}).unwrap();
+        let clean = Simulator::new(clean_model)
+            .unwrap()
+            .run(seed, &|_| {})
+            .unwrap();
+        let fn_ = frfbayes::signal::estimate_campaign(&noisy, &opts).unwrap();
+        let fc = frfbayes::signal::estimate_campaign(&clean, &opts).unwrap();
+        for (a, b) in fn_.iter().zip(&fc) {
+            if !settings.tests.includes(a) {
+                continue;
+            }
+            let rel = a.selected_output_rel_std();
+            let nw = a.selected.len();
+            for (j, (ra, rb)) in a.responses.iter().zip(&b.responses).enumerate() {
+                if ra.kind != FrfKind::Accelerance {
+                    continue;
+                }
+                let hmax = a
+                    .selected
+                    .iter()
+                    .map(|&k| rb.h1[k].norm())
+                    .fold(0.0, f64::max);
+                for (q, &k) in a.selected.iter().enumerate() {
+                    let e = (ra.h1[k] - rb.h1[k]) / rb.h1[k];
+                    let r = rel[j * nw + q];
+                    if !r.is_finite() {
+                        continue;
+                    }
+                    // local peak: the largest clean magnitude within +-20 bins
+                    let lo = k.saturating_sub(20);
+                    let hi = (k + 21).min(rb.h1.len());
+                    let loc = (lo..hi).map(|m| rb.h1[m].norm()).fold(0.0, f64::max);
+                    let ratio = (rb.h1[k].norm() / loc).min(1.0);
+                    let _ = hmax;
+                    let gi = edges
+                        .windows(2)
+                        .position(|w| w[0] <= ratio && ratio < w[1])
+                        .unwrap();
+                    let gg = &mut g[gi];
+                    gg[0] += 1.0;
+                    gg[1] += e.re;
+                    gg[2] += e.re * e.re;
+                    gg[3] += e.im * e.im;
+                    gg[4] += r * r;
+                    gg[5] += ra.h1[k].norm() / rb.h1[k].norm() - 1.0;
+                    gg[6] += e.re / r;
+                }
+            }
+        }
+    }
+    println!("noise {noise}, {n} draws, selected accelerance bins, by |H|/local max:");
+    for (w, gg) in edges.windows(2).zip(&g) {
+        let c = gg[0].max(1.0);
+        println!(
+            "  [{:.2}, {:.2}): {:>6}: E Re e {:+.4} %, E Re e / r {:+.3}, rms Re e {:.3} %, rms Im e {:.3} %, rms r {:.3} %, E |y|/|h| - 1 {:+.4} %",
+            w[0], w[1], gg[0], 100.0 * gg[1] / c, gg[6] / c, 100.0 * (gg[2] / c).sqrt(),
+            100.0 * (gg[3] / c).sqrt(), 100.0 * (gg[4] / c).sqrt(), 100.0 * gg[5] / c
+        );
+    }
+}

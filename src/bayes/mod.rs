@@ -84,8 +84,8 @@ pub mod summary;
 mod tests;
 
 pub use data::{
-    CorrelatedNoise, FrfData, InputNoiseModel, LoadingMagnitude, DEFAULT_REL_SIGMA_FLOOR,
-    SHARED_NOISE_REL_TOL,
+    BinCorrelation, CorrelatedNoise, FrfData, InputNoiseModel, LoadingMagnitude,
+    DEFAULT_REL_SIGMA_FLOOR, SHARED_NOISE_REL_TOL,
 };
 pub use posterior::{FrfPosterior, PosteriorOptions};
 pub use prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};

@@ -7,7 +7,7 @@ use super::prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
 use crate::error::{Error, Result};
 use crate::frf::FrfBlock;
 use crate::infer::likelihood::Transform;
-use crate::infer::{Block, NoiseScale, Posterior};
+use crate::infer::{Block, Chain, Correlation, NoiseScale, Posterior};
 use crate::mcmc::LogDensity;
 use crate::model::StructuralModel;
 use crate::predict::{DenseModes, FrfPredictor};
@@ -75,33 +75,42 @@ impl std::fmt::Debug for FrfPosterior {
 }
 
 /// The observation blocks of `data`: one per block of shared noise (in order, not
-/// overlapping; the data validated them) and one per run of points between them.
+/// overlapping; the data validated them) and one per run of points between them, each
+/// with its points' correlated bins ([`FrfData::bin_correlation`]) as a [`Chain`].
 fn observation_blocks(data: &FrfData) -> Result<Vec<Block>> {
     let transform = match data.residual {
         ResidualForm::LogMagnitude => Transform::Ln,
         _ => Transform::Identity,
     };
     let (y, sd, scale) = (&data.magnitude, &data.sigma, NoiseScale::Sampled(0));
-    let plain = |r: std::ops::Range<usize>| {
-        let name = format!("points {}..{}", r.start, r.end);
-        Block::values(&name, r.clone(), &y[r.clone()], &sd[r], transform, scale)
+    let rho = &data.bin_correlation;
+    let block = |r: std::ops::Range<usize>, shared: Option<(&[f64], usize)>| {
+        let kind = if shared.is_some() {
+            " (shared noise)"
+        } else {
+            ""
+        };
+        let name = format!("points {}..{}{kind}", r.start, r.end);
+        let chain = if rho.is_empty() {
+            &[][..]
+        } else {
+            &rho[r.clone()]
+        };
+        let correlation = Correlation { shared, chain };
+        let (y, sd) = (&y[r.clone()], &sd[r.clone()]);
+        Block::correlated_values(&name, r, y, sd, transform, correlation, scale)
     };
     let (mut blocks, mut at) = (Vec::new(), 0);
     for c in &data.correlated {
         if c.start > at {
-            blocks.push(plain(at..c.start)?);
+            blocks.push(block(at..c.start, None)?);
         }
-        let r = c.start..c.start + c.len;
-        let name = format!("points {}..{} (shared noise)", r.start, r.end);
         let loadings = (c.loadings.as_slice(), c.rank);
-        let (y, sd) = (&y[r.clone()], &sd[r.clone()]);
-        blocks.push(Block::shared_noise(
-            &name, r, y, sd, transform, loadings, scale,
-        )?);
+        blocks.push(block(c.start..c.start + c.len, Some(loadings))?);
         at = c.start + c.len;
     }
     if data.len() > at {
-        blocks.push(plain(at..data.len())?);
+        blocks.push(block(at..data.len(), None)?);
     }
     Ok(blocks)
 }
@@ -302,14 +311,18 @@ impl FrfPosterior {
 
     /// Magnitudes simulated from the likelihood at `z`: `|H^A_k| + s sigma_k e_k + c_k`
     /// (magnitude residuals) or `|H^A_k| exp(s sigma_k e_k + c_k)` (log residuals), `e_k`
-    /// standard normal, `c = L eta` the shared noise of [`FrfData::correlated`] at its
+    /// standard normal (a [`Chain`] along correlated bins, [`FrfData::bin_correlation`]),
+    /// `c = L eta` the shared noise of [`FrfData::correlated`] at its
     /// known size, not scaled by `s` (`eta` standard normal, drawn after the `e`).
     /// Magnitude-residual draws below zero are kept (the Gaussian model allows them).
     pub fn simulate(&self, z: &[f64], rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
         let h = self.magnitudes(z)?;
         let s = self.noise_scale(z);
         let log = self.data.residual == ResidualForm::LogMagnitude;
-        let e: Vec<f64> = (0..h.len()).map(|_| rng.sample(StandardNormal)).collect();
+        let mut e: Vec<f64> = (0..h.len()).map(|_| rng.sample(StandardNormal)).collect();
+        if let Some(chain) = Chain::new(&self.data.bin_correlation)? {
+            chain.colour(&mut e);
+        }
         // the shared noise after every point's own (without it, the draws of before)
         let mut shared = vec![0.0; h.len()];
         for c in &self.data.correlated {

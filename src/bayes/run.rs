@@ -97,12 +97,13 @@ fn posterior_of(
             settings.tests
         )));
     }
-    let data = FrfData::with_input_noise(
+    let data = FrfData::with_noise_model(
         &chosen,
         settings.frf,
         settings.residual,
         settings.rel_sigma_floor,
         settings.input_noise,
+        settings.bin_correlation,
     )?;
     let posterior = FrfPosterior::new(
         model,

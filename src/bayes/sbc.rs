@@ -238,6 +238,7 @@ pub fn small_problem(residual: ResidualForm, prior: PriorKind) -> Result<FrfPost
         n_floored: 0,
         n_dropped_bins: 0,
         correlated: Vec::new(),
+        bin_correlation: Vec::new(),
     };
     let options = PosteriorOptions {
         prior,

@@ -68,16 +68,45 @@ fn log_density_is_the_stated_gaussian() {
     }
 }
 
+/// At two noise scales: the posterior's log-likelihood equals the dense Gaussian's
+/// (1e-9 relative), its pointwise terms sum to it, and it is the same without them.
+fn assert_dense_gaussian(post: &FrfPosterior, data: &FrfData, label: &str) {
+    for s in [1.3, 0.4] {
+        let mut z = inside(post);
+        z[4] = f64::ln(s);
+        let expect = dense_ln_likelihood(data, &post.magnitudes(&z).unwrap(), s);
+        let mut pw = vec![0.0; data.len()];
+        let ll = post.ln_likelihood(&z, &mut pw).unwrap();
+        assert!(
+            (ll - expect).abs() < 1e-9 * expect.abs(),
+            "{label}, s {s}: {ll} vs {expect}"
+        );
+        let sum: f64 = pw.iter().sum();
+        assert!(
+            (sum - ll).abs() < 1e-9 * ll.abs(),
+            "pointwise {sum} vs {ll}"
+        );
+        assert_eq!(post.ln_likelihood(&z, &mut []).unwrap(), ll);
+    }
+}
+
 /// The dense Gaussian log density of `data` at model magnitudes `h` with covariance
-/// `s^2 diag(sigma^2) + L L^T`, by Cholesky (the oracle of the Woodbury form).
+/// `s^2 D^1/2 C D^1/2 + L L^T` (`D = diag(sigma^2)`, `C` the chain of
+/// [`FrfData::bin_correlation`], the identity without it), by Cholesky (the oracle of
+/// the Woodbury form and of the whitening).
 fn dense_ln_likelihood(data: &FrfData, h: &[f64], s: f64) -> f64 {
     use nalgebra::{DMatrix, DVector};
     let n = data.len();
     let log = data.residual == ResidualForm::LogMagnitude;
-    let mut cov = DMatrix::from_diagonal(&DVector::from_iterator(
-        n,
-        data.sigma.iter().map(|v| s * s * v * v),
-    ));
+    // s^2 D^1/2 C D^1/2, C_ij the product of the chain's rho between i and j
+    let rho = &data.bin_correlation;
+    let mut cov = DMatrix::from_fn(n, n, |i, j| {
+        let (a, b) = (i.min(j), i.max(j));
+        let c: f64 = (a + 1..=b)
+            .map(|k| rho.get(k).copied().unwrap_or(0.0))
+            .product();
+        s * s * data.sigma[i] * data.sigma[j] * c
+    });
     for c in &data.correlated {
         let l = DMatrix::from_row_slice(c.len, c.rank, &c.loadings);
         let mut sub = cov.view_mut((c.start, c.start), (c.len, c.len));
@@ -132,23 +161,7 @@ fn shared_noise_is_the_dense_gaussian() {
             block(n / 2 + 1, n / 2 - 2, 3),
         ];
         let post = base.with_data(data.clone()).unwrap();
-        for s in [1.3, 0.4] {
-            let mut z = inside(&post);
-            z[4] = f64::ln(s);
-            let expect = dense_ln_likelihood(&data, &post.magnitudes(&z).unwrap(), s);
-            let mut pw = vec![0.0; n];
-            let ll = post.ln_likelihood(&z, &mut pw).unwrap();
-            assert!(
-                (ll - expect).abs() < 1e-9 * expect.abs(),
-                "{residual:?}, s {s}: {ll} vs {expect}"
-            );
-            let sum: f64 = pw.iter().sum();
-            assert!(
-                (sum - ll).abs() < 1e-9 * ll.abs(),
-                "pointwise {sum} vs {ll}"
-            );
-            assert_eq!(post.ln_likelihood(&z, &mut []).unwrap(), ll);
-        }
+        assert_dense_gaussian(&post, &data, &format!("{residual:?}"));
         // without shared noise, the same bits as the independent posterior
         data.correlated.clear();
         let plain = base.with_data(data).unwrap();
@@ -158,6 +171,77 @@ fn shared_noise_is_the_dense_gaussian() {
             base.ln_likelihood(&z, &mut []).unwrap()
         );
     }
+}
+
+/// Correlated neighbouring bins (a Gauss-Markov chain per run, restarting where the
+/// shared runs start and end), with and without shared noise, against the dense
+/// Gaussian: the whitened likelihood, its pointwise terms and the draws of `simulate`
+/// (lag-1 correlation of 4000 draws within 5 sampling sd).
+#[test]
+fn correlated_bins_are_the_dense_gaussian() {
+    for residual in [ResidualForm::Magnitude, ResidualForm::LogMagnitude] {
+        let base = small_problem(residual, PriorKind::Uniform).unwrap();
+        let mut data = base.data().clone();
+        let n = data.len();
+        let half = n / 2;
+        data.bin_correlation = (0..n)
+            .map(|k| match k {
+                0 => 0.0,
+                _ if k == half => 0.0,
+                _ => 0.2 + 0.7 * ((k as f64) * 0.37).sin().abs(),
+            })
+            .collect();
+        for shared in [false, true] {
+            data.correlated = match shared {
+                false => Vec::new(),
+                true => vec![CorrelatedNoise {
+                    start: half,
+                    len: n - half,
+                    rank: 2,
+                    loadings: (half..n)
+                        .flat_map(|k| {
+                            [
+                                0.8 * data.sigma[k],
+                                -0.3 * data.sigma[k] * k as f64 / n as f64,
+                            ]
+                        })
+                        .collect(),
+                    magnitude: Vec::new(),
+                }],
+            };
+            let post = base.with_data(data.clone()).unwrap();
+            assert_dense_gaussian(&post, &data, &format!("{residual:?}, shared {shared}"));
+        }
+        // a shared run that cuts a chain is refused
+        data.correlated[0].start = half - 1;
+        data.correlated[0].len = n - half + 1;
+        data.correlated[0].loadings.extend([0.0, 0.0]);
+        assert!(base.with_data(data).is_err());
+    }
+    let base = small_problem(ResidualForm::Magnitude, PriorKind::Uniform).unwrap();
+    let mut data = base.data().clone();
+    let rho = 0.69;
+    data.bin_correlation = (0..data.len())
+        .map(|k| if k == 0 { 0.0 } else { rho })
+        .collect();
+    let post = base.with_data(data.clone()).unwrap();
+    let z = inside(&post);
+    let h = post.magnitudes(&z).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let draws = 4000;
+    let (mut c, mut v) = (0.0, 0.0);
+    for _ in 0..draws {
+        let y = post.simulate(&z, &mut rng).unwrap();
+        let (e1, e2) = ((y[1] - h[1]) / data.sigma[1], (y[2] - h[2]) / data.sigma[2]);
+        c += e1 * e2;
+        v += 0.5 * (e1 * e1 + e2 * e2);
+    }
+    // sd of a sample correlation ~ (1 - rho^2) / sqrt(n)
+    let r = c / v;
+    assert!(
+        (r - rho).abs() < 5.0 * (1.0 - rho * rho) / (draws as f64).sqrt(),
+        "{r}"
+    );
 }
 
 /// Draws of `simulate` with shared noise: per-point variances and one covariance as

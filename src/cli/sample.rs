@@ -4,7 +4,7 @@ use frfbayes::bayes::run::{
     checkpoint_path, resume_sample, run_sample, SampleOutcome, SampleSettings, StageFn,
     TestSelection,
 };
-use frfbayes::bayes::PriorKind;
+use frfbayes::bayes::{BinCorrelation, PriorKind};
 use frfbayes::frf::FrfKind;
 use frfbayes::io::{OutputClaim, StagedDir};
 use frfbayes::mcmc::{Progress, ProgressFn};
@@ -31,6 +31,12 @@ pub enum TestsArg {
     #[value(name = "shake_table", alias = "shake-table")]
     ShakeTable,
     All,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum BinCorrelationArg {
+    Independent,
+    Window,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -88,6 +94,10 @@ pub struct Args {
     /// Residuals on magnitudes (default) or log-magnitudes.
     #[arg(long, value_enum)]
     pub residual: Option<ResidualArg>,
+    /// Output noise of neighbouring bins: independent (default) or correlated as the
+    /// estimator's exponential window makes it (`window`; see the README).
+    #[arg(long, value_enum)]
+    pub bin_correlation: Option<BinCorrelationArg>,
     /// Prior family [default: uniform].
     #[arg(long, value_enum)]
     pub prior: Option<PriorArg>,
@@ -168,6 +178,7 @@ impl Args {
             ("--seed", self.seed.is_some()),
             ("--settings", self.settings.is_some()),
             ("--residual", self.residual.is_some()),
+            ("--bin-correlation", self.bin_correlation.is_some()),
             ("--prior", self.prior.is_some()),
             ("--prior-cv", self.prior_cv.is_some()),
             ("--prior-damping-ln-sd", self.prior_damping_ln_sd.is_some()),
@@ -224,6 +235,12 @@ impl Args {
         }
         if let Some(v) = self.seed {
             s.seed = v;
+        }
+        if let Some(b) = self.bin_correlation {
+            s.bin_correlation = match b {
+                BinCorrelationArg::Independent => BinCorrelation::Independent,
+                BinCorrelationArg::Window => BinCorrelation::Window,
+            };
         }
         if let Some(r) = self.residual {
             s.residual = match r {

@@ -36,11 +36,20 @@
 //!   `cov = sigma^2 diag(sd^2) + L L^T`, evaluated by Woodbury ([`shared`]). Its
 //!   least-squares view ([`super::Posterior::least_squares`]) is the per-value part
 //!   only, the weighted least squares that starts the plug-in of the loadings.
+//!
+//! The own noise of [`BlockKind::Values`] and [`BlockKind::SharedNoise`] values may be
+//! correlated along the block by a Gauss-Markov [`Chain`] (neighbouring FRF bins of one
+//! response, [`Block::correlated_values`]): the standardised residuals are whitened by
+//! it (`r <- R^-1 r`), the shared loadings likewise, and `c_b` gains
+//! `-ln det C / 2`, so the density is the Gaussian one with covariance
+//! `sigma^2 D^(1/2) C D^(1/2) + L L^T`.
 
 use std::ops::Range;
 
+pub mod chain;
 pub mod linear;
 pub mod shared;
+pub use chain::Chain;
 pub use linear::LinearFit;
 pub use shared::SharedFactors;
 
@@ -123,6 +132,21 @@ pub struct Block {
     pub predictions: Range<usize>,
     pub kind: BlockKind,
     pub scale: NoiseScale,
+    /// Correlation of the values' own noise along the block ([`BlockKind::Values`] and
+    /// [`BlockKind::SharedNoise`] only).
+    pub chain: Option<Chain>,
+}
+
+/// The correlation of a values block's noise beyond each value's own standard deviation
+/// ([`Block::correlated_values`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Correlation<'a> {
+    /// Noise shared at a known size: the loadings `L` (`n x rank`, row-major, in the
+    /// transformed unit) and the rank.
+    pub shared: Option<(&'a [f64], usize)>,
+    /// The Gauss-Markov correlation of each value with the one before ([`Chain`]); empty
+    /// or all zero when the values' own noise is independent.
+    pub chain: &'a [f64],
 }
 
 fn check_finite(name: &str, what: &str, v: &[f64]) -> Result<()> {
@@ -183,25 +207,70 @@ impl Block {
         observed: &[f64],
         sd: &[f64],
         transform: Transform,
-        (loadings, rank): (&[f64], usize),
+        loadings: (&[f64], usize),
         scale: NoiseScale,
     ) -> Result<Self> {
-        let values = Self::values(name, predictions, observed, sd, transform, scale)?;
-        let BlockKind::Values {
-            observed, inv_sd, ..
-        } = values.kind
-        else {
-            unreachable!("Block::values builds a Values block")
+        let correlation = Correlation {
+            shared: Some(loadings),
+            chain: &[],
         };
-        let factors = SharedFactors::new(loadings, rank, sd)
-            .map_err(|e| Error::Usage(format!("{name}: {e}")))?;
-        let kind = BlockKind::SharedNoise {
+        Self::correlated_values(
+            name,
+            predictions,
             observed,
-            inv_sd,
+            sd,
             transform,
-            factors,
-        };
-        Self::checked(name, values.predictions, kind, scale)
+            correlation,
+            scale,
+        )
+    }
+
+    /// Values as [`Self::values`] whose noise is correlated as `correlation` says: a
+    /// [`BlockKind::SharedNoise`] block when it has shared loadings, and the values' own
+    /// noise whitened along a [`Chain`] when it has one (the chain must start a run at
+    /// the block's first value).
+    pub fn correlated_values(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        sd: &[f64],
+        transform: Transform,
+        correlation: Correlation<'_>,
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        let mut block = Self::values(name, predictions, observed, sd, transform, scale)?;
+        let n = block.predictions.len();
+        if !correlation.chain.is_empty() && correlation.chain.len() != n {
+            return Err(Error::Usage(format!(
+                "{name}: {} bin correlations for {n} values",
+                correlation.chain.len()
+            )));
+        }
+        let chain =
+            Chain::new(correlation.chain).map_err(|e| Error::Usage(format!("{name}: {e}")))?;
+        if chain.as_ref().is_some_and(|c| !c.starts_a_run()) {
+            return Err(Error::Usage(format!(
+                "{name}: its correlated bins continue a chain from before the block"
+            )));
+        }
+        if let Some((loadings, rank)) = correlation.shared {
+            let BlockKind::Values {
+                observed, inv_sd, ..
+            } = block.kind
+            else {
+                unreachable!("Block::values builds a Values block")
+            };
+            let factors = shared_factors(loadings, rank, &inv_sd, chain.as_ref())
+                .map_err(|e| Error::Usage(format!("{name}: {e}")))?;
+            block.kind = BlockKind::SharedNoise {
+                observed,
+                inv_sd,
+                transform,
+                factors,
+            };
+        }
+        block.chain = chain;
+        Ok(block)
     }
 
     /// A measured shape against a predicted one, amplitude integrated out.
@@ -368,6 +437,7 @@ impl Block {
             predictions,
             kind,
             scale,
+            chain: None,
         })
     }
 
@@ -400,7 +470,8 @@ impl Block {
         let base = -self.dof() * HALF_LN_2PI;
         match &self.kind {
             BlockKind::Values { inv_sd, .. } | BlockKind::SharedNoise { inv_sd, .. } => {
-                base + inv_sd.iter().map(|w| w.ln()).sum::<f64>()
+                let chain = self.chain.iter().flat_map(|c| c.ln_inv_sd_factor());
+                base + inv_sd.iter().map(|w| w.ln()).sum::<f64>() + chain.sum::<f64>()
             }
             BlockKind::ShapeMac { .. } => base,
             BlockKind::LinearMarginal { inv_sd, .. } => {
@@ -449,6 +520,9 @@ impl Block {
             } => {
                 for i in 0..p.len() {
                     out[i] = (transform.apply(p[i]) - observed[i]) * inv_sd[i];
+                }
+                if let Some(chain) = &self.chain {
+                    chain.whiten(&mut out[..p.len()]);
                 }
             }
             BlockKind::ShapeMac { observed_unit } => {
@@ -502,6 +576,20 @@ impl Block {
                     };
                     for t in 0..n_par {
                         jac[(row0 + i, t)] = scale * inv_sd[i] * dt * dpred[(off + i, t)];
+                    }
+                }
+                if let Some(chain) = &self.chain {
+                    let mut column = vec![0.0; p.len()];
+                    for t in 0..n_par {
+                        column
+                            .iter_mut()
+                            .enumerate()
+                            .for_each(|(i, v)| *v = jac[(row0 + i, t)]);
+                        chain.whiten(&mut column);
+                        column
+                            .iter()
+                            .enumerate()
+                            .for_each(|(i, v)| jac[(row0 + i, t)] = *v);
                     }
                 }
             }
@@ -572,6 +660,11 @@ impl Block {
         for ((o, r), w) in out.iter_mut().zip(residuals).zip(inv_sd) {
             *o = w.ln() - HALF_LN_2PI - ln_s - 0.5 * r * r / s2;
         }
+        if let Some(chain) = &self.chain {
+            out.iter_mut()
+                .zip(chain.ln_inv_sd_factor())
+                .for_each(|(o, f)| *o += f);
+        }
         if let BlockKind::SharedNoise { factors, .. } = &self.kind {
             let (_, correction, ln_det) = factors.terms(residuals, s2);
             let each = 0.5 * (correction / s2 - ln_det) / residuals.len() as f64;
@@ -586,9 +679,12 @@ impl Block {
 
     /// `ln L_b` straight from the whole prediction vector `pred`, the residuals formed in
     /// the same pass as the sums (the density's inner loop), for a
-    /// [`BlockKind::SharedNoise`] block compared without transform; `None` for the
-    /// others, whose callers form the residuals first.
+    /// [`BlockKind::SharedNoise`] block compared without transform or chain; `None` for
+    /// the others, whose callers form the residuals first.
     pub fn ln_likelihood_fused(&self, pred: &[f64], sigma: f64, ln_norm: f64) -> Option<f64> {
+        if self.chain.is_some() {
+            return None;
+        }
         let BlockKind::SharedNoise {
             observed,
             inv_sd,
@@ -621,6 +717,39 @@ impl Block {
             }
         }
     }
+}
+
+/// The Woodbury factors of shared loadings `L` on values of weights `inv_sd`, in the
+/// whitened coordinates of `chain` when there is one: `V = R^-1 D^(-1/2) L`.
+fn shared_factors(
+    loadings: &[f64],
+    rank: usize,
+    inv_sd: &[f64],
+    chain: Option<&Chain>,
+) -> Result<SharedFactors> {
+    let sd: Vec<f64> = inv_sd.iter().map(|w| 1.0 / w).collect();
+    let Some(chain) = chain else {
+        return SharedFactors::new(loadings, rank, &sd);
+    };
+    let n = inv_sd.len();
+    if loadings.len() != n * rank {
+        return Err(Error::Usage(format!(
+            "{} shared-noise loadings for {n} values of rank {rank}",
+            loadings.len()
+        )));
+    }
+    let mut whitened = vec![0.0; n * rank];
+    let mut column = vec![0.0; n];
+    for r in 0..rank {
+        for (k, v) in column.iter_mut().enumerate() {
+            *v = loadings[k * rank + r] * inv_sd[k];
+        }
+        chain.whiten(&mut column);
+        for (k, v) in column.iter().enumerate() {
+            whitened[k * rank + r] = *v;
+        }
+    }
+    SharedFactors::new(&whitened, rank, &vec![1.0; n])
 }
 
 #[cfg(test)]

@@ -1,14 +1,15 @@
-//! Renders the bridge study ([`super::bridge_run::BridgeStudy`]): `report.md`,
-//! `smu.json`, `posterior.json`, tables (Markdown and CSV) and figures (PNG and SVG).
-//! Nothing here computes a finding; it formats what the study computed.
+//! Renders the bridge study ([`super::bridge_run::BridgeStudy`]) and its findings
+//! ([`super::bridge_assess`]): `report.md`, `findings.json`, `smu.json`,
+//! `posterior.json`, tables (Markdown and CSV) and figures (PNG and SVG). Nothing here
+//! computes a finding; it formats what the study and its assessment computed.
 
 use std::path::Path;
 
 use super::bridge::{smu_bounds, SMU_PUBLISHED_ALPHA, SMU_PUBLISHED_OBJECTIVE};
-use super::bridge_posterior::Identified;
+use super::bridge_assess::{assess, Findings};
 use super::bridge_run::{BridgeStudy, SmuFit};
 use super::posterior::{
-    posterior_summary, quantile_sorted, write_inference_data, write_summary, INFERENCE_DATA_FILE,
+    posterior_summary, write_inference_data, write_summary, INFERENCE_DATA_FILE,
 };
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use crate::error::{Error, Result};
@@ -46,6 +47,8 @@ fn smu_json(fit: &SmuFit) -> serde_json::Value {
 
 /// Writes every output of the study into `out`.
 pub fn write(study: &BridgeStudy, out: &Path, timings: &[(String, f64)]) -> Result<()> {
+    let findings = assess(study);
+    super::report::write_findings(&findings, out)?;
     write_json(&out.join("smu.json"), &smu_json(&study.smu))?;
     write_json(&out.join("smu_per_entry.json"), &smu_json(&study.per_entry))?;
     write_json(
@@ -68,10 +71,15 @@ pub fn write(study: &BridgeStudy, out: &Path, timings: &[(String, f64)]) -> Resu
     write_atomic(&out.join("smu_fit.csv"), fit_csv.as_bytes())?;
     let (post_md, post_csv) = identification_table(study);
     write_atomic(&out.join("identification.csv"), post_csv.as_bytes())?;
-    let (pred_md, pred_csv) = predictive_table(study);
+    let (pred_md, pred_csv) = predictive_table(&findings);
     write_atomic(&out.join("predictive.csv"), pred_csv.as_bytes())?;
-    figures(study, out)?;
-    let md = report_md(study, &fit_md, &post_md, &pred_md, timings);
+    figures(study, &findings, out)?;
+    let tables = Tables {
+        fit_md,
+        post_md,
+        pred_md,
+    };
+    let md = report_md(study, &findings, &tables, timings);
     write_atomic(&out.join("report.md"), md.as_bytes())
 }
 
@@ -178,28 +186,16 @@ fn identification_table(study: &BridgeStudy) -> (String, String) {
     (md, csv)
 }
 
-/// Median and central 95 % interval of column `i` of `rows`.
-fn quantiles(rows: &[Vec<f64>], i: usize) -> (f64, f64, f64) {
-    let mut v: Vec<f64> = rows.iter().map(|r| r[i]).collect();
-    v.sort_by(f64::total_cmp);
-    (
-        quantile_sorted(&v, 0.5),
-        quantile_sorted(&v, 0.025),
-        quantile_sorted(&v, 0.975),
-    )
-}
-
-fn predictive_table(study: &BridgeStudy) -> (String, String) {
-    let post = &study.posterior;
+fn predictive_table(fd: &Findings) -> (String, String) {
     let mut rows = Vec::new();
     let mut csv = String::from("mode,freq_meas_hz,freq_sd_hz,freq_q50_hz,freq_q2_5_hz,freq_q97_5_hz,z,mac_q50,mac_q2_5,mac_q97_5\n");
-    for i in 0..study.freq_exp_hz.len() {
-        let (f50, flo, fhi) = quantiles(&post.freq_hz, i);
-        let (m50, mlo, mhi) = quantiles(&post.mac, i);
-        let z = (f50 - study.freq_exp_hz[i]) / study.std_freq_hz[i];
+    for (i, m) in fd.predictive.iter().enumerate() {
+        let (f50, flo, fhi) = (m.freq_hz.q50, m.freq_hz.q2_5, m.freq_hz.q97_5);
+        let (m50, mlo, mhi) = (m.mac.q50, m.mac.q2_5, m.mac.q97_5);
+        let z = m.z;
         rows.push(vec![
             format!("{}", i + 1),
-            format!("{:.4} ± {:.4}", study.freq_exp_hz[i], study.std_freq_hz[i]),
+            format!("{:.4} ± {:.4}", m.freq_meas_hz, m.freq_sd_hz),
             format!("{f50:.4} [{flo:.4}, {fhi:.4}]"),
             format!("{z:+.2}"),
             format!("{m50:.4} [{mlo:.4}, {mhi:.4}]"),
@@ -207,8 +203,8 @@ fn predictive_table(study: &BridgeStudy) -> (String, String) {
         csv += &format!(
             "{},{},{},{f50},{flo},{fhi},{z},{m50},{mlo},{mhi}\n",
             i + 1,
-            study.freq_exp_hz[i],
-            study.std_freq_hz[i]
+            m.freq_meas_hz,
+            m.freq_sd_hz
         );
     }
     let md = md_table(
@@ -224,7 +220,7 @@ fn predictive_table(study: &BridgeStudy) -> (String, String) {
     (md, csv)
 }
 
-fn figures(study: &BridgeStudy, out: &Path) -> Result<()> {
+fn figures(study: &BridgeStudy, fd: &Findings, out: &Path) -> Result<()> {
     let post = &study.posterior;
     let names: Vec<String> = study.names.clone();
     bar_chart(
@@ -288,7 +284,7 @@ fn figures(study: &BridgeStudy, out: &Path) -> Result<()> {
         },
         &out.join("fig_box_positions"),
     )?;
-    predictive_figure(study, out)?;
+    predictive_figure(fd, out)?;
     basis_figure(study, out)?;
     starts_figure(study, out)?;
     let mut trace_names: Vec<(String, String)> =
@@ -304,20 +300,20 @@ fn figures(study: &BridgeStudy, out: &Path) -> Result<()> {
     )
 }
 
-fn predictive_figure(study: &BridgeStudy, out: &Path) -> Result<()> {
-    let post = &study.posterior;
-    let modes: Vec<f64> = (1..=study.freq_exp_hz.len()).map(|i| i as f64).collect();
-    let rel = |i: usize, v: f64| 100.0 * (v / study.freq_exp_hz[i] - 1.0);
+fn predictive_figure(fd: &Findings, out: &Path) -> Result<()> {
+    let p = &fd.predictive;
+    let modes: Vec<f64> = (1..=p.len()).map(|i| i as f64).collect();
     let q = |k: usize| -> Vec<f64> {
-        (0..modes.len())
-            .map(|i| {
-                let (m, lo, hi) = quantiles(&post.freq_hz, i);
-                rel(i, [m, lo, hi][k])
+        p.iter()
+            .map(|m| {
+                let f = [m.freq_hz.q50, m.freq_hz.q2_5, m.freq_hz.q97_5][k];
+                100.0 * (f / m.freq_meas_hz - 1.0)
             })
             .collect()
     };
-    let scatter: Vec<f64> = (0..modes.len())
-        .map(|i| 100.0 * study.std_freq_hz[i] / study.freq_exp_hz[i])
+    let scatter: Vec<f64> = p
+        .iter()
+        .map(|m| 100.0 * m.freq_sd_hz / m.freq_meas_hz)
         .collect();
     line_chart(
         &LineChartSpec {
@@ -435,25 +431,22 @@ fn starts_figure(study: &BridgeStudy, out: &Path) -> Result<()> {
     )
 }
 
+/// The Markdown tables of [`write`], rendered before the report.
+struct Tables {
+    fit_md: String,
+    post_md: String,
+    pred_md: String,
+}
+
 fn report_md(
     study: &BridgeStudy,
-    fit_md: &str,
-    post_md: &str,
-    pred_md: &str,
+    fd: &Findings,
+    tables: &Tables,
     timings: &[(String, f64)],
 ) -> String {
     let (s, p, b, post) = (&study.smu, &study.per_entry, &study.basis, &study.posterior);
-    let max_dev = (0..17)
-        .map(|j| {
-            let (lo, hi) = smu_bounds()[j];
-            (s.alpha[j] - SMU_PUBLISHED_ALPHA[j]).abs() / (hi - lo)
-        })
-        .fold(0.0, f64::max);
-    let n_bound = s.on_bound.iter().filter(|b| **b != 0).count();
-    // the alphas only (the noise scales follow them in `verdicts`)
-    let alphas = &post.verdicts[..smu_bounds().len()];
-    let count = |v: Identified| alphas.iter().filter(|x| **x == v).count();
-    use Identified as I;
+    let n = &fd.identified;
+    let (se, ss) = (&fd.sigma_eigenvalues, &fd.sigma_shapes);
     let mut md = format!(
         "# Steel pedestrian bridge (946 DOFs): SMU's updating, reproduced, and its posterior\n\n\
          Data: `../shared/data/real/bridge-fe` (SMU, GPL-3.0), read in place. Formulation: \
@@ -461,7 +454,7 @@ fn report_md(
          ## Findings\n\n\
          - **SMU's optimum reproduced.** SMU weighting (as SMU computes it): f = {:.6} \
          (SMU published {SMU_PUBLISHED_OBJECTIVE}; {:.6} at its 4-decimal alphas), every alpha \
-         within {:.1e} of its box width of the published one, {n_bound} of 17 on a bound. \
+         within {:.1e} of its box width of the published one, {} of 17 on a bound. \
          {} of {} starts reached the best f (within 1e-6).\n\
          - **Time.** {} starts in {:.1} s wall on {} threads ({:.2} s per start per thread) plus \
          {:.1} s of exact polish; SMU: {SMU_WALL_S:.0} s ({SMU_MEDIAN_START_S:.0} s median per start).\n\
@@ -473,7 +466,8 @@ fn report_md(
          (1 = the test-to-test scatter explains the misfit).\n\n",
         s.objective,
         study.published_objective,
-        max_dev,
+        fd.max_dev_from_published_box_frac,
+        fd.n_on_bound_smu,
         s.n_reached,
         s.n_starts,
         s.n_starts,
@@ -482,20 +476,21 @@ fn report_md(
         s.wall_s * s.threads as f64 / s.n_starts as f64,
         s.polish_s,
         p.objective,
-        p.on_bound.iter().filter(|b| **b != 0).count(),
+        fd.n_on_bound_per_entry,
         p.n_reached,
         p.n_starts,
-        count(I::ByData),
-        count(I::Partly),
-        count(I::PriorOnly),
-        count(I::AtLowerBound) + count(I::AtUpperBound),
-        post.rows[17].mean.exp(),
-        post.rows[17].q2_5.exp(),
-        post.rows[17].q97_5.exp(),
-        post.rows[18].mean.exp(),
-        post.rows[18].q2_5.exp(),
-        post.rows[18].q97_5.exp(),
+        n.by_data,
+        n.partly,
+        n.prior_only,
+        n.at_bound,
+        se.geometric_mean,
+        se.q2_5,
+        se.q97_5,
+        ss.geometric_mean,
+        ss.q2_5,
+        ss.q97_5,
     );
+    let fit_md = &tables.fit_md;
     md += &format!(
         "## 1. SMU's optimum\n\nMultistart: {} uniform-stratified (Latin hypercube) starts in \
          SMU's box, trust-region reflective least squares (ftol = xtol = gtol = 1e-10, at most {} \
@@ -526,15 +521,6 @@ fn report_md(
         1e3 * b.exact_eval_s,
         b.exact_eval_s / b.reduced_eval_s
     );
-    let at_draws = &post.basis_at_draws;
-    let worst_rel = at_draws
-        .iter()
-        .flat_map(|p| p.eigenvalue_rel.iter())
-        .fold(0.0f64, |a, b| a.max(b.abs()));
-    let worst_mac = at_draws
-        .iter()
-        .flat_map(|p| p.one_minus_mac.iter())
-        .fold(0.0f64, |a, b| a.max(*b));
     md += &format!(
         "## 3. What the 5 modes identify\n\nLikelihood: eigenvalue residuals over their \
          measured scatter and shape residuals over theirs (per entry), Gaussian, each kind with \
@@ -543,10 +529,11 @@ fn report_md(
          the basis checked against the exact solve at {} posterior draws: eigenvalue error at \
          most {:.2e}, 1 - MAC at most {:.2e}.\n\n",
         post.basis_size,
-        at_draws.len(),
-        worst_rel,
-        worst_mac
+        post.basis_at_draws.len(),
+        fd.basis_max_eigenvalue_rel_at_draws,
+        fd.basis_max_one_minus_mac_at_draws
     );
+    let (post_md, pred_md) = (&tables.post_md, &tables.pred_md);
     md += &format!(
         "{post_md}\n![contraction](fig_contraction.png)\n\n\
          ![box positions](fig_box_positions.png)\n\n{}\n\n{}\n\n![traces](fig_traces.png)\n\n",

@@ -1,20 +1,19 @@
-//! `report.md`, `posterior.json` and figures of the `four-story-modal` study. Every
-//! number and every verdict in the report is computed from the run.
+//! `report.md`, `findings.json`, `posterior.json` and figures of the `four-story-modal`
+//! study. Every number in the report comes from the run; every conclusion from
+//! [`super::four_story_assess`], which this module only renders.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use super::four_story::{MASSES_KG, N_FLOORS};
-use super::four_story_run::{FourStoryStudy, Ppc, Variant};
+use super::four_story_assess::{assess, Findings, Position, P_FLAG};
+use super::four_story_run::{FourStoryStudy, Ppc};
 use super::posterior::{
-    observed_blocks, posterior_summary, quantile_sorted, write_inference_data, write_summary,
-    ParameterSummary, PosteriorSummary, INFERENCE_DATA_FILE,
+    observed_blocks, posterior_summary, write_inference_data, write_summary, PosteriorSummary,
+    INFERENCE_DATA_FILE,
 };
 use super::report::{md_table, posterior_table, run_line, sig};
 use crate::error::Result;
-
-/// Posterior-predictive p-values below this flag a misfit.
-pub const P_FLAG: f64 = 0.05;
 
 /// `posterior.json` of the main variant (fixed masses, all four modes).
 pub fn posterior_file(s: &FourStoryStudy) -> PosteriorSummary {
@@ -28,16 +27,6 @@ pub fn posterior_file(s: &FourStoryStudy) -> PosteriorSummary {
 
 fn pct(x: f64) -> String {
     format!("{:+.2}", 100.0 * x)
-}
-
-fn median_noise(v: &Variant) -> (f64, f64) {
-    let ns = v.lik.n_structural();
-    let med = |p: usize| {
-        let mut x: Vec<f64> = v.sampled.chains(p, f64::exp).concat();
-        x.sort_by(f64::total_cmp);
-        quantile_sorted(&x, 0.5)
-    };
-    (med(ns), med(ns + 1))
 }
 
 fn ppc_table(p: &Ppc, measured_f: &[f64], measured_label: &str) -> String {
@@ -81,8 +70,21 @@ fn ppc_table(p: &Ppc, measured_f: &[f64], measured_label: &str) -> String {
     )
 }
 
-/// Writes `report.md`, `posterior.json` and the figures into `out`.
+fn list(v: &[usize], prefix: &str) -> String {
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.iter()
+            .map(|r| format!("{prefix}{r}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+/// Writes `report.md`, `findings.json`, `posterior.json` and the figures into `out`.
 pub fn write(s: &FourStoryStudy, out: &Path, timings: &[(String, f64)]) -> Result<()> {
+    let findings = assess(s);
+    super::report::write_findings(&findings, out)?;
     write_summary(&posterior_file(s), &out.join("posterior.json"))?;
     let ns = s.main.lik.n_structural();
     write_inference_data(
@@ -94,11 +96,11 @@ pub fn write(s: &FourStoryStudy, out: &Path, timings: &[(String, f64)]) -> Resul
         "four-story-modal",
     )?;
     super::four_story_figures::write(s, out)?;
-    let md = report(s, timings);
+    let md = report(s, &findings, timings);
     crate::io::write_atomic(&out.join("report.md"), md.as_bytes())
 }
 
-fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
+fn report(s: &FourStoryStudy, f: &Findings, timings: &[(String, f64)]) -> String {
     let d = &s.data;
     let mut r = String::new();
     let _ = writeln!(
@@ -171,16 +173,7 @@ fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
         .collect();
     headers.extend(labels.iter().copied());
     let _ = writeln!(r, "{}", md_table(&headers, &rows));
-    let t1: Vec<f64> = (0..4)
-        .map(|i| {
-            s.paper_models[1..5]
-                .iter()
-                .map(|(_, p)| p.freq_hz[i])
-                .sum::<f64>()
-                / 4.0
-        })
-        .collect();
-    let spread = paper_spread(s);
+    let t1 = &f.table1_mean_freq_hz;
     let _ = writeln!(
         r,
         "The four updated Table 1 models predict on average {} Hz; the measured frame is \
@@ -193,7 +186,7 @@ fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
             .map(|i| pct(d.freq_hz[i] / t1[i] - 1.0))
             .collect::<Vec<_>>()
             .join(", "),
-        spread
+        f.paper_spread
             .iter()
             .map(|x| format!("{:.2}", 100.0 * x))
             .collect::<Vec<_>>()
@@ -252,7 +245,7 @@ fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
         "{}",
         ppc_table(&s.main_ppc, &d.freq_hz, "measured f (Hz)")
     );
-    let (sf, ss) = median_noise(&s.main);
+    let (sf, ss) = (f.noise_fixed_masses.sigma_f, f.noise_fixed_masses.sigma_s);
     let _ = writeln!(
         r,
         "p (freq) = P(|replicated residual| >= |measured residual|); p (shape) = P(1 - \
@@ -281,8 +274,6 @@ fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
         ppc_table(&s.holdout_ppc, &d.freq_hz, "measured f (Hz)")
     );
     let h4 = &s.holdout_ppc.modes[3];
-    let below = d.freq_hz[3] < h4.f_rep[0];
-    let above = d.freq_hz[3] > h4.f_rep[2];
     let _ = writeln!(
         r,
         "A shear frame fitted to modes 1-3 predicts mode 4 at {} Hz (95% predictive \
@@ -294,12 +285,10 @@ fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
         sig(h4.f_rep[2], 4),
         sig(d.freq_hz[3], 4),
         pct(d.freq_hz[3] / h4.f_rep[1] - 1.0),
-        if below {
-            "**below** the predictive interval"
-        } else if above {
-            "**above** the predictive interval"
-        } else {
-            "inside the predictive interval"
+        match f.holdout_position {
+            Position::Below => "**below** the predictive interval",
+            Position::Above => "**above** the predictive interval",
+            Position::Inside => "inside the predictive interval",
         },
         h4.mac_model[0],
         h4.mac_rep_q2_5
@@ -317,7 +306,7 @@ fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
         "{}",
         ppc_table(&s.free_mass_ppc, &d.freq_hz, "measured f (Hz)")
     );
-    let (sf2, ss2) = median_noise(&s.free_mass);
+    let (sf2, ss2) = (f.noise_free_masses.sigma_f, f.noise_free_masses.sigma_s);
     let _ = writeln!(
         r,
         "With free masses the noise scales are sigma_f = {:.2} % and sigma_s = {:.3} \
@@ -332,7 +321,7 @@ fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
     );
 
     let _ = writeln!(r, "## Verdict\n");
-    let _ = writeln!(r, "{}", verdict(s, sf, ss, sf2, ss2));
+    let _ = writeln!(r, "{}", verdict(s, f));
     let _ = writeln!(r, "## Figures\n");
     for (f, what) in [
         (
@@ -365,36 +354,23 @@ fn report(s: &FourStoryStudy, timings: &[(String, f64)]) -> String {
     r
 }
 
-fn verdict(s: &FourStoryStudy, sf: f64, ss: f64, sf2: f64, ss2: f64) -> String {
+fn verdict(s: &FourStoryStudy, f: &Findings) -> String {
     let d = &s.data;
     let mut v = String::new();
-    let flagged: Vec<String> = s
-        .main_ppc
-        .modes
+    let flagged: Vec<String> = f
+        .flagged
         .iter()
-        .enumerate()
-        .flat_map(|(i, m)| {
-            let mut f = vec![];
-            if m.p_freq < P_FLAG {
-                f.push(format!("f{} (p = {:.3})", i + 1, m.p_freq));
-            }
-            if m.p_shape < P_FLAG {
-                f.push(format!("shape {} (p = {:.3})", i + 1, m.p_shape));
-            }
-            f
+        .map(|g| match g.quantity {
+            "frequency" => format!("f{} (p = {:.3})", g.mode, g.p),
+            _ => format!("shape {} (p = {:.3})", g.mode, g.p),
         })
         .collect();
-    let max_err = (0..4)
-        .map(|i| (s.main_median.freq_hz[i] / d.freq_hz[i] - 1.0).abs())
-        .fold(0.0, f64::max);
-    let min_mac = s.main_median.mac.iter().copied().fold(1.0, f64::min);
-    let spread = paper_spread(s);
-    let (smin, smax) = spread
+    let (smin, smax) = f
+        .paper_spread
         .iter()
         .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
-    let h4 = &s.holdout_ppc.modes[3];
-    let h4_inside = d.freq_hz[3] >= h4.f_rep[0] && d.freq_hz[3] <= h4.f_rep[2];
-    let adequate = flagged.is_empty() && h4_inside && max_err <= smax;
+    let (sf, ss) = (f.noise_fixed_masses.sigma_f, f.noise_fixed_masses.sigma_s);
+    let (sf2, ss2) = (f.noise_free_masses.sigma_f, f.noise_free_masses.sigma_s);
     let _ = writeln!(
         v,
         "Rules (stated before reading the numbers): the shear frame explains the data when \
@@ -408,11 +384,11 @@ fn verdict(s: &FourStoryStudy, sf: f64, ss: f64, sf2: f64, ss2: f64) -> String {
         "- Best compromise (posterior median, fixed masses): frequency errors {} %, largest \
          {:.2} % (paper's spread across Tables 1-2: {:.2}-{:.2} %); MACs {} (smallest \
          {:.4}). Noise scales needed: sigma_f = {:.2} %, sigma_s = {:.3}.",
-        (0..4)
+        (0..N_FLOORS)
             .map(|i| pct(s.main_median.freq_hz[i] / d.freq_hz[i] - 1.0))
             .collect::<Vec<_>>()
             .join(", "),
-        100.0 * max_err,
+        100.0 * f.max_rel_freq_error,
         100.0 * smin,
         100.0 * smax,
         s.main_median
@@ -421,7 +397,7 @@ fn verdict(s: &FourStoryStudy, sf: f64, ss: f64, sf2: f64, ss2: f64) -> String {
             .map(|m| format!("{m:.4}"))
             .collect::<Vec<_>>()
             .join(", "),
-        min_mac,
+        f.min_mac,
         100.0 * sf,
         ss
     );
@@ -434,45 +410,22 @@ fn verdict(s: &FourStoryStudy, sf: f64, ss: f64, sf2: f64, ss2: f64) -> String {
             flagged.join(", ")
         }
     );
-    let _ = writeln!(
-        v,
-        "- Held-out test: modes 1-3 predict f4 = {} Hz [{}, {}]; measured {} Hz ({} %), {}. \
-         Held-out MAC of mode 4: {:.4}, p (shape) = {:.3}{}.",
-        sig(h4.f_rep[1], 4),
-        sig(h4.f_rep[0], 4),
-        sig(h4.f_rep[2], 4),
-        sig(d.freq_hz[3], 4),
-        pct(d.freq_hz[3] / h4.f_rep[1] - 1.0),
-        if h4_inside {
-            "inside the 95% predictive interval"
-        } else {
-            "outside the 95% predictive interval"
-        },
-        h4.mac_model[0],
-        h4.p_shape,
-        if h4.p_shape < P_FLAG {
-            " (below the flag level: the mode-4 shape is not predicted by modes 1-3, although \
-             the frequency is)"
-        } else {
-            ""
-        }
-    );
-    let t1 = &s.paper_models[4].0;
-    let ratios: Vec<String> = (0..4)
-        .map(|r| {
-            let row = &s.main.rows[r];
-            let k = t1.stiffness_n_per_m[r];
+    holdout_line(&mut v, s, f);
+    let ratios: Vec<String> = f
+        .stiffness_vs_table1
+        .iter()
+        .enumerate()
+        .map(|(r, x)| {
             format!(
                 "k{} {} % [{}, {}]",
                 r + 1,
-                pct(row.mean / k - 1.0),
-                pct(row.q2_5 / k - 1.0),
-                pct(row.q97_5 / k - 1.0)
+                pct(x.mean),
+                pct(x.q2_5),
+                pct(x.q97_5)
             )
         })
         .collect();
-    let worst_paper = s.chi2[1..5].iter().fold(f64::MAX, |a, c| a.min(c.p));
-    if adequate {
+    if f.adequate {
         let _ = writeln!(
             v,
             "- **A shear frame explains all four modes and shapes at once.** The mode-4 \
@@ -480,8 +433,8 @@ fn verdict(s: &FourStoryStudy, sf: f64, ss: f64, sf2: f64, ss2: f64) -> String {
              is a matter of the stiffness values, not of the shear-frame form. The four \
              updated Table 1 models give chi-square p-values of at most {:.1e} against these \
              data at the fitted noise scales.",
-            pct(d.freq_hz[3] / s.paper_models[4].1.freq_hz[3] - 1.0),
-            s.chi2[1..5].iter().fold(0.0, |a: f64, c| a.max(c.p))
+            pct(1.0 / (1.0 + f.table1_freq_error[3]) - 1.0),
+            f.table1_chi2_p.1
         );
     } else {
         let _ = writeln!(
@@ -491,26 +444,16 @@ fn verdict(s: &FourStoryStudy, sf: f64, ss: f64, sf2: f64, ss2: f64) -> String {
              missing physics: column flexure and floor rotation (coupling beyond nearest \
              neighbours), flexible floors, torsional or out-of-plane coupling of higher \
              modes, or added mass not in the model. The Table 1 models give chi-square \
-             p-values down to {worst_paper:.1e}."
+             p-values down to {:.1e}.",
+            f.table1_chi2_p.0
         );
     }
-    let t1_err: Vec<String> = (0..4)
-        .map(|i| {
-            let f = s.paper_models[4].1.freq_hz[i];
-            format!("f{} {} %", i + 1, pct(f / d.freq_hz[i] - 1.0))
-        })
+    let t1_err: Vec<String> = f
+        .table1_freq_error
+        .iter()
+        .enumerate()
+        .map(|(i, e)| format!("f{} {} %", i + 1, pct(*e)))
         .collect();
-    let story = |pick: &dyn Fn(&ParameterSummary, f64) -> bool| -> String {
-        let v: Vec<String> = (0..4)
-            .filter(|&r| pick(&s.main.rows[r], t1.stiffness_n_per_m[r]))
-            .map(|r| format!("k{}", r + 1))
-            .collect();
-        if v.is_empty() {
-            "none".into()
-        } else {
-            v.join(", ")
-        }
-    };
     let _ = writeln!(
         v,
         "- With the same (Table 1) masses, this frame's stiffnesses differ from Table 1 \
@@ -522,15 +465,14 @@ fn verdict(s: &FourStoryStudy, sf: f64, ss: f64, sf2: f64, ss2: f64) -> String {
          change stories unevenly in this way.",
         ratios.join(", "),
         t1_err.join(", "),
-        story(&|row, k| row.q97_5 < k),
-        story(&|row, k| row.q2_5 > k),
+        list(&f.stories_below_table1, "k"),
+        list(&f.stories_above_table1, "k"),
     );
-    let improved = sf2 < 0.5 * sf && ss2 < 0.5 * ss;
     let _ = writeln!(
         v,
         "- Freeing the mass distribution {} (sigma_f {:.2} % -> {:.2} %, sigma_s {:.3} -> \
          {:.3}).",
-        if improved {
+        if f.free_masses_absorb_misfit {
             "absorbs most of the remaining misfit: a different mass distribution (sensor or \
              cable mass on some floors) is consistent with the data"
         } else {
@@ -545,19 +487,31 @@ fn verdict(s: &FourStoryStudy, sf: f64, ss: f64, sf2: f64, ss2: f64) -> String {
     v
 }
 
-/// Relative spread (max - min over mid-range) of the frequencies predicted by the eight
-/// updated models of Tables 1-2, per mode.
-fn paper_spread(s: &FourStoryStudy) -> Vec<f64> {
-    (0..4)
-        .map(|i| {
-            let v: Vec<f64> = s.paper_models[1..]
-                .iter()
-                .map(|(_, p)| p.freq_hz[i])
-                .collect();
-            let (lo, hi) = v
-                .iter()
-                .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
-            (hi - lo) / (0.5 * (hi + lo))
-        })
-        .collect()
+/// The held-out line of the verdict: mode 4 predicted from modes 1-3.
+fn holdout_line(v: &mut String, s: &FourStoryStudy, f: &Findings) {
+    let d = &s.data;
+    let h4 = &s.holdout_ppc.modes[3];
+    let _ = writeln!(
+        v,
+        "- Held-out test: modes 1-3 predict f4 = {} Hz [{}, {}]; measured {} Hz ({} %), {}. \
+         Held-out MAC of mode 4: {:.4}, p (shape) = {:.3}{}.",
+        sig(h4.f_rep[1], 4),
+        sig(h4.f_rep[0], 4),
+        sig(h4.f_rep[2], 4),
+        sig(d.freq_hz[3], 4),
+        pct(d.freq_hz[3] / h4.f_rep[1] - 1.0),
+        if f.holdout_position == Position::Inside {
+            "inside the 95% predictive interval"
+        } else {
+            "outside the 95% predictive interval"
+        },
+        h4.mac_model[0],
+        h4.p_shape,
+        if h4.p_shape < P_FLAG {
+            " (below the flag level: the mode-4 shape is not predicted by modes 1-3, although \
+             the frequency is)"
+        } else {
+            ""
+        }
+    );
 }

@@ -6,28 +6,33 @@
 //! - [`mat`]: MATLAB v5 reader (re-exported from [`crate::model::mat`]) with errors naming
 //!   the file and variable.
 //! - [`posterior`]: sampling to R-hat/ESS targets and the `posterior.json` schema.
-//! - [`four_story`], [`four_story_run`], [`four_story_report`], [`four_story_figures`]:
-//!   identified modes of the four-story frame against a shear-frame modal likelihood
-//!   (`four-story-modal`).
-//! - [`wheel`], [`wheel_run`], [`wheel_scatter`], [`wheel_report`]: Bayesian modal
-//!   parameters from the measured accelerance of a wheel, damping against frequency
-//!   uncertainty (`wheel-frf`).
-//! - [`bridge`], [`bridge_run`], [`bridge_report`]: the 946-DOF steel pedestrian bridge
-//!   and its 5 identified modes, updated as SMU does and sampled (`bridge-fe`).
-//! - [`tower`], [`tower_model`], [`tower_run`], [`tower_residuals`], [`tower_report`]:
-//!   FRFs from a building's mass-damper force, a 5-story shear model with uncertain
-//!   channel gains, and where its fit fails, per mode and per floor
+//! - [`four_story`], [`four_story_run`], [`four_story_assess`], [`four_story_report`],
+//!   [`four_story_figures`]: identified modes of the four-story frame against a
+//!   shear-frame modal likelihood (`four-story-modal`).
+//! - [`wheel`], [`wheel_run`], [`wheel_scatter`], [`wheel_assess`], [`wheel_report`]:
+//!   Bayesian modal parameters from the measured accelerance of a wheel, damping against
+//!   frequency uncertainty (`wheel-frf`).
+//! - [`bridge`], [`bridge_run`], [`bridge_assess`], [`bridge_report`]: the 946-DOF steel
+//!   pedestrian bridge and its 5 identified modes, updated as SMU does and sampled
+//!   (`bridge-fe`).
+//! - [`tower`], [`tower_model`], [`tower_run`], [`tower_residuals`], [`tower_assess`],
+//!   [`tower_report`]: FRFs from a building's mass-damper force, a 5-story shear model
+//!   with uncertain channel gains, and where its fit fails, per mode and per floor
 //!   ([`tower_residuals::shear_model_residuals`]) (`tower-hmd`).
 //!
-//! Each study writes `report.md` (and the same as a self-contained `report.html`),
-//! `posterior.json`, `run.json` and figures (PNG + SVG)
-//! into its output folder.
+//! Each study is load (the data), run (models and sampling), assess (the conclusions,
+//! as data: `findings.json`) and report (renders the run and the findings, computes no
+//! conclusion). It writes `report.md` (and the same as a self-contained `report.html`),
+//! `findings.json`, `posterior.json`, `run.json` and figures (PNG + SVG) into its output
+//! folder.
 
 pub mod bridge;
+pub mod bridge_assess;
 pub mod bridge_posterior;
 pub mod bridge_report;
 pub mod bridge_run;
 pub mod four_story;
+pub mod four_story_assess;
 pub mod four_story_figures;
 pub mod four_story_report;
 pub mod four_story_run;
@@ -36,11 +41,13 @@ pub use crate::model::mat;
 pub mod posterior;
 pub mod report;
 pub mod tower;
+pub mod tower_assess;
 pub mod tower_model;
 pub mod tower_report;
 pub mod tower_residuals;
 pub mod tower_run;
 pub mod wheel;
+pub mod wheel_assess;
 pub mod wheel_report;
 pub mod wheel_run;
 pub mod wheel_scatter;
@@ -234,7 +241,7 @@ fn compute_and_write(
                     .map(wheel_run::channel_scatter)
                     .collect::<Result<Vec<_>>>()
             })?;
-            let study = wheel_report::WheelStudy {
+            let study = wheel_run::WheelStudy {
                 scatter: scatter.into_iter().flatten().collect(),
                 bands,
                 wall_s: t0.elapsed().as_secs_f64(),

@@ -125,3 +125,13 @@ pub fn trace_figure(
         stem,
     )
 }
+
+/// Writes a study's findings as `findings.json` in `out` (atomically).
+pub fn write_findings<T: serde::Serialize>(findings: &T, out: &Path) -> Result<()> {
+    let path = out.join("findings.json");
+    let json = serde_json::to_vec_pretty(findings).map_err(|e| crate::error::Error::Io {
+        path: path.clone(),
+        source: std::io::Error::other(e),
+    })?;
+    crate::io::write_atomic(&path, &json)
+}

@@ -44,6 +44,13 @@ fn smoke(dataset: Dataset, figures: &[&str]) {
     assert!(post["n_steps"].as_u64().unwrap() <= SMOKE_STEPS);
     assert_eq!(post["stopped_because"], serde_json::json!("step_cap"));
     assert!(out.join("run.json").is_file());
+    let findings: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("findings.json")).unwrap()).unwrap();
+    assert!(
+        findings.as_object().is_some_and(|o| !o.is_empty()),
+        "findings.json of {} is empty",
+        dataset.name()
+    );
     for stem in figures {
         for ext in ["png", "svg"] {
             let p = out.join(format!("{stem}.{ext}"));
@@ -96,6 +103,9 @@ fn bridge_fe_runs_end_to_end() {
     for key in ["objective", "n_starts", "n_reached", "wall_s"] {
         assert!(smu.get(key).is_some(), "smu.json misses {key}");
     }
+    let findings: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("findings.json")).unwrap()).unwrap();
+    assert_eq!(findings["predictive"].as_array().unwrap().len(), 5);
     assert_eq!(smu["n_starts"], serde_json::json!(4));
     let report = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
     assert!(

@@ -1,19 +1,21 @@
-//! `report.md`, `posterior.json` and figures of the `tower-hmd` study. Every number in
-//! the report is computed from the run.
+//! `report.md`, `findings.json`, `posterior.json` and figures of the `tower-hmd` study.
+//! Every number in the report comes from the run; every conclusion from
+//! [`super::tower_assess`], which this module only renders.
 
 use std::fmt::Write as _;
 use std::path::Path;
 
 use super::posterior::{
-    observed_blocks, posterior_summary, write_inference_data, write_summary, AtBound,
-    PosteriorSummary, INFERENCE_DATA_FILE,
+    observed_blocks, posterior_summary, write_inference_data, write_summary, PosteriorSummary,
+    INFERENCE_DATA_FILE,
 };
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use super::tower::{AUTHOR_GAINS, DAMPER_MASS_KG, FLOOR_COLUMN, FLOOR_MASS_KG};
+use super::tower_assess::{assess, Findings, FrequencyRatios, FLOOR_OUTLIER_RATIO};
 use super::tower_model::{natural_freq_hz, N};
 use super::tower_residuals::{
-    shear_modes, PeakResidual, ResidualAnalysis, MODE_HALF_WIDTH_HZ, PEAK_HALF_WINDOW_HZ,
-    PEAK_MIN_RATIO, REPRODUCED_FREQ_TOL, REPRODUCED_MAC,
+    ResidualAnalysis, MODE_HALF_WIDTH_HZ, PEAK_HALF_WINDOW_HZ, PEAK_MIN_RATIO, REPRODUCED_FREQ_TOL,
+    REPRODUCED_MAC,
 };
 use super::tower_run::{TowerFit, TowerStudy};
 use crate::error::Result;
@@ -57,12 +59,15 @@ fn write_tower_inference_data(f: &TowerFit, out: &Path) -> Result<()> {
     )
 }
 
-/// Writes `report.md`, `posterior.json` and figures into `out`.
+/// Writes `report.md`, `findings.json`, `posterior.json` and figures into `out`.
 pub fn write(s: &TowerStudy, out: &Path, timings: &[(String, f64)]) -> Result<()> {
+    let findings = assess(s);
+    super::report::write_findings(&findings, out)?;
     write_summary(&posterior_file(s), &out.join("posterior.json"))?;
     write_tower_inference_data(&s.full, out)?;
     figures(s, out)?;
-    crate::io::write_atomic(&out.join("report.md"), report(s, timings).as_bytes())
+    let md = report(s, &findings, timings);
+    crate::io::write_atomic(&out.join("report.md"), md.as_bytes())
 }
 
 fn band_label(b: (f64, f64)) -> String {
@@ -99,14 +104,12 @@ fn peak_table(a: &ResidualAnalysis) -> String {
     md_table(&hdr, &rows)
 }
 
-fn floor_list(v: &[usize]) -> String {
+/// `v` joined by ", " (each through `item`), or "none".
+fn list_or_none<T>(v: &[T], item: impl Fn(&T) -> String, sep: &str) -> String {
     if v.is_empty() {
         "none".into()
     } else {
-        v.iter()
-            .map(|c| format!("{}", c + 1))
-            .collect::<Vec<_>>()
-            .join(", ")
+        v.iter().map(item).collect::<Vec<_>>().join(sep)
     }
 }
 
@@ -126,7 +129,7 @@ fn fit_section(r: &mut String, f: &TowerFit) {
     );
 }
 
-fn report(s: &TowerStudy, timings: &[(String, f64)]) -> String {
+fn report(s: &TowerStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
     let mut r = String::new();
     let f = &s.full;
     let _ = writeln!(
@@ -186,33 +189,21 @@ fn report(s: &TowerStudy, timings: &[(String, f64)]) -> String {
     );
     let _ = writeln!(r, "## Posterior, whole band {}\n", band_label(f.band_hz));
     fit_section(&mut r, f);
-    let neg = |fit: &TowerFit| -> Vec<usize> {
-        (0..N)
-            .filter(|&c| fit.rows[2 * N + 1 + c].q97_5 < 0.0)
-            .collect()
-    };
-    let flipped = neg(f);
+    let flipped = &fd.negative_gain_floors;
     let _ = writeln!(
         r,
         "Gains whose 95% interval is negative: {}{}. Gain magnitudes relative to floor \
          1: {}.\n",
-        if flipped.is_empty() {
-            "none".to_string()
-        } else {
-            flipped
-                .iter()
-                .map(|c| format!("floor {}", c + 1))
-                .collect::<Vec<_>>()
-                .join(", ")
-        },
+        list_or_none(flipped, |c| format!("floor {c}"), ", "),
         if flipped.len() == N {
             " (all five: most simply one sign, that of the force channel, opposite to the \
              author's convention, rather than five calibration errors)"
         } else {
             ""
         },
-        (0..N)
-            .map(|c| format!("{:.2}", f.rows[2 * N + 1 + c].q50 / f.rows[2 * N + 1].q50))
+        fd.gain_ratio_to_floor1
+            .iter()
+            .map(|g| format!("{g:.2}"))
             .collect::<Vec<_>>()
             .join(", ")
     );
@@ -255,7 +246,7 @@ fn report(s: &TowerStudy, timings: &[(String, f64)]) -> String {
         s.low.band_hz.1
     );
     let _ = writeln!(r, "{}", peak_table(&s.residuals_low));
-    let _ = writeln!(r, "{}", failure_summary(s));
+    let _ = writeln!(r, "{}", failure_summary(s, fd));
     let _ = writeln!(r, "## Figures\n");
     let _ = writeln!(r, "- `frf_fit.png/.svg`: measured |H1| and the posterior of the whole-band model |H| per floor");
     let _ = writeln!(r, "- `residual_map.png/.svg`, `residual_map_low.png/.svg`: log10 RMS standardised residual per floor at each measured peak (whole-band fit; fit to the first two modes)");
@@ -270,131 +261,71 @@ fn report(s: &TowerStudy, timings: &[(String, f64)]) -> String {
     r
 }
 
-/// The computed account of where the fit fails.
-fn failure_summary(s: &TowerStudy) -> String {
+/// The account of where the fit fails.
+fn failure_summary(s: &TowerStudy, fd: &Findings) -> String {
     let f = &s.full;
-    let a = &s.residuals;
     let mut out = String::new();
-    let missed: Vec<String> = a
-        .peaks
-        .iter()
-        .filter(|p| !p.reproduced())
-        .map(|p| {
-            format!(
-                "{:.2} Hz (model mode {} at {:.2} Hz, MAC {:.2})",
-                p.peak.freq_hz,
-                p.mode + 1,
-                p.model_freq_hz,
-                p.mac
-            )
-        })
-        .collect();
-    let hit: Vec<String> = a
-        .peaks
-        .iter()
-        .filter(|p| p.reproduced())
-        .map(|p| format!("{:.2} Hz", p.peak.freq_hz))
-        .collect();
     let _ = writeln!(
         out,
         "- Whole-band fit: {} of {} measured resonances reproduced ({}); not reproduced: \
          {}. Model modes in the band that no measured peak is nearest to: {}. The model \
          misses the data by s = {} times the estimator noise overall (RMS |z| {:.1}).",
-        hit.len(),
-        a.peaks.len(),
-        if hit.is_empty() {
-            "none".into()
-        } else {
-            hit.join(", ")
-        },
-        if missed.is_empty() {
-            "none".into()
-        } else {
-            missed.join("; ")
-        },
-        if a.unmatched_modes.is_empty() {
-            "none".to_string()
-        } else {
-            a.unmatched_modes
-                .iter()
-                .map(|&r| format!("mode {} ({:.2} Hz)", r + 1, a.model_freq_hz[r]))
-                .collect::<Vec<_>>()
-                .join(", ")
-        },
-        sig(f.rows[2 * N].q50, 3),
-        a.rms_z_total
+        fd.reproduced_peaks_hz.len(),
+        s.residuals.peaks.len(),
+        list_or_none(&fd.reproduced_peaks_hz, |f| format!("{f:.2} Hz"), ", "),
+        list_or_none(
+            &fd.missed_peaks,
+            |p| format!(
+                "{:.2} Hz (model mode {} at {:.2} Hz, MAC {:.2})",
+                p.freq_hz, p.model_mode, p.model_freq_hz, p.mac
+            ),
+            "; "
+        ),
+        list_or_none(
+            &fd.unmatched_modes,
+            |m| format!("mode {} ({:.2} Hz)", m.mode, m.freq_hz),
+            ", "
+        ),
+        sig(fd.noise_scale, 3),
+        fd.rms_z_total
     );
-    let mut order: Vec<usize> = (0..N).collect();
-    order.sort_by(|&x, &y| a.rms_z_floor[y].total_cmp(&a.rms_z_floor[x]));
-    let median_floor = {
-        let mut v = a.rms_z_floor.to_vec();
-        v.sort_by(f64::total_cmp);
-        v[N / 2]
-    };
-    let outliers: Vec<usize> = (0..N)
-        .filter(|&c| a.rms_z_floor[c] > 1.5 * median_floor)
-        .collect();
     let _ = writeln!(
         out,
         "- Per floor over the whole band, RMS |z| = {} (floors 1-5); worst floor {}, best \
-         floor {}. Floors above 1.5 times the median floor: {}.",
-        a.rms_z_floor
+         floor {}. Floors above {FLOOR_OUTLIER_RATIO} times the median floor: {}.",
+        fd.rms_z_floor
             .iter()
             .map(|z| format!("{z:.1}"))
             .collect::<Vec<_>>()
             .join(", "),
-        order[0] + 1,
-        order[N - 1] + 1,
-        floor_list(&outliers)
+        fd.worst_floor,
+        fd.best_floor,
+        list_or_none(&fd.outlier_floors, |c| c.to_string(), ", ")
     );
-    let at_bound: Vec<String> = f
-        .rows
-        .iter()
-        .filter_map(|r| {
-            r.at_bound.map(|b| {
-                format!(
-                    "{} ({})",
-                    r.name,
-                    match b {
-                        AtBound::Lower => "lower",
-                        AtBound::Upper => "upper",
-                    }
-                )
-            })
-        })
-        .collect();
-    if !at_bound.is_empty() {
+    if !fd.at_bound.is_empty() {
         let _ = writeln!(
             out,
             "- At a prior bound in the whole-band fit: {}. A stiffness at its upper bound \
              means the fit wants that story rigid (the floors above and below moving as \
              one): the five-floor chain gives up one of its own modes to reach the \
              measured shapes.",
-            at_bound.join(", ")
+            list_or_none(&fd.at_bound, |b| format!("{} ({})", b.name, b.side), ", ")
         );
     }
-    let low = &s.residuals_low;
-    let (lo_in, lo_out): (Vec<&PeakResidual>, Vec<&PeakResidual>) = low
-        .peaks
-        .iter()
-        .partition(|p| p.peak.freq_hz <= s.low.band_hz.1);
-    let rms = |v: &[&PeakResidual]| -> f64 {
-        let all: Vec<f64> = v.iter().flat_map(|p| p.rms_z.iter().copied()).collect();
-        (all.iter().map(|x| x * x).sum::<f64>() / all.len().max(1) as f64).sqrt()
-    };
+    let (lo_in, lo_out) = (&fd.low_inside, &fd.low_above);
     let _ = writeln!(
         out,
         "- Fit to the first two modes: s = {}; at the measured peaks RMS |z| {:.1} inside \
          its band ({} peaks, {} reproduced) and {:.1} above it ({} peaks, {} reproduced: \
          the low modes do not predict the higher ones). Natural frequencies {} Hz (whole \
          band: {} Hz).",
-        sig(s.low.rows[2 * N].q50, 3),
-        rms(&lo_in),
-        lo_in.len(),
-        lo_in.iter().filter(|p| p.reproduced()).count(),
-        rms(&lo_out),
-        lo_out.len(),
-        lo_out.iter().filter(|p| p.reproduced()).count(),
+        sig(fd.low_noise_scale, 3),
+        lo_in.rms_z,
+        lo_in.n_peaks,
+        lo_in.n_reproduced,
+        lo_out.rms_z,
+        lo_out.n_peaks,
+        lo_out.n_reproduced,
         s.low
             .freq_rows
             .iter()
@@ -407,7 +338,14 @@ fn failure_summary(s: &TowerStudy) -> String {
             .collect::<Vec<_>>()
             .join(", ")
     );
-    let _ = writeln!(out, "{}", frequency_ratios(a));
+    let _ = writeln!(
+        out,
+        "{}",
+        fd.frequency_ratios
+            .as_ref()
+            .map(frequency_ratios)
+            .unwrap_or_default()
+    );
     let _ = writeln!(
         out,
         "- Reading: residuals an order of magnitude above the estimator noise at resonances \
@@ -420,54 +358,23 @@ fn failure_summary(s: &TowerStudy) -> String {
     out
 }
 
-/// `beta_n L` of a uniform cantilever (Euler-Bernoulli): roots of
-/// `1 + cos(x) cosh(x) = 0`; frequencies scale as `(beta_n L)^2`.
-const CANTILEVER_BETA_L: [f64; N] = [1.875104, 4.694091, 7.854757, 10.995541, 14.137168];
-
-/// Measured peak frequencies over the first against a uniform 5-story shear chain and a
-/// uniform flexural cantilever.
-fn frequency_ratios(a: &ResidualAnalysis) -> String {
-    let Some(first) = a.peaks.first() else {
-        return String::new();
-    };
-    let measured: Vec<f64> = a
-        .peaks
-        .iter()
-        .map(|p| p.peak.freq_hz / first.peak.freq_hz)
-        .collect();
-    let shear = shear_modes(&[1.0e6; N])
-        .map(|m| {
-            let f = m.freq_hz();
-            f.iter().map(|x| x / f[0]).collect::<Vec<_>>()
-        })
-        .unwrap_or_default();
-    let cantilever: Vec<f64> = CANTILEVER_BETA_L
-        .iter()
-        .map(|b| (b / CANTILEVER_BETA_L[0]).powi(2))
-        .collect();
+fn frequency_ratios(q: &FrequencyRatios) -> String {
+    let n = q.measured.len();
     let list = |v: &[f64]| {
         v.iter()
-            .take(measured.len())
+            .take(n)
             .map(|x| format!("{x:.2}"))
             .collect::<Vec<_>>()
             .join(", ")
     };
-    let between: Vec<String> = (1..measured.len().min(shear.len()))
-        .filter(|&n| measured[n] > shear[n] && measured[n] < cantilever[n])
-        .map(|n| format!("{}", n + 1))
-        .collect();
     format!(
         "- Frequency ratios `f_n / f_1` of the measured peaks: {}; a uniform 5-story shear \
          chain: {}; a uniform flexural cantilever: {}. Peaks whose ratio lies above the \
          shear chain's and below the cantilever's (a mix of shear and flexure): {}.",
-        list(&measured),
-        list(&shear),
-        list(&cantilever),
-        if between.is_empty() {
-            "none".to_string()
-        } else {
-            between.join(", ")
-        }
+        list(&q.measured),
+        list(&q.shear_chain),
+        list(&q.cantilever),
+        list_or_none(&q.between_shear_and_flexure, |n| n.to_string(), ", ")
     )
 }
 

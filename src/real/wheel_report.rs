@@ -1,4 +1,5 @@
-//! `report.md`, `posterior.json` and figures of the `wheel-frf` study.
+//! `report.md`, `findings.json`, `posterior.json` and figures of the `wheel-frf` study.
+//! Every conclusion comes from [`super::wheel_assess`], which this module only renders.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -9,24 +10,14 @@ use super::posterior::{
 };
 use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
 use super::wheel::WheelData;
-use super::wheel_run::{
-    cov_comparison, BandResult, ChannelScatter, CovComparison, PLOT_CHANNELS, SCATTER_MIN_RESIDUE,
-};
+use super::wheel_assess::{assess, Findings, Separation};
+use super::wheel_run::{BandResult, WheelStudy, PLOT_CHANNELS, SCATTER_MIN_RESIDUE};
 use crate::error::Result;
 use crate::plot::{
     band_overlay, bar_chart, corner, frf_magnitudes, BandOverlaySpec, BandPanel, BarChartSpec,
     BarGroup, ChannelFrf, CornerParam, CornerSpec, Curve, FreqBand, FrfMagnitudesSpec, Interval,
     Scale,
 };
-
-/// The study's results.
-#[derive(Debug, Clone)]
-pub struct WheelStudy {
-    pub bands: Vec<BandResult>,
-    /// Channel-to-channel scatter of every mode, in mode order.
-    pub scatter: Vec<ChannelScatter>,
-    pub wall_s: f64,
-}
 
 /// Rows of every band with globally numbered names (`f1`, `xi1`, `s_band1`, ...).
 pub fn all_rows(s: &WheelStudy) -> Vec<ParameterSummary> {
@@ -116,13 +107,16 @@ pub fn write(
         write_band_inference_data(b, k, first_mode, &path)?;
         first_mode += b.lik.n_modes();
     }
-    figures(s, data, out)?;
-    crate::io::write_atomic(&out.join("report.md"), report(s, timings).as_bytes())
+    let findings = assess(s);
+    super::report::write_findings(&findings, out)?;
+    figures(s, &findings, data, out)?;
+    let md = report(s, &findings, timings);
+    crate::io::write_atomic(&out.join("report.md"), md.as_bytes())
 }
 
-fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
+fn report(s: &WheelStudy, fd: &Findings, timings: &[(String, f64)]) -> String {
     let mut r = String::new();
-    let cmp = cov_comparison(&s.bands);
+    let cmp = &fd.modes;
     let _ = writeln!(
         r,
         "# Light-rail wheel: Bayesian modal parameters from measured accelerance\n"
@@ -216,7 +210,7 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
             &rows
         )
     );
-    let _ = writeln!(r, "{}", verdict(&cmp));
+    let _ = writeln!(r, "{}", verdict(fd));
     let _ = writeln!(r, "### Channel-to-channel scatter\n");
     let _ = writeln!(
         r,
@@ -230,7 +224,7 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
     let rows: Vec<Vec<String>> = s
         .scatter
         .iter()
-        .zip(&cmp)
+        .zip(cmp)
         .enumerate()
         .map(|(i, (sc, c))| {
             vec![
@@ -266,12 +260,7 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
             &rows
         )
     );
-    let ratios: Vec<f64> = s.scatter.iter().map(|sc| sc.cov_xi / sc.cov_f).collect();
-    let rel: Vec<f64> = s
-        .scatter
-        .iter()
-        .map(|sc| sc.cov_xi / sc.cov_f * sc.xi_mean)
-        .collect();
+    let sc = &fd.scatter;
     let _ = writeln!(
         r,
         "Across channels the damping ratio scatters {:.0}-{:.0} times more (relative) than \
@@ -279,30 +268,14 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
          times the posterior sd for the frequency and {:.0}-{:.0} times for the damping: \
          the independent-error posterior is far too confident, but both estimates agree \
          that damping is the poorly identified parameter.\n",
-        ratios.iter().copied().fold(f64::MAX, f64::min),
-        ratios.iter().copied().fold(f64::MIN, f64::max),
-        rel.iter().copied().fold(f64::MAX, f64::min),
-        rel.iter().copied().fold(f64::MIN, f64::max),
-        s.scatter
-            .iter()
-            .zip(&cmp)
-            .map(|(a, c)| a.cov_f / c.cov_f)
-            .fold(f64::MAX, f64::min),
-        s.scatter
-            .iter()
-            .zip(&cmp)
-            .map(|(a, c)| a.cov_f / c.cov_f)
-            .fold(f64::MIN, f64::max),
-        s.scatter
-            .iter()
-            .zip(&cmp)
-            .map(|(a, c)| a.cov_xi / c.cov_xi)
-            .fold(f64::MAX, f64::min),
-        s.scatter
-            .iter()
-            .zip(&cmp)
-            .map(|(a, c)| a.cov_xi / c.cov_xi)
-            .fold(f64::MIN, f64::max),
+        sc.cov_ratio.min,
+        sc.cov_ratio.max,
+        sc.cov_ratio_over_inverse_xi.min,
+        sc.cov_ratio_over_inverse_xi.max,
+        sc.f_scatter_over_posterior.min,
+        sc.f_scatter_over_posterior.max,
+        sc.xi_scatter_over_posterior.min,
+        sc.xi_scatter_over_posterior.max,
     );
     let _ = writeln!(r, "## Figures\n");
     let _ = writeln!(
@@ -328,37 +301,28 @@ fn report(s: &WheelStudy, timings: &[(String, f64)]) -> String {
     r
 }
 
-fn verdict(cmp: &[CovComparison]) -> String {
-    let ratios: Vec<f64> = cmp.iter().map(|c| c.ratio).collect();
-    let rel: Vec<f64> = cmp.iter().map(|c| c.ratio / c.predicted_ratio).collect();
-    let (rmin, rmax) = ratios
-        .iter()
-        .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
-    let (qmin, qmax) = rel
-        .iter()
-        .fold((f64::MAX, f64::MIN), |a, &x| (a.0.min(x), a.1.max(x)));
-    let within2 = rel.iter().filter(|&&q| (0.5..=2.0).contains(&q)).count();
-    let orders = if rmin >= 100.0 {
-        "two orders of magnitude or more"
-    } else if rmin >= 10.0 {
-        "at least an order of magnitude"
-    } else {
-        "less than an order of magnitude for some modes"
+fn verdict(fd: &Findings) -> String {
+    let orders = match fd.separation {
+        Separation::TwoOrdersOrMore => "two orders of magnitude or more",
+        Separation::AtLeastOneOrder => "at least an order of magnitude",
+        Separation::LessThanOneOrderForSomeModes => {
+            "less than an order of magnitude for some modes"
+        }
     };
     format!(
         "Damping is the poorly identified parameter: its c.o.v. is {:.0}-{:.0} times the \
          frequency's ({orders}). Measured / predicted ratio `cov(xi)/cov(f)` over `1/xi`: \
          {:.2}-{:.2}; {} of {} modes within a factor 2 of Au's law.\n",
-        rmin,
-        rmax,
-        qmin,
-        qmax,
-        within2,
-        cmp.len()
+        fd.cov_ratio.min,
+        fd.cov_ratio.max,
+        fd.measured_over_predicted.min,
+        fd.measured_over_predicted.max,
+        fd.n_within_factor_2,
+        fd.modes.len()
     )
 }
 
-fn figures(s: &WheelStudy, data: &WheelData, out: &Path) -> Result<()> {
+fn figures(s: &WheelStudy, fd: &Findings, data: &WheelData, out: &Path) -> Result<()> {
     let chans = [0usize, 1, 2];
     frf_magnitudes(
         &FrfMagnitudesSpec {
@@ -427,7 +391,7 @@ fn figures(s: &WheelStudy, data: &WheelData, out: &Path) -> Result<()> {
             &out.join(format!("band{}_frf", bi + 1)),
         )?;
     }
-    let cmp = cov_comparison(&s.bands);
+    let cmp = &fd.modes;
     bar_chart(
         &BarChartSpec {
             title: "Posterior c.o.v. of natural frequency and damping ratio".into(),

@@ -41,6 +41,15 @@ pub use super::wheel_scatter::{
     channel_scatter, cov_comparison, ChannelScatter, CovComparison, SCATTER_MIN_RESIDUE,
 };
 
+/// The study's results.
+#[derive(Debug, Clone)]
+pub struct WheelStudy {
+    pub bands: Vec<BandResult>,
+    /// Channel-to-channel scatter of every mode, in mode order.
+    pub scatter: Vec<ChannelScatter>,
+    pub wall_s: f64,
+}
+
 /// Walkers per ensemble.
 pub const N_WALKERS: usize = 24;
 /// Posterior draws used for predictive bands (residue draws use four times as many).

@@ -71,7 +71,7 @@ pub fn channel_scatter(b: &BandResult) -> Result<Vec<ChannelScatter>> {
 }
 
 /// Frequency against damping uncertainty of one mode.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct CovComparison {
     pub f_hz: f64,
     pub xi: f64,

@@ -105,6 +105,31 @@ impl NoiseWindow {
     }
 }
 
+/// `|c(d)|` of a record of `record_s` seconds under the exponential window
+/// `exp(-t / tau_s)` from its start (`None`: rectangular), on a grid of `df_hz` (`1 /
+/// record_s` without zero padding): the continuous-time limit of
+/// [`NoiseWindow::correlation`], `c(d) = a (1 - exp(-(a + j b) T)) / ((a + j b) (1 -
+/// exp(-a T)))` with `a = 2 / tau`, `b = 2 pi d df`, `T = record_s` (`a -> 0`: `(1 -
+/// exp(-j b T)) / (j b T)`). For the default whole-record hammer window (`T / tau =
+/// ln 20`) adjacent bins have `|c(1)| = 0.69`.
+pub fn exp_window_bin_correlation(tau_s: Option<f64>, record_s: f64, df_hz: f64, d: usize) -> f64 {
+    if d == 0 {
+        return 1.0;
+    }
+    let b = 2.0 * std::f64::consts::PI * d as f64 * df_hz;
+    let t = record_s;
+    let jb = Complex64::new(0.0, b);
+    let c = match tau_s.filter(|tau| tau.is_finite() && *tau > 0.0) {
+        Some(tau) => {
+            let a = Complex64::new(2.0 / tau, 0.0);
+            a * (Complex64::new(1.0, 0.0) - (-(a + jb) * t).exp())
+                / ((a + jb) * (1.0 - (-a.re * t).exp()))
+        }
+        None => (Complex64::new(1.0, 0.0) - (-jb * t).exp()) / (jb * t),
+    };
+    c.norm().min(1.0)
+}
+
 /// Residual normalisers of the local models over correlated bins (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WindowDof {
@@ -190,6 +215,37 @@ mod tests {
         assert!(w.correlation(2).norm() < 1e-12);
         assert_eq!(w.decorrelating_step(), 2);
         assert!(NoiseWindow::new(Some(&[1.0; 3]), 4, 4).is_err());
+    }
+
+    /// Oracle: the continuous-time `|c(d)|` against the discrete sum of
+    /// [`NoiseWindow::correlation`] (exponential, rectangular, padded), to the sampling
+    /// error `O(dt / tau)`.
+    #[test]
+    fn continuous_bin_correlation_matches_the_discrete_window() {
+        let (n, dt) = (11_800usize, 0.01);
+        let t = n as f64 * dt;
+        for tau in [t / 20f64.ln(), 20.0, f64::INFINITY] {
+            let w = exponential_window(n, dt, tau);
+            for pad in [1usize, 2] {
+                let nw = NoiseWindow::new(Some(&w), n, pad * n).unwrap();
+                let df = 1.0 / (pad as f64 * t);
+                let tau_opt = tau.is_finite().then_some(tau);
+                for d in [1usize, 2, 3, 8, 25] {
+                    let cont = exp_window_bin_correlation(tau_opt, t, df, d);
+                    let disc = nw.correlation(d).norm();
+                    assert!(
+                        (cont - disc).abs() < 2e-3,
+                        "tau {tau} pad {pad} d {d}: {cont} {disc}"
+                    );
+                }
+            }
+        }
+        // T / tau = ln 20: |c(1)| = 1 / sqrt(1 + (pi / ln 20)^2) to O(exp(-2 T / tau))
+        let c1 = exp_window_bin_correlation(Some(t / 20f64.ln()), t, 1.0 / t, 1);
+        let approx = 1.0 / (1.0 + (std::f64::consts::PI / 20f64.ln()).powi(2)).sqrt();
+        assert!((c1 - approx).abs() < 1e-3, "{c1} {approx}");
+        assert_eq!(exp_window_bin_correlation(None, t, 1.0 / t, 0), 1.0);
+        assert!(exp_window_bin_correlation(None, t, 1.0 / t, 1) < 1e-12);
     }
 
     #[test]

@@ -246,15 +246,35 @@ fn project_fixed<const R: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::infer::likelihood::{Block, NoiseScale, Transform};
+    use crate::infer::likelihood::{Block, Correlation, NoiseScale, Transform};
 
     /// Oracle: the block's log-likelihood equals the dense Gaussian log density
     /// `-n/2 ln 2 pi - ln det(cov)/2 - r^T cov^-1 r / 2` with
-    /// `cov = sigma^2 diag(sd^2) + L L^T`, for ranks 0 to 5 (the kernels of fixed rank
-    /// and the general one), both transforms and several noise scales; the pointwise
-    /// terms sum to it.
+    /// `cov = sigma^2 D^(1/2) C D^(1/2) + L L^T` (`D = diag(sd^2)`, `C` the correlation
+    /// of a bin chain, the identity without one), for ranks 0 to 5 (the kernels of fixed
+    /// rank and the general one), both transforms, with and without the chain, and
+    /// several noise scales; the pointwise terms sum to it.
     #[test]
     fn shared_noise_block_is_the_dense_gaussian_density() {
+        let rho: Vec<f64> = (0..11)
+            .map(|k| {
+                if k % 6 == 0 {
+                    0.0
+                } else {
+                    0.3 + 0.05 * k as f64
+                }
+            })
+            .collect();
+        for chain in [&[][..], &rho[..]] {
+            shared_noise_block_matches_dense(chain);
+        }
+    }
+
+    fn shared_noise_block_matches_dense(chain: &[f64]) {
+        let corr = |i: usize, j: usize| match chain.is_empty() {
+            true => f64::from(u8::from(i == j)),
+            false => (i.min(j) + 1..=i.max(j)).map(|k| chain[k]).product::<f64>(),
+        };
         let n = 11;
         let obs: Vec<f64> = (0..n).map(|k| 1.0 + 0.3 * (k as f64).sin().abs()).collect();
         let pred: Vec<f64> = (0..n)
@@ -266,33 +286,32 @@ mod tests {
                 .map(|i| 0.008 * ((i as f64 * 0.9).sin() + 0.3))
                 .collect();
             for transform in [Transform::Identity, Transform::Ln] {
-                let b = Block::shared_noise(
-                    "s",
-                    0..n,
-                    &obs,
-                    &sd,
-                    transform,
-                    (&loadings, rank),
-                    NoiseScale::Sampled(0),
-                )
-                .unwrap();
+                let correlation = Correlation {
+                    shared: Some((&loadings, rank)),
+                    chain,
+                };
+                let scale = NoiseScale::Sampled(0);
+                let b =
+                    Block::correlated_values("s", 0..n, &obs, &sd, transform, correlation, scale)
+                        .unwrap();
                 let mut r = vec![0.0; n];
                 b.residuals(&pred, &mut r);
                 for sigma in [0.3, 1.0, 2.5] {
                     let got = b.ln_likelihood(&r, sigma);
-                    match (transform, b.ln_likelihood_fused(&pred, sigma, b.ln_norm())) {
-                        (Transform::Identity, Some(fused)) => {
+                    let fused = b.ln_likelihood_fused(&pred, sigma, b.ln_norm());
+                    match (transform, chain.is_empty(), fused) {
+                        (Transform::Identity, true, Some(fused)) => {
                             assert!((fused - got).abs() <= 1e-12 * got.abs().max(1.0))
                         }
-                        (Transform::Ln, None) => {}
-                        (_, fused) => panic!("{transform:?}: fused {fused:?}"),
+                        (Transform::Ln, _, None) | (_, false, None) => {}
+                        (_, _, fused) => panic!("{transform:?}: fused {fused:?}"),
                     }
                     let mut pointwise = vec![0.0; n];
                     b.ln_likelihood_pointwise(&r, sigma, &mut pointwise);
                     let sum: f64 = pointwise.iter().sum();
                     assert!((sum - got).abs() <= 1e-12 * got.abs().max(1.0));
                     let cov = DMatrix::from_fn(n, n, |i, j| {
-                        let own = if i == j { (sigma * sd[i]).powi(2) } else { 0.0 };
+                        let own = sigma * sigma * sd[i] * sd[j] * corr(i, j);
                         own + (0..rank)
                             .map(|c| loadings[i * rank + c] * loadings[j * rank + c])
                             .sum::<f64>()
@@ -309,7 +328,8 @@ mod tests {
                         - 0.5 * quad;
                     assert!(
                         (got - dense).abs() <= 1e-10 * dense.abs().max(1.0),
-                        "rank {rank} {transform:?} sigma {sigma}: {got} vs {dense}"
+                        "rank {rank} {transform:?} chain {} sigma {sigma}: {got} vs {dense}",
+                        !chain.is_empty()
                     );
                 }
             }

@@ -132,3 +132,59 @@ fn shape_difference_is_zero_for_a_scaled_copy_and_skips_the_reference() {
     assert!((r[0] - 2.0 * 0.1).abs() < 1e-15 && r[1] == 0.0);
     assert!((b.ln_norm() - (-2.0 * HALF_LN_2PI + 2f64.ln() + 4f64.ln())).abs() < 1e-15);
 }
+
+/// A chained values block (log transform): its residual Jacobian against central
+/// differences of its whitened residuals, for predictions `p(t) = exp(t0 + t1 k)`.
+#[test]
+fn chained_values_residual_jacobian_matches_differences() {
+    let (y, sd) = ([1.0, 1.4, 2.1, 2.9, 4.2], [0.1, 0.12, 0.09, 0.2, 0.15]);
+    let correlation = Correlation {
+        shared: None,
+        chain: &[0.0, 0.6, 0.4, 0.0, 0.7],
+    };
+    let scale = NoiseScale::Fixed(1.0);
+    let b =
+        Block::correlated_values("c", 0..5, &y, &sd, Transform::Ln, correlation, scale).unwrap();
+    assert!(b.chain.is_some());
+    let pred = |t: &[f64]| -> Vec<f64> { (0..5).map(|k| (t[0] + t[1] * k as f64).exp()).collect() };
+    let t = [0.1, 0.35];
+    let p = pred(&t);
+    let dpred = DMatrix::from_fn(5, 2, |i, j| p[i] * if j == 0 { 1.0 } else { i as f64 });
+    let mut jac = DMatrix::zeros(5, 2);
+    b.residual_jacobian(&p, &dpred, 1.0, 0, &mut jac);
+    for j in 0..2 {
+        let (mut up, mut dn) = (t, t);
+        up[j] += 1e-6;
+        dn[j] -= 1e-6;
+        let (mut ru, mut rd) = ([0.0; 5], [0.0; 5]);
+        b.residuals(&pred(&up), &mut ru);
+        b.residuals(&pred(&dn), &mut rd);
+        for i in 0..5 {
+            let fd = (ru[i] - rd[i]) / 2e-6;
+            assert!(
+                (jac[(i, j)] - fd).abs() < 1e-6,
+                "({i}, {j}): {} vs {fd}",
+                jac[(i, j)]
+            );
+        }
+    }
+}
+
+/// A block's chain may not continue one from before it, and needs one correlation per
+/// value.
+#[test]
+fn chained_values_reject_a_continued_chain_and_a_wrong_length() {
+    let (y, sd, scale) = ([1.0, 2.0], [0.1, 0.1], NoiseScale::Fixed(1.0));
+    let block = |chain: &[f64]| {
+        let correlation = Correlation {
+            shared: None,
+            chain,
+        };
+        Block::correlated_values("c", 0..2, &y, &sd, Transform::Identity, correlation, scale)
+    };
+    let err = block(&[0.5, 0.5]).unwrap_err().to_string();
+    assert!(err.contains("continue a chain"), "{err}");
+    let err = block(&[0.0]).unwrap_err().to_string();
+    assert!(err.contains("1 bin correlations for 2 values"), "{err}");
+    assert!(block(&[0.0, 0.0]).unwrap().chain.is_none());
+}
