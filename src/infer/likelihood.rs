@@ -674,14 +674,32 @@ impl Block {
 
     /// `ln L_b` given the residuals and `sigma`.
     pub fn ln_likelihood(&self, residuals: &[f64], sigma: f64) -> f64 {
-        self.ln_likelihood_with_norm(residuals, sigma, self.ln_norm())
+        self.ln_likelihood_with_norm(residuals, (sigma, sigma.ln()), self.ln_norm())
     }
 
     /// `ln L_b` straight from the whole prediction vector `pred`, the residuals formed in
-    /// the same pass as the sums (the density's inner loop), for a
-    /// [`BlockKind::SharedNoise`] block compared without transform or chain; `None` for
-    /// the others, whose callers form the residuals first.
-    pub fn ln_likelihood_fused(&self, pred: &[f64], sigma: f64, ln_norm: f64) -> Option<f64> {
+    /// the same pass as the sums (the density's inner loop), at the noise level
+    /// `(sigma, ln sigma)`, for a [`BlockKind::SharedNoise`] block compared without
+    /// transform or chain; `None` for the others, whose callers form the residuals first.
+    pub fn ln_likelihood_fused(
+        &self,
+        pred: &[f64],
+        level: (f64, f64),
+        ln_norm: f64,
+    ) -> Option<f64> {
+        let (l, det) = self.ln_likelihood_fused_det(pred, level, ln_norm)?;
+        Some(l - 0.5 * det.ln())
+    }
+
+    /// [`Self::ln_likelihood_fused`] as `(ln L_b + ln det_b / 2, det_b)`, `det_b` the
+    /// shared noise's determinant ratio `prod_i (1 + lambda_i / sigma^2)`: a caller
+    /// summing many blocks multiplies the ratios and takes one logarithm.
+    pub fn ln_likelihood_fused_det(
+        &self,
+        pred: &[f64],
+        (sigma, ln_sigma): (f64, f64),
+        ln_norm: f64,
+    ) -> Option<(f64, f64)> {
         if self.chain.is_some() {
             return None;
         }
@@ -696,16 +714,21 @@ impl Block {
         };
         let s2 = sigma * sigma;
         let a = &pred[self.predictions.clone()];
-        let (ss, correction, ln_det) = factors.terms_of(a, observed, inv_sd, s2);
-        let base = ln_norm - self.dof() * sigma.ln();
-        Some(base - 0.5 * (ss - correction) / s2 - 0.5 * ln_det)
+        let (ss, correction, det) = factors.terms_of_det(a, observed, inv_sd, s2);
+        let base = ln_norm - self.dof() * ln_sigma;
+        Some((base - 0.5 * (ss - correction) / s2, det))
     }
 
     /// [`Self::ln_likelihood`] with [`Self::ln_norm`] computed by the caller (once, for
-    /// many evaluations).
-    pub fn ln_likelihood_with_norm(&self, residuals: &[f64], sigma: f64, ln_norm: f64) -> f64 {
+    /// many evaluations) at the noise level `(sigma, ln sigma)`.
+    pub fn ln_likelihood_with_norm(
+        &self,
+        residuals: &[f64],
+        (sigma, ln_sigma): (f64, f64),
+        ln_norm: f64,
+    ) -> f64 {
         let s2 = sigma * sigma;
-        let base = ln_norm - self.dof() * sigma.ln();
+        let base = ln_norm - self.dof() * ln_sigma;
         match &self.kind {
             BlockKind::SharedNoise { factors, .. } => {
                 let (ss, correction, ln_det) = factors.terms(residuals, s2);

@@ -31,6 +31,8 @@ pub struct Scratch<W> {
     dpred: DMatrix<f64>,
     /// Per block: [`Block::ln_marginal`] from the residuals' solve.
     marginal: Vec<f64>,
+    /// Per sampled noise scale: `sigma` at the current `z` (one exponential each).
+    scales: Vec<f64>,
 }
 
 /// See the module docs.
@@ -186,6 +188,7 @@ impl<P: Predict> Posterior<P> {
             res: vec![0.0; self.n_residuals],
             dpred: DMatrix::zeros(0, 0),
             marginal: vec![0.0; self.blocks.len()],
+            scales: Vec::new(),
         }
     }
 
@@ -226,6 +229,22 @@ impl<P: Predict> Posterior<P> {
         }
     }
 
+    /// `(sigma, ln sigma)` of a block at `z`, the sampled scales' `sigma` from `scales`
+    /// ([`Self::fill_scales`]): one exponential per scale, not per block, and no
+    /// logarithm for a sampled scale.
+    fn noise_level(&self, b: &Block, z: &[f64], scales: &[f64]) -> (f64, f64) {
+        match b.scale {
+            NoiseScale::Fixed(s) => (s, s.ln()),
+            NoiseScale::Sampled(i) => (scales[i], z[self.n_model() + i]),
+        }
+    }
+
+    /// `sigma` of every sampled scale at `z` into `scales`.
+    fn fill_scales(&self, z: &[f64], scales: &mut Vec<f64>) {
+        scales.clear();
+        scales.extend(z[self.n_model()..].iter().map(|l| l.exp()));
+    }
+
     /// Log-likelihood at `z` (inside the prior box), one term per block into `terms`
     /// when it is not empty; `-inf` for an inadmissible model.
     pub fn ln_likelihood_terms(&self, z: &[f64], terms: &mut [f64]) -> Result<f64> {
@@ -239,14 +258,31 @@ impl<P: Predict> Posterior<P> {
                 Err(e) => return Err(e),
             }
             let mut total = 0.0;
+            // the fused blocks' determinant ratios, multiplied: one logarithm for all
+            // (taken early should the product leave a safe range)
+            let mut det = 1.0;
+            self.fill_scales(z, &mut s.scales);
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
-                let (sigma, norm) = (self.sigma(b, z), self.ln_norms[i]);
-                let l = match b.ln_likelihood_fused(&s.pred, sigma, norm) {
+                let (level, norm) = (self.noise_level(b, z, &s.scales), self.ln_norms[i]);
+                let fused = match terms.is_empty() {
+                    true => b.ln_likelihood_fused_det(&s.pred, level, norm),
+                    false => None,
+                };
+                if let Some((l, d)) = fused {
+                    total += l;
+                    det *= d;
+                    if !(1e-100..1e100).contains(&det) {
+                        total -= 0.5 * det.ln();
+                        det = 1.0;
+                    }
+                    continue;
+                }
+                let l = match b.ln_likelihood_fused(&s.pred, level, norm) {
                     Some(l) => l,
                     None => {
                         let res = &mut s.res[o..o + b.n_residuals()];
                         let marginal = b.residuals_and_marginal(&s.pred, res);
-                        b.ln_likelihood_with_norm(res, sigma, norm) + marginal
+                        b.ln_likelihood_with_norm(res, level, norm) + marginal
                     }
                 };
                 if !terms.is_empty() {
@@ -254,6 +290,7 @@ impl<P: Predict> Posterior<P> {
                 }
                 total += l;
             }
+            total -= 0.5 * det.ln();
             Ok(if total.is_nan() {
                 f64::NEG_INFINITY
             } else {
@@ -284,17 +321,18 @@ impl<P: Predict> Posterior<P> {
                 Err(e) => return Err(e),
             }
             let mut total = 0.0;
+            self.fill_scales(z, &mut s.scales);
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
-                let (range, sigma) = (o..o + b.n_residuals(), self.sigma(b, z));
+                let (range, level) = (o..o + b.n_residuals(), self.noise_level(b, z, &s.scales));
                 let out = &mut out[range.clone()];
-                b.ln_likelihood_pointwise(&s.res[range.clone()], sigma, out);
+                b.ln_likelihood_pointwise(&s.res[range.clone()], level.0, out);
                 let each = s.marginal[i] / out.len() as f64;
                 out.iter_mut().for_each(|v| *v += each);
                 // the same total as without the pointwise terms
                 let norm = self.ln_norms[i];
-                total += match b.ln_likelihood_fused(&s.pred, sigma, norm) {
+                total += match b.ln_likelihood_fused(&s.pred, level, norm) {
                     Some(l) => l,
-                    None => b.ln_likelihood_with_norm(&s.res[range], sigma, norm) + s.marginal[i],
+                    None => b.ln_likelihood_with_norm(&s.res[range], level, norm) + s.marginal[i],
                 };
             }
             Ok(if total.is_nan() {

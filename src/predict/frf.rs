@@ -100,6 +100,8 @@ pub struct FrfPredictor<S: ModeSolver> {
     n_modes: usize,
     /// Model DOFs whose shape entries are solved for (all of them under ground excitation).
     dofs: Vec<usize>,
+    /// `dofs` is every model DOF in order (shapes copied whole).
+    all_dofs: bool,
     blocks: Vec<LocalBlock>,
     /// The blocks on the local shape rows, for [`ModalFrf`].
     frf_blocks: Vec<FrfBlock>,
@@ -191,6 +193,7 @@ impl<S: ModeSolver> FrfPredictor<S> {
             fixed_damping: vec![None; n_vars],
             output,
             n_modes,
+            all_dofs: dofs.iter().copied().eq(0..n_dof),
             dofs,
             blocks: local,
             frf_blocks,
@@ -286,13 +289,19 @@ impl<S: ModeSolver> FrfPredictor<S> {
         let (n, nd) = (self.n_modes, self.dofs.len());
         let modes = &mut ws.modes;
         if let Some(full) = self.solver.modes(&ws.alpha, &ws.beta, n, &mut ws.solver)? {
-            modes.omega_rad_s.clear();
-            modes.omega_rad_s.extend_from_slice(&full.omega_rad_s);
-            modes.participation.clear();
-            modes.participation.extend_from_slice(&full.participation);
-            for i in 0..n {
-                for (row, &d) in self.dofs.iter().enumerate() {
-                    modes.phi[(row, i)] = full.phi[(d, i)];
+            if self.all_dofs && full.phi.ncols() == n {
+                // the solver's modes are these: exchanged, not copied (the solver
+                // overwrites what it gets back on its next solve)
+                std::mem::swap(modes, full);
+            } else {
+                modes.omega_rad_s.clear();
+                modes.omega_rad_s.extend_from_slice(&full.omega_rad_s);
+                modes.participation.clear();
+                modes.participation.extend_from_slice(&full.participation);
+                for i in 0..n {
+                    for (row, &d) in self.dofs.iter().enumerate() {
+                        modes.phi[(row, i)] = full.phi[(d, i)];
+                    }
                 }
             }
         } else {
@@ -315,16 +324,20 @@ impl<S: ModeSolver> FrfPredictor<S> {
             ws.modes.participation.clear();
             ws.modes.participation.extend_from_slice(&ws.participation);
         }
-        match ws
-            .modes
-            .omega_rad_s
+        // branch-free over the modes (NaN fails `w > 0`), the message only on failure
+        let omega = &ws.modes.omega_rad_s;
+        let admissible = omega
             .iter()
-            .find(|w| !(**w > 0.0 && w.is_finite()))
-        {
-            Some(w) => Err(Error::Model(format!(
-                "a model natural frequency is {w} rad/s (not positive)"
-            ))),
-            None => Ok(()),
+            .fold(true, |ok, &w| ok & (w > 0.0) & (w < f64::INFINITY));
+        match admissible {
+            true => Ok(()),
+            false => {
+                let w = omega.iter().find(|w| !(**w > 0.0 && w.is_finite()));
+                Err(Error::Model(format!(
+                    "a model natural frequency is {} rad/s (not positive)",
+                    w.copied().unwrap_or(f64::NAN)
+                )))
+            }
         }
     }
 

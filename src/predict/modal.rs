@@ -83,7 +83,7 @@ pub trait ModeSolver: Sync {
         beta: &[f64],
         n_modes: usize,
         ws: &'w mut Self::Workspace,
-    ) -> Result<Option<&'w Modes>> {
+    ) -> Result<Option<&'w mut Modes>> {
         let _ = (alpha, beta, n_modes, ws);
         Ok(None)
     }
@@ -216,9 +216,9 @@ impl ModeSolver for DenseModes {
         beta: &[f64],
         n_modes: usize,
         ws: &'w mut DenseWorkspace,
-    ) -> Result<Option<&'w Modes>> {
+    ) -> Result<Option<&'w mut Modes>> {
         self.solve(alpha, beta, n_modes, ws)?;
-        Ok(Some(&ws.modes))
+        Ok(Some(&mut ws.modes))
     }
 }
 

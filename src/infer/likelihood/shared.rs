@@ -92,6 +92,12 @@ impl SharedFactors {
     /// `(d^T d, sum_i u_i^2 / (s2 + lambda_i), sum_i ln(1 + lambda_i / s2))` for the
     /// standardised residuals `d` at `sigma^2 = s2`, value by value.
     pub fn terms(&self, d: &[f64], s2: f64) -> (f64, f64, f64) {
+        let (ss, correction, det) = self.terms_det(d, s2);
+        (ss, correction, det.ln())
+    }
+
+    /// [`Self::terms`] with `prod_i (1 + lambda_i / s2)` in place of its logarithm.
+    fn terms_det(&self, d: &[f64], s2: f64) -> (f64, f64, f64) {
         let mut u = vec![0.0; self.rank];
         let mut ss = 0.0;
         for (k, &d) in d.iter().enumerate() {
@@ -100,24 +106,31 @@ impl SharedFactors {
                 *u += self.p[(k / L) * self.rank + i][k % L] * d;
             }
         }
-        let (correction, ln_det) = self.woodbury(&u, s2);
-        (ss, correction, ln_det)
+        let (correction, det) = self.woodbury(&u, s2);
+        (ss, correction, det)
     }
 
     /// [`Self::terms`] of the residuals `d_k = (a_k - t_k) w_k`, formed in one pass with
     /// the sums, four values per step (the density's inner loop).
     pub fn terms_of(&self, a: &[f64], t: &[f64], w: &[f64], s2: f64) -> (f64, f64, f64) {
+        let (ss, correction, det) = self.terms_of_det(a, t, w, s2);
+        (ss, correction, det.ln())
+    }
+
+    /// [`Self::terms_of`] with the determinant ratio `prod_i (1 + lambda_i / s2)` in
+    /// place of its logarithm (so that a caller summing many blocks takes one logarithm).
+    pub fn terms_of_det(&self, a: &[f64], t: &[f64], w: &[f64], s2: f64) -> (f64, f64, f64) {
         if self.rank > MAX_FIXED_RANK {
             let d: Vec<f64> = (0..a.len()).map(|k| (a[k] - t[k]) * w[k]).collect();
-            return self.terms(&d, s2);
+            return self.terms_det(&d, s2);
         }
         let mut u = [0.0; MAX_FIXED_RANK];
         let ss = project(self, a, t, w, &mut u);
-        let (correction, ln_det) = self.woodbury(&u[..self.rank], s2);
-        (ss, correction, ln_det)
+        let (correction, det) = self.woodbury(&u[..self.rank], s2);
+        (ss, correction, det)
     }
 
-    /// `sum_i u_i^2 / (s2 + lambda_i)` and `sum_i ln(1 + lambda_i / s2)`.
+    /// `sum_i u_i^2 / (s2 + lambda_i)` and `prod_i (1 + lambda_i / s2)`.
     fn woodbury(&self, u: &[f64], s2: f64) -> (f64, f64) {
         let mut correction = 0.0;
         let mut prod = 1.0;
@@ -126,7 +139,7 @@ impl SharedFactors {
             correction += u * u / q;
             prod *= q / s2;
         }
-        (correction, prod.ln())
+        (correction, prod)
     }
 }
 
@@ -298,7 +311,7 @@ mod tests {
                 b.residuals(&pred, &mut r);
                 for sigma in [0.3, 1.0, 2.5] {
                     let got = b.ln_likelihood(&r, sigma);
-                    let fused = b.ln_likelihood_fused(&pred, sigma, b.ln_norm());
+                    let fused = b.ln_likelihood_fused(&pred, (sigma, sigma.ln()), b.ln_norm());
                     match (transform, chain.is_empty(), fused) {
                         (Transform::Identity, true, Some(fused)) => {
                             assert!((fused - got).abs() <= 1e-12 * got.abs().max(1.0))
