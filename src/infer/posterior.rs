@@ -264,31 +264,20 @@ impl<P: Predict> Posterior<P> {
             self.fill_scales(z, &mut s.scales);
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
                 let (level, norm) = (self.noise_level(b, z, &s.scales), self.ln_norms[i]);
-                let fused = match terms.is_empty() {
-                    true => b.ln_likelihood_fused_det(&s.pred, level, norm),
-                    false => None,
-                };
-                if let Some((l, d)) = fused {
-                    total += l;
-                    det *= d;
-                    if !(1e-100..1e100).contains(&det) {
-                        total -= 0.5 * det.ln();
-                        det = 1.0;
-                    }
-                    continue;
-                }
-                let l = match b.ln_likelihood_fused(&s.pred, level, norm) {
-                    Some(l) => l,
+                let l = match fused_into(b, &s.pred, level, norm, (&mut total, &mut det)) {
+                    Some(_) if terms.is_empty() => continue,
+                    Some(own) => own(),
                     None => {
                         let res = &mut s.res[o..o + b.n_residuals()];
                         let marginal = b.residuals_and_marginal(&s.pred, res);
-                        b.ln_likelihood_with_norm(res, level, norm) + marginal
+                        let l = b.ln_likelihood_with_norm(res, level, norm) + marginal;
+                        total += l;
+                        l
                     }
                 };
                 if !terms.is_empty() {
                     terms[i] = l;
                 }
-                total += l;
             }
             total -= 0.5 * det.ln();
             Ok(if total.is_nan() {
@@ -320,7 +309,7 @@ impl<P: Predict> Posterior<P> {
                 }
                 Err(e) => return Err(e),
             }
-            let mut total = 0.0;
+            let (mut total, mut det) = (0.0, 1.0);
             self.fill_scales(z, &mut s.scales);
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
                 let (range, level) = (o..o + b.n_residuals(), self.noise_level(b, z, &s.scales));
@@ -330,11 +319,11 @@ impl<P: Predict> Posterior<P> {
                 out.iter_mut().for_each(|v| *v += each);
                 // the same total as without the pointwise terms
                 let norm = self.ln_norms[i];
-                total += match b.ln_likelihood_fused(&s.pred, level, norm) {
-                    Some(l) => l,
-                    None => b.ln_likelihood_with_norm(&s.res[range], level, norm) + s.marginal[i],
-                };
+                if fused_into(b, &s.pred, level, norm, (&mut total, &mut det)).is_none() {
+                    total += b.ln_likelihood_with_norm(&s.res[range], level, norm) + s.marginal[i];
+                }
             }
+            total -= 0.5 * det.ln();
             Ok(if total.is_nan() {
                 f64::NEG_INFINITY
             } else {
@@ -460,4 +449,25 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
         )?;
         Ok(())
     }
+}
+
+/// Adds a fused block's log-likelihood to `total` less its `-ln det_b / 2`, whose ratio
+/// `det_b` multiplies `det` (one logarithm for all blocks, taken early should the product
+/// leave a safe range; [`Block::ln_likelihood_fused_det`]); `None` when the block has no
+/// fused form. The returned closure gives the block's own term.
+fn fused_into(
+    b: &Block,
+    pred: &[f64],
+    level: (f64, f64),
+    ln_norm: f64,
+    (total, det): (&mut f64, &mut f64),
+) -> Option<impl FnOnce() -> f64> {
+    let (l, d) = b.ln_likelihood_fused_det(pred, level, ln_norm)?;
+    *total += l;
+    *det *= d;
+    if !(1e-100..1e100).contains(det) {
+        *total -= 0.5 * det.ln();
+        *det = 1.0;
+    }
+    Some(move || l - 0.5 * d.ln())
 }
