@@ -21,6 +21,7 @@ use frfbayes::frf::{Excitation, FrfBlock, FrfKind, FrfPair, ModalFrf};
 use frfbayes::mcmc::LogDensity;
 use frfbayes::modal::Modes;
 use frfbayes::model::StructuralModel;
+use frfbayes::predict::Predict;
 use frfbayes::update::{DampingModel, MultistartOptions};
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -102,7 +103,7 @@ fn setup() -> (FrfPosterior, Vec<Vec<f64>>) {
     }
     let post = prepare(&settings).unwrap().posterior;
     // The shear frame's story stiffnesses from K0 (off-diagonals -k_r, K0[0][0] = k_1 + k_2).
-    let model = post.forward().model();
+    let model = post.model();
     let (k0, m0) = (
         model.stiffness(&model.alpha_zero()),
         model.mass(&model.beta_zero()),
@@ -157,10 +158,9 @@ fn probe_loop(post: &FrfPosterior, points: &[Vec<f64>], n: usize) -> f64 {
 /// (the forward model's blocks, one evaluator per block, no window), the forward model
 /// and the whole log posterior.
 fn parts(post: &FrfPosterior, points: &[Vec<f64>], n: usize) {
-    let fwd = post.forward();
-    let model = fwd.model();
+    let model = post.model();
     let thetas: Vec<Vec<f64>> = points.iter().map(|z| post.theta(z)).collect();
-    let (n_alpha, n_beta) = (fwd.variables().n_alpha(), fwd.variables().n_beta());
+    let (n_alpha, n_beta) = (post.variables().n_alpha(), post.variables().n_beta());
     let km: Vec<_> = thetas
         .iter()
         .map(|t| {
@@ -188,12 +188,13 @@ fn parts(post: &FrfPosterior, points: &[Vec<f64>], n: usize) {
             .solve_into(black_box(k), m, model.ground_influence(), None)
             .unwrap();
     });
-    let mut frfs: Vec<ModalFrf> = fwd
-        .blocks()
+    let mut frfs: Vec<ModalFrf> = post
+        .data()
+        .blocks
         .iter()
         .map(|b| ModalFrf::new(vec![b.clone()]))
         .collect();
-    let mut out = vec![0.0; fwd.len()];
+    let mut out = vec![0.0; post.data().len()];
     time("modal sums", &mut |i| {
         let (_, _, modes, c) = &km[i];
         let mut offset = 0;
@@ -204,9 +205,11 @@ fn parts(post: &FrfPosterior, points: &[Vec<f64>], n: usize) {
             offset += len;
         }
     });
-    let mut ws = fwd.workspace();
+    let fp = post.predictor();
+    let mut ws = fp.workspace();
+    let n_free = post.n_free();
     time("forward model", &mut |i| {
-        fwd.magnitudes(black_box(&thetas[i]), &mut ws, &mut out)
+        fp.predict(black_box(&points[i][..n_free]), &mut ws, &mut out)
             .unwrap();
     });
     time("log posterior", &mut |i| {
@@ -245,8 +248,8 @@ fn main() {
         .and_then(|s| s.parse().ok())
     {
         let (post, points) = setup();
-        let fwd = post.forward();
-        for (b, tau) in fwd.blocks().iter().zip(fwd.window_tau_s()) {
+        let data = post.data();
+        for (b, tau) in data.blocks.iter().zip(&data.window_tau_s) {
             println!(
                 "block: {} frequencies x {} pairs, window {tau:?} s",
                 b.omega_rad_s.len(),

@@ -62,14 +62,13 @@ fn problem_json(
     walkers: &[Vec<f64>],
     checks: &[Vec<f64>],
 ) -> serde_json::Value {
-    let fwd = post.forward();
-    let model = fwd.model();
+    let model = post.model();
     let vars = post.variables();
     let data = post.data();
-    let blocks: Vec<serde_json::Value> = fwd
-        .blocks()
+    let blocks: Vec<serde_json::Value> = data
+        .blocks
         .iter()
-        .zip(fwd.window_tau_s())
+        .zip(data.window_tau_s.iter().copied())
         .map(|(b, tau)| {
             json!({
                 "omega_rad_s": b.omega_rad_s,
@@ -92,7 +91,7 @@ fn problem_json(
         "k_influence": model.stiffness_influence().iter().map(matrix).collect::<Vec<_>>(),
         "m_influence": model.mass_influence().iter().map(matrix).collect::<Vec<_>>(),
         "ground_influence": model.ground_influence().iter().copied().collect::<Vec<_>>(),
-        "n_modes": fwd.n_modes(),
+        "n_modes": post.n_modes(),
         "damping": match vars.damping_model() { DampingModel::Rayleigh => "rayleigh", DampingModel::Caughey => "caughey" },
         "n_alpha": vars.n_alpha(),
         "n_beta": vars.n_beta(),

@@ -6,7 +6,9 @@
 //! Data: measured magnitudes `y_k = |H^E_k|` at the selected points of every test
 //! (Eqs. 17-19), [`FrfData`]. Forward model: `h_k(theta) = |H^A_k(theta)|`, the modal
 //! sums of Eqs. (7), (10), (15), (16) with each test's exponential window applied to the
-//! model exactly ([`ForwardModel`]), so the damping sampled is the structure's.
+//! model exactly ([`crate::predict::FrfPredictor`], built by [`layer::frf_predictor`]),
+//! so the damping sampled is the structure's. The likelihood is the inference layer's
+//! ([`crate::infer::Posterior`]); [`FrfPosterior`] adds this module's priors.
 //!
 //! Likelihood (independent points, unknown noise scale `s`):
 //! - magnitude residuals (default): `y_k ~ N(h_k, (s sigma_k)^2)`,
@@ -65,9 +67,8 @@ pub mod coverage;
 mod data;
 pub mod figures;
 pub mod fit;
-mod forward;
 pub mod inference_data;
-mod likelihood;
+pub mod layer;
 mod moves;
 mod posterior;
 pub mod predictive;
@@ -81,13 +82,11 @@ mod start;
 pub mod summary;
 #[cfg(test)]
 mod tests;
-mod whiten;
 
 pub use data::{
     BinCorrelation, CorrelatedNoise, FrfData, InputNoiseModel, LoadingMagnitude,
     DEFAULT_REL_SIGMA_FLOOR, SHARED_NOISE_REL_TOL,
 };
-pub use forward::{ForwardModel, ForwardWorkspace};
 pub use posterior::{FrfPosterior, PosteriorOptions};
 pub use prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
 pub use start::{ball_positions, find_start, plug_in_start, StartPoint};

@@ -2,20 +2,20 @@
 //! magnitudes.
 
 use super::data::FrfData;
-use super::forward::{ForwardModel, ForwardWorkspace};
-use super::likelihood::ResidualLayout;
+use super::layer::frf_predictor;
 use super::prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
-use super::whiten::Whitening;
 use crate::error::{Error, Result};
+use crate::frf::FrfBlock;
+use crate::infer::likelihood::Transform;
+use crate::infer::{Block, Chain, Correlation, NoiseScale, Posterior};
 use crate::mcmc::LogDensity;
 use crate::model::StructuralModel;
+use crate::predict::{DenseModes, FrfPredictor};
 use crate::update::{DampingModel, ResidualForm, VariableKind, Variables, VariablesConfig};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
-use std::cell::RefCell;
-use thread_local::ThreadLocal;
 
 /// Settings of an [`FrfPosterior`] beyond the data and the variables.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -42,47 +42,26 @@ impl Default for PosteriorOptions {
 /// `p(z | y)` for FRF magnitudes `y` (see the [module docs](super) for the model).
 ///
 /// The sampled vector `z` is the free updating variables in internal coordinates
-/// (multipliers as they are, damping as logarithms) followed by `ln s`.
-/// Evaluation is thread-safe; each thread keeps its own scratch memory (no lock, and
-/// the memory stays in that core's cache).
+/// (multipliers as they are, damping as logarithms) followed by `ln s`. The likelihood is
+/// the inference layer's ([`Posterior`] of the [`FrfPredictor`] whose coordinates are
+/// `z` without `ln s`, [`frf_predictor`]): one observation block per run of points, a
+/// [`crate::infer::BlockKind::SharedNoise`] block for each test's shared force noise and
+/// a [`crate::infer::BlockKind::Values`] block for the points between, all with the noise
+/// scale `s`. The prior is this module's ([`Prior`]). Evaluation is thread-safe; each
+/// thread keeps its own scratch memory.
+#[derive(Clone)]
 pub struct FrfPosterior {
-    forward: ForwardModel,
+    layer: Posterior<FrfPredictor<DenseModes>>,
+    model: StructuralModel,
+    variables: Variables,
+    n_modes: usize,
     data: FrfData,
     prior: Prior,
     options: PosteriorOptions,
-    /// `y_k` (magnitude residuals) or `ln y_k` (log residuals).
-    target: Vec<f64>,
-    /// `1 / sigma_k` (1 when whitened: `target` and the residuals are then in units of
-    /// `sigma`, whitened along each chain of correlated bins).
-    inv_sigma: Vec<f64>,
-    /// Correlated neighbouring bins ([`FrfData::bin_correlation`]) and the raw
-    /// `1 / sigma_k`: the model's magnitudes are standardised and whitened like `target`.
-    whitening: Option<(Whitening, Vec<f64>)>,
-    /// Per point: `-ln sigma_k - ln(2 pi)/2`, and `- ln y_k` for log residuals (so every
-    /// pointwise term is a log density of `y_k` itself, comparable across residual forms).
-    ln_norm: Vec<f64>,
-    ln_norm_sum: f64,
-    /// Runs of points, with the Woodbury factors of [`FrfData::correlated`].
-    layout: ResidualLayout,
-    workspaces: ThreadLocal<RefCell<ForwardWorkspace>>,
-}
-
-impl Clone for FrfPosterior {
-    fn clone(&self) -> Self {
-        FrfPosterior {
-            forward: self.forward.clone(),
-            data: self.data.clone(),
-            prior: self.prior.clone(),
-            options: self.options,
-            target: self.target.clone(),
-            inv_sigma: self.inv_sigma.clone(),
-            whitening: self.whitening.clone(),
-            ln_norm: self.ln_norm.clone(),
-            ln_norm_sum: self.ln_norm_sum,
-            layout: self.layout.clone(),
-            workspaces: ThreadLocal::new(),
-        }
-    }
+    /// Per point: `-ln y_k` for log residuals (so every pointwise term is a log density
+    /// of `y_k` itself, comparable across residual forms), else empty.
+    ln_jacobian: Vec<f64>,
+    ln_jacobian_sum: f64,
 }
 
 impl std::fmt::Debug for FrfPosterior {
@@ -93,6 +72,47 @@ impl std::fmt::Debug for FrfPosterior {
             .field("options", &self.options)
             .finish()
     }
+}
+
+/// The observation blocks of `data`: one per block of shared noise (in order, not
+/// overlapping; the data validated them) and one per run of points between them, each
+/// with its points' correlated bins ([`FrfData::bin_correlation`]) as a [`Chain`].
+fn observation_blocks(data: &FrfData) -> Result<Vec<Block>> {
+    let transform = match data.residual {
+        ResidualForm::LogMagnitude => Transform::Ln,
+        _ => Transform::Identity,
+    };
+    let (y, sd, scale) = (&data.magnitude, &data.sigma, NoiseScale::Sampled(0));
+    let rho = &data.bin_correlation;
+    let block = |r: std::ops::Range<usize>, shared: Option<(&[f64], usize)>| {
+        let kind = if shared.is_some() {
+            " (shared noise)"
+        } else {
+            ""
+        };
+        let name = format!("points {}..{}{kind}", r.start, r.end);
+        let chain = if rho.is_empty() {
+            &[][..]
+        } else {
+            &rho[r.clone()]
+        };
+        let correlation = Correlation { shared, chain };
+        let (y, sd) = (&y[r.clone()], &sd[r.clone()]);
+        Block::correlated_values(&name, r, y, sd, transform, correlation, scale)
+    };
+    let (mut blocks, mut at) = (Vec::new(), 0);
+    for c in &data.correlated {
+        if c.start > at {
+            blocks.push(block(at..c.start, None)?);
+        }
+        let loadings = (c.loadings.as_slice(), c.rank);
+        blocks.push(block(c.start..c.start + c.len, Some(loadings))?);
+        at = c.start + c.len;
+    }
+    if data.len() > at {
+        blocks.push(block(at..data.len(), None)?);
+    }
+    Ok(blocks)
 }
 
 impl FrfPosterior {
@@ -113,51 +133,32 @@ impl FrfPosterior {
         };
         let vars = Variables::new(&model, damping, n_modes.min(model.n_dof()), &config)?;
         let prior = Prior::new(options.prior, &vars, options.noise_scale_bounds)?;
-        let forward = ForwardModel::new(
-            model,
-            vars,
-            n_modes,
-            data.blocks.clone(),
-            &data.window_tau_s,
-        )?;
-        let log = data.residual == ResidualForm::LogMagnitude;
-        let half_ln_2pi = 0.5 * (2.0 * std::f64::consts::PI).ln();
-        let target: Vec<f64> = data
-            .magnitude
+        let predictor = frf_predictor(&model, &vars, n_modes, &data.blocks, &data.window_tau_s)?;
+        let bounds = vars.internal_bounds();
+        let theta_bounds: Vec<(f64, f64)> = bounds
+            .lower()
             .iter()
-            .map(|&y| if log { y.ln() } else { y })
+            .zip(bounds.upper())
+            .map(|(&lo, &hi)| (lo, hi))
             .collect();
-        let inv_sigma: Vec<f64> = data.sigma.iter().map(|s| 1.0 / s).collect();
-        let ln_norm: Vec<f64> = data
-            .sigma
-            .iter()
-            .zip(&data.magnitude)
-            .map(|(s, y)| -s.ln() - half_ln_2pi - if log { y.ln() } else { 0.0 })
-            .collect();
-        let whitening = Whitening::new(&data.bin_correlation)?;
-        let (target, inv_sigma, ln_norm, layout, whitening) = match whitening {
-            None => {
-                let layout = ResidualLayout::new(data.len(), &data.correlated, &data.sigma)?;
-                (target, inv_sigma, ln_norm, layout, None)
-            }
-            Some(w) => {
-                let t = w.transform(&data, &target, &inv_sigma, &ln_norm)?;
-                let layout = ResidualLayout::new(data.len(), &t.correlated, &t.unit)?;
-                (t.target, t.unit, t.ln_norm, layout, Some((w, inv_sigma)))
-            }
+        let [s_lo, s_hi] = options.noise_scale_bounds;
+        let scale = ("ln_noise_scale".to_string(), (s_lo.ln(), s_hi.ln()));
+        let blocks = observation_blocks(&data)?;
+        let layer = Posterior::new(predictor, &theta_bounds, &[scale], blocks)?;
+        let ln_jacobian: Vec<f64> = match data.residual {
+            ResidualForm::LogMagnitude => data.magnitude.iter().map(|y| -y.ln()).collect(),
+            _ => Vec::new(),
         };
         Ok(FrfPosterior {
-            layout,
-            whitening,
-            forward,
-            ln_norm_sum: ln_norm.iter().sum(),
+            layer,
+            model,
+            variables: vars,
+            n_modes,
+            ln_jacobian_sum: ln_jacobian.iter().sum(),
+            ln_jacobian,
             data,
             prior,
             options,
-            target,
-            inv_sigma,
-            ln_norm,
-            workspaces: ThreadLocal::new(),
         })
     }
 
@@ -173,16 +174,16 @@ impl FrfPosterior {
     /// The same model, variables and options with other data on the same blocks.
     pub fn with_data(&self, data: FrfData) -> Result<Self> {
         FrfPosterior::new(
-            self.forward.model().clone(),
+            self.model.clone(),
             data,
-            self.forward.variables().damping_model(),
+            self.variables.damping_model(),
             &self.variables_config(),
             self.options,
         )
     }
 
     fn variables_config(&self) -> VariablesConfig {
-        let vars = self.forward.variables();
+        let vars = &self.variables;
         let mut c = VariablesConfig::default();
         for v in vars.variables() {
             if let Some(x) = v.fixed {
@@ -195,13 +196,42 @@ impl FrfPosterior {
         c
     }
 
-    /// The forward model.
-    pub fn forward(&self) -> &ForwardModel {
-        &self.forward
+    /// The structural model.
+    pub fn model(&self) -> &StructuralModel {
+        &self.model
+    }
+    /// Modes kept in the modal sums.
+    pub fn n_modes(&self) -> usize {
+        self.n_modes
+    }
+    /// The likelihood on the inference layer (its coordinates are this posterior's; its
+    /// box prior is uniform, this posterior's is [`Self::prior`]).
+    pub fn layer(&self) -> &Posterior<FrfPredictor<DenseModes>> {
+        &self.layer
+    }
+    /// The magnitudes `|H^A|` over the data's blocks as a function of the sampled
+    /// coordinates without `ln s`.
+    pub fn predictor(&self) -> &FrfPredictor<DenseModes> {
+        self.layer.predictor()
+    }
+    /// The same magnitudes over other blocks (e.g. a dense grid for plots), block `b`
+    /// through an exponential window of `window_tau_s[b]` s.
+    pub fn predictor_over(
+        &self,
+        blocks: &[FrfBlock],
+        window_tau_s: &[Option<f64>],
+    ) -> Result<FrfPredictor<DenseModes>> {
+        frf_predictor(
+            &self.model,
+            &self.variables,
+            self.n_modes,
+            blocks,
+            window_tau_s,
+        )
     }
     /// The updating variables (layout of `theta`).
     pub fn variables(&self) -> &Variables {
-        self.forward.variables()
+        &self.variables
     }
     /// The data.
     pub fn data(&self) -> &FrfData {
@@ -249,16 +279,7 @@ impl FrfPosterior {
     /// Model magnitudes `|H^A|` at `z` in long-vector order.
     pub fn magnitudes(&self, z: &[f64]) -> Result<Vec<f64>> {
         self.check_dim(z)?;
-        let mut out = vec![0.0; self.data.len()];
-        self.with_workspace(|ws| {
-            self.variables()
-                .from_internal(&z[..self.n_free()], &mut ws.theta);
-            let theta = std::mem::take(&mut ws.theta);
-            let r = self.forward.magnitudes(&theta, ws, &mut out);
-            ws.theta = theta;
-            r
-        })?;
-        Ok(out)
+        self.layer.predict(&z[..self.n_free()])
     }
 
     /// Log prior at `z` (`-inf` outside the box).
@@ -267,71 +288,20 @@ impl FrfPosterior {
     }
 
     /// Log-likelihood at `z`; fills `pointwise` (empty or one entry per point) with
-    /// the per-point terms.
+    /// the per-point terms: each point's own Gaussian term, and each shared run's
+    /// Woodbury correction and log determinant spread evenly over its points (they sum
+    /// to the log-likelihood; [`Block::ln_likelihood_pointwise`]).
     pub fn ln_likelihood(&self, z: &[f64], pointwise: &mut [f64]) -> Result<f64> {
         self.check_dim(z)?;
         self.check_pointwise(pointwise)?;
-        self.with_workspace(|ws| self.ln_likelihood_with(z, ws, pointwise))
-    }
-
-    /// Runs `f` with this thread's scratch memory (a nested call on the same thread,
-    /// which nothing does today, gets fresh memory).
-    fn with_workspace<T>(&self, f: impl FnOnce(&mut ForwardWorkspace) -> T) -> T {
-        let cell = self
-            .workspaces
-            .get_or(|| RefCell::new(self.forward.workspace()));
-        match cell.try_borrow_mut() {
-            Ok(mut ws) => f(&mut ws),
-            Err(_) => f(&mut self.forward.workspace()),
+        if pointwise.is_empty() {
+            return Ok(self.layer.ln_likelihood_terms(z, &mut [])? + self.ln_jacobian_sum);
         }
-    }
-
-    fn ln_likelihood_with(
-        &self,
-        z: &[f64],
-        ws: &mut ForwardWorkspace,
-        pointwise: &mut [f64],
-    ) -> Result<f64> {
-        let n_free = self.n_free();
-        self.variables().from_internal(&z[..n_free], &mut ws.theta);
-        let mut mag = std::mem::take(&mut ws.magnitude);
-        let theta = std::mem::take(&mut ws.theta);
-        let r = self.forward.magnitudes(&theta, ws, &mut mag);
-        ws.theta = theta;
-        let result = r.map(|()| {
-            let ln_s = z[n_free];
-            let s2 = (2.0 * ln_s).exp();
-            if self.data.residual == ResidualForm::LogMagnitude {
-                for h in mag.iter_mut() {
-                    *h = h.ln();
-                }
-            }
-            if let Some((w, inv_sigma)) = &self.whitening {
-                mag.iter_mut().zip(inv_sigma).for_each(|(h, s)| *h *= s);
-                w.whiten(&mut mag);
-            }
-            // one pass over the points, the same with or without the pointwise terms
-            let sums = self.layout.sums(&mag, &self.target, &self.inv_sigma, s2);
-            if !pointwise.is_empty() {
-                self.fill_pointwise(&mag, ln_s, s2, pointwise);
-            }
-            let quad = (sums.ss - sums.correction) / s2;
-            -0.5 * quad - self.data.len() as f64 * ln_s - 0.5 * sums.ln_det + self.ln_norm_sum
-        });
-        ws.magnitude = mag;
-        result
-    }
-
-    /// Pointwise terms: `-d_k^2 / (2 s^2) - ln s` plus the point's constant, and each
-    /// shared run's Woodbury correction and log determinant spread evenly over its points
-    /// (they sum to the log-likelihood).
-    fn fill_pointwise(&self, mag: &[f64], ln_s: f64, s2: f64, pointwise: &mut [f64]) {
-        for (k, p) in pointwise.iter_mut().enumerate() {
-            let d = (mag[k] - self.target[k]) * self.inv_sigma[k];
-            *p = -0.5 * d * d / s2 - ln_s + self.ln_norm[k];
+        let ll = self.layer.ln_likelihood_pointwise(z, pointwise)?;
+        for (p, j) in pointwise.iter_mut().zip(&self.ln_jacobian) {
+            *p += j;
         }
-        self.layout
-            .spread_shared(mag, &self.target, &self.inv_sigma, s2, pointwise);
+        Ok(ll + self.ln_jacobian_sum)
     }
 
     /// One draw of the sampled vector from the prior.
@@ -341,7 +311,8 @@ impl FrfPosterior {
 
     /// Magnitudes simulated from the likelihood at `z`: `|H^A_k| + s sigma_k e_k + c_k`
     /// (magnitude residuals) or `|H^A_k| exp(s sigma_k e_k + c_k)` (log residuals), `e_k`
-    /// standard normal (a chain along correlated bins, [`FrfData::bin_correlation`]), `c = L eta` the shared noise of [`FrfData::correlated`] at its
+    /// standard normal (a [`Chain`] along correlated bins, [`FrfData::bin_correlation`]),
+    /// `c = L eta` the shared noise of [`FrfData::correlated`] at its
     /// known size, not scaled by `s` (`eta` standard normal, drawn after the `e`).
     /// Magnitude-residual draws below zero are kept (the Gaussian model allows them).
     pub fn simulate(&self, z: &[f64], rng: &mut ChaCha8Rng) -> Result<Vec<f64>> {
@@ -349,8 +320,8 @@ impl FrfPosterior {
         let s = self.noise_scale(z);
         let log = self.data.residual == ResidualForm::LogMagnitude;
         let mut e: Vec<f64> = (0..h.len()).map(|_| rng.sample(StandardNormal)).collect();
-        if let Some((w, _)) = &self.whitening {
-            w.colour(&mut e);
+        if let Some(chain) = Chain::new(&self.data.bin_correlation)? {
+            chain.colour(&mut e);
         }
         // the shared noise after every point's own (without it, the draws of before)
         let mut shared = vec![0.0; h.len()];
@@ -404,8 +375,7 @@ impl FrfPosterior {
         if lp == f64::NEG_INFINITY {
             return Ok(lp);
         }
-        let ll = self.with_workspace(|ws| self.ln_likelihood_with(z, ws, pointwise))?;
-        Ok(lp + ll)
+        Ok(lp + self.ln_likelihood(z, pointwise)?)
     }
 }
 

@@ -8,6 +8,7 @@ use super::posterior::FrfPosterior;
 use crate::error::{Error, Result};
 use crate::frf::{FrfBlock, FrfPair};
 use crate::mcmc::{quantile, Draws};
+use crate::predict::Predict;
 use rayon::prelude::*;
 
 /// One FRF to draw bands for.
@@ -55,14 +56,14 @@ pub fn predictive_bands(
         })
         .collect();
     let taus: Vec<Option<f64>> = targets.iter().map(|t| t.window_tau_s).collect();
-    let fm = post.forward().with_blocks(blocks, &taus)?;
+    let fp = post.predictor_over(&blocks, &taus)?;
     let curves: Vec<Result<Vec<f64>>> = picks
         .par_iter()
         .map(|&i| {
             let z = &draws.values[i * draws.dim..(i + 1) * draws.dim];
-            let mut ws = fm.workspace();
-            let mut out = vec![0.0; fm.len()];
-            fm.magnitudes(&post.theta(z), &mut ws, &mut out)?;
+            let mut ws = fp.workspace();
+            let mut out = vec![0.0; fp.n_outputs()];
+            fp.predict(&z[..post.n_free()], &mut ws, &mut out)?;
             Ok(out)
         })
         .collect();

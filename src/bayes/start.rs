@@ -4,10 +4,11 @@
 //! Gauss-Newton posterior width, truncated to the prior box.
 
 use super::data::LoadingMagnitude;
-use super::forward::ForwardWorkspace;
 use super::posterior::FrfPosterior;
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
+use crate::predict::modal::DenseWorkspace;
+use crate::predict::{FrfWorkspace, Predict};
 use crate::update::lsq::{
     fd_jacobian, multistart, Bounds, FdScheme, LeastSquaresProblem, MultistartOptions,
     MultistartResult,
@@ -103,8 +104,7 @@ struct Residuals<'a> {
 }
 
 struct Scratch {
-    fws: ForwardWorkspace,
-    theta: Vec<f64>,
+    ws: FrfWorkspace<DenseWorkspace>,
 }
 
 impl LeastSquaresProblem for Residuals<'_> {
@@ -118,13 +118,11 @@ impl LeastSquaresProblem for Residuals<'_> {
     }
     fn workspace(&self) -> Scratch {
         Scratch {
-            fws: self.post.forward().workspace(),
-            theta: self.post.variables().initial(),
+            ws: self.post.predictor().workspace(),
         }
     }
     fn residuals(&self, x: &[f64], ws: &mut Scratch, r: &mut [f64]) -> Result<()> {
-        self.post.variables().from_internal(x, &mut ws.theta);
-        self.post.forward().magnitudes(&ws.theta, &mut ws.fws, r)?;
+        self.post.predictor().predict(x, &mut ws.ws, r)?;
         let data = self.post.data();
         let log = data.residual == ResidualForm::LogMagnitude;
         for ((v, y), s) in r.iter_mut().zip(&data.magnitude).zip(&data.sigma) {
@@ -239,7 +237,7 @@ fn start_at(post: &FrfPosterior, ms: &MultistartResult) -> Result<StartPoint> {
     let (s_lo, s_hi) = (prior.lower()[n_free], prior.upper()[n_free]);
     let mut z = ms.best.x.clone();
     z.push((0.5 * s2.ln()).clamp(s_lo, s_hi));
-    let model = post.forward().model();
+    let model = post.model();
     let general = (model.alpha_parameters().iter())
         .chain(model.beta_parameters())
         .all(|p| p.nominal.is_none());

@@ -22,7 +22,7 @@ pub struct OutputParam {
 /// `k_r0 (1 + alpha_r)`) where the model has nominal values, multipliers otherwise.
 pub fn output_params(post: &FrfPosterior) -> Vec<OutputParam> {
     let vars = post.variables();
-    let units = vars.physical_units(post.forward().model());
+    let units = vars.physical_units(post.model());
     let rank = |k: VariableKind| match k {
         VariableKind::Beta(_) => 0,
         VariableKind::Alpha(_) => 1,
@@ -55,7 +55,7 @@ pub fn output_params(post: &FrfPosterior) -> Vec<OutputParam> {
 /// Physical values of the reported parameters at a sampled vector `z`.
 pub fn physical_values(post: &FrfPosterior, params: &[OutputParam], z: &[f64]) -> Vec<f64> {
     let vars = post.variables();
-    let phys = vars.physical(post.forward().model(), &post.theta(z));
+    let phys = vars.physical(post.model(), &post.theta(z));
     params
         .iter()
         .map(|p| match vars.free().get(p.coord) {

@@ -25,7 +25,7 @@ fn log_density_is_the_stated_gaussian() {
         let z = inside(&post);
         let theta = post.theta(&z);
         let problem = Problem::new(
-            post.forward().model().clone(),
+            post.model().clone(),
             Measurements {
                 blocks: data.blocks.clone(),
                 magnitude: data.magnitude.clone(),

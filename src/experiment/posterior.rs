@@ -191,8 +191,8 @@ pub fn variant_posterior(
 fn modal_stats(post: &FrfPosterior, draws: &Draws) -> Result<Vec<ModalStats>> {
     let n_total = draws.n_chains * draws.n_draws;
     let stride = n_total.div_ceil(MAX_MODAL_DRAWS).max(1);
-    let model = post.forward().model();
-    let n_modes = post.forward().n_modes();
+    let model = post.model();
+    let n_modes = post.n_modes();
     let per_draw: Vec<(Vec<f64>, Vec<f64>)> = (0..n_total)
         .step_by(stride)
         .collect::<Vec<_>>()

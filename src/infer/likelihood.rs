@@ -30,11 +30,28 @@
 //!   A real channel gain ([`Block::complex_gain`], one column: the prediction itself,
 //!   `-ln ||h~||`) and complex modal residues ([`Block::complex_linear`], two columns
 //!   `g`, `j g` per unknown) are its two uses.
+//! - [`BlockKind::SharedNoise`]: values as [`BlockKind::Values`] whose noise has, besides
+//!   each value's own part scaled by `sigma`, a low-rank part of known size shared by
+//!   all of them (one test's force noise in every FRF magnitude of the test):
+//!   `cov = sigma^2 diag(sd^2) + L L^T`, evaluated by Woodbury ([`shared`]). Its
+//!   least-squares view ([`super::Posterior::least_squares`]) is the per-value part
+//!   only, the weighted least squares that starts the plug-in of the loadings.
+//!
+//! The own noise of [`BlockKind::Values`] and [`BlockKind::SharedNoise`] values may be
+//! correlated along the block by a Gauss-Markov [`Chain`] (neighbouring FRF bins of one
+//! response, [`Block::correlated_values`]): the standardised residuals are whitened by
+//! it (`r <- R^-1 r`), the shared loadings likewise, and `c_b` gains
+//! `-ln det C / 2`, so the density is the Gaussian one with covariance
+//! `sigma^2 D^(1/2) C D^(1/2) + L L^T`.
 
 use std::ops::Range;
 
+pub mod chain;
 pub mod linear;
+pub mod shared;
+pub use chain::Chain;
 pub use linear::LinearFit;
+pub use shared::SharedFactors;
 
 use crate::error::{Error, Result};
 use nalgebra::DMatrix;
@@ -98,6 +115,13 @@ pub enum BlockKind {
         /// Columns `k`; the block's predictions are `k x m`, column-major.
         n_columns: usize,
     },
+    SharedNoise {
+        /// Observed values, already transformed.
+        observed: Vec<f64>,
+        inv_sd: Vec<f64>,
+        transform: Transform,
+        factors: SharedFactors,
+    },
 }
 
 /// One block of observations (see the module docs).
@@ -108,6 +132,21 @@ pub struct Block {
     pub predictions: Range<usize>,
     pub kind: BlockKind,
     pub scale: NoiseScale,
+    /// Correlation of the values' own noise along the block ([`BlockKind::Values`] and
+    /// [`BlockKind::SharedNoise`] only).
+    pub chain: Option<Chain>,
+}
+
+/// The correlation of a values block's noise beyond each value's own standard deviation
+/// ([`Block::correlated_values`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Correlation<'a> {
+    /// Noise shared at a known size: the loadings `L` (`n x rank`, row-major, in the
+    /// transformed unit) and the rank.
+    pub shared: Option<(&'a [f64], usize)>,
+    /// The Gauss-Markov correlation of each value with the one before ([`Chain`]); empty
+    /// or all zero when the values' own noise is independent.
+    pub chain: &'a [f64],
 }
 
 fn check_finite(name: &str, what: &str, v: &[f64]) -> Result<()> {
@@ -158,6 +197,80 @@ impl Block {
             },
             scale,
         )
+    }
+
+    /// Values as [`Self::values`] with noise shared at a known size: `loadings` is `L`
+    /// (`n x rank`, row-major, in the transformed unit), `cov = sigma^2 diag(sd^2) + L L^T`.
+    pub fn shared_noise(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        sd: &[f64],
+        transform: Transform,
+        loadings: (&[f64], usize),
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        let correlation = Correlation {
+            shared: Some(loadings),
+            chain: &[],
+        };
+        Self::correlated_values(
+            name,
+            predictions,
+            observed,
+            sd,
+            transform,
+            correlation,
+            scale,
+        )
+    }
+
+    /// Values as [`Self::values`] whose noise is correlated as `correlation` says: a
+    /// [`BlockKind::SharedNoise`] block when it has shared loadings, and the values' own
+    /// noise whitened along a [`Chain`] when it has one (the chain must start a run at
+    /// the block's first value).
+    pub fn correlated_values(
+        name: &str,
+        predictions: Range<usize>,
+        observed: &[f64],
+        sd: &[f64],
+        transform: Transform,
+        correlation: Correlation<'_>,
+        scale: NoiseScale,
+    ) -> Result<Self> {
+        let mut block = Self::values(name, predictions, observed, sd, transform, scale)?;
+        let n = block.predictions.len();
+        if !correlation.chain.is_empty() && correlation.chain.len() != n {
+            return Err(Error::Usage(format!(
+                "{name}: {} bin correlations for {n} values",
+                correlation.chain.len()
+            )));
+        }
+        let chain =
+            Chain::new(correlation.chain).map_err(|e| Error::Usage(format!("{name}: {e}")))?;
+        if chain.as_ref().is_some_and(|c| !c.starts_a_run()) {
+            return Err(Error::Usage(format!(
+                "{name}: its correlated bins continue a chain from before the block"
+            )));
+        }
+        if let Some((loadings, rank)) = correlation.shared {
+            let BlockKind::Values {
+                observed, inv_sd, ..
+            } = block.kind
+            else {
+                unreachable!("Block::values builds a Values block")
+            };
+            let factors = shared_factors(loadings, rank, &inv_sd, chain.as_ref())
+                .map_err(|e| Error::Usage(format!("{name}: {e}")))?;
+            block.kind = BlockKind::SharedNoise {
+                observed,
+                inv_sd,
+                transform,
+                factors,
+            };
+        }
+        block.chain = chain;
+        Ok(block)
     }
 
     /// A measured shape against a predicted one, amplitude integrated out.
@@ -324,6 +437,7 @@ impl Block {
             predictions,
             kind,
             scale,
+            chain: None,
         })
     }
 
@@ -339,7 +453,9 @@ impl Block {
     /// Degrees of freedom `nu_b`.
     pub fn dof(&self) -> f64 {
         match &self.kind {
-            BlockKind::Values { .. } => self.predictions.len() as f64,
+            BlockKind::Values { .. } | BlockKind::SharedNoise { .. } => {
+                self.predictions.len() as f64
+            }
             BlockKind::LinearMarginal {
                 observed,
                 n_columns,
@@ -353,7 +469,10 @@ impl Block {
     pub fn ln_norm(&self) -> f64 {
         let base = -self.dof() * HALF_LN_2PI;
         match &self.kind {
-            BlockKind::Values { inv_sd, .. } => base + inv_sd.iter().map(|w| w.ln()).sum::<f64>(),
+            BlockKind::Values { inv_sd, .. } | BlockKind::SharedNoise { inv_sd, .. } => {
+                let chain = self.chain.iter().flat_map(|c| c.ln_inv_sd_factor());
+                base + inv_sd.iter().map(|w| w.ln()).sum::<f64>() + chain.sum::<f64>()
+            }
             BlockKind::ShapeMac { .. } => base,
             BlockKind::LinearMarginal { inv_sd, .. } => {
                 base + inv_sd.iter().map(|w| w.ln()).sum::<f64>()
@@ -392,9 +511,18 @@ impl Block {
                 observed,
                 inv_sd,
                 transform,
+            }
+            | BlockKind::SharedNoise {
+                observed,
+                inv_sd,
+                transform,
+                ..
             } => {
                 for i in 0..p.len() {
                     out[i] = (transform.apply(p[i]) - observed[i]) * inv_sd[i];
+                }
+                if let Some(chain) = &self.chain {
+                    chain.whiten(&mut out[..p.len()]);
                 }
             }
             BlockKind::ShapeMac { observed_unit } => {
@@ -436,6 +564,9 @@ impl Block {
         match &self.kind {
             BlockKind::Values {
                 inv_sd, transform, ..
+            }
+            | BlockKind::SharedNoise {
+                inv_sd, transform, ..
             } => {
                 for i in 0..p.len() {
                     let dt = match transform {
@@ -445,6 +576,20 @@ impl Block {
                     };
                     for t in 0..n_par {
                         jac[(row0 + i, t)] = scale * inv_sd[i] * dt * dpred[(off + i, t)];
+                    }
+                }
+                if let Some(chain) = &self.chain {
+                    let mut column = vec![0.0; p.len()];
+                    for t in 0..n_par {
+                        column
+                            .iter_mut()
+                            .enumerate()
+                            .for_each(|(i, v)| *v = jac[(row0 + i, t)]);
+                        chain.whiten(&mut column);
+                        column
+                            .iter()
+                            .enumerate()
+                            .for_each(|(i, v)| jac[(row0 + i, t)] = *v);
                     }
                 }
             }
@@ -498,149 +643,137 @@ impl Block {
         }
     }
 
-    /// `ln L_b` given the residuals and `sigma`.
-    pub fn ln_likelihood(&self, residuals: &[f64], sigma: f64) -> f64 {
-        let ss: f64 = residuals.iter().map(|r| r * r).sum();
-        self.ln_norm() - self.dof() * sigma.ln() - 0.5 * ss / (sigma * sigma)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// `||(I - P_phi) psi||^2 = 1 - MAC` for every pair of shapes, and the block is
-    /// invariant to the sign and scale of the prediction.
-    #[test]
-    fn mac_residual_norm_is_one_minus_mac() {
-        let psi = [0.3, -0.7, 1.0, 0.2];
-        let b = Block::shape_mac("s", 0..4, &psi, NoiseScale::Fixed(1.0)).unwrap();
-        let phi = [0.25, -0.8, 0.9, 0.35];
-        let mut r = [0.0; 4];
-        b.residuals(&phi, &mut r);
-        let ss: f64 = r.iter().map(|v| v * v).sum();
-        let mac = crate::modal::mac(&psi, &phi);
-        assert!((ss - (1.0 - mac)).abs() < 1e-15);
-        let flipped: Vec<f64> = phi.iter().map(|v| -3.0 * v).collect();
-        let mut r2 = [0.0; 4];
-        b.residuals(&flipped, &mut r2);
-        assert!(r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < 1e-15));
-    }
-
-    /// A Values block is the Gaussian density of its observations: sum of
-    /// `ln N(t(y_i); t(pred_i), (sd_i sigma)^2)`.
-    #[test]
-    fn values_block_is_the_gaussian_density() {
-        let (y, sd, pred, sigma) = ([2.0, 3.0], [0.1, 0.2], [2.1, 2.7], 1.5);
-        let b = Block::values("v", 0..2, &y, &sd, Transform::Ln, NoiseScale::Fixed(sigma)).unwrap();
-        let mut r = [0.0; 2];
-        b.residuals(&pred, &mut r);
-        let direct: f64 = (0..2)
-            .map(|i| {
-                let s = sd[i] * sigma;
-                let z = pred[i].ln() - y[i].ln();
-                -0.5 * (z / s).powi(2) - s.ln() - HALF_LN_2PI
-            })
-            .sum();
-        assert!((b.ln_likelihood(&r, sigma) - direct).abs() < 1e-12);
-    }
-
-    /// The complex-gain block is the gain integral of the complex Gaussian density:
-    /// `ln int prod_k (pi s^2 v_k)^-1 exp(-|y_k - g h_k|^2 / (s^2 v_k)) dg`, by the
-    /// trapezoidal rule over the gain, equals `ln L_b + ln_marginal`.
-    #[test]
-    fn complex_gain_block_is_the_gain_integral() {
-        let y = [1.0, 0.5, -0.3, 0.8, 0.2, -1.1];
-        let h = [0.9, 0.6, -0.2, 0.7, 0.3, -1.0];
-        let v = [0.04, 0.09, 0.05];
-        let sd: Vec<f64> = v.iter().map(|x: &f64| x.sqrt()).collect();
-        let sigma = 1.3;
-        let b = Block::complex_gain("c", 0..6, &y, &sd, NoiseScale::Fixed(sigma)).unwrap();
-        let mut r = [0.0; 6];
-        b.residuals(&h, &mut r);
-        let got = b.ln_likelihood(&r, sigma) + b.ln_marginal(&h);
-        let density = |g: f64| -> f64 {
-            (0..3)
-                .map(|k| {
-                    let var = sigma * sigma * v[k];
-                    let e2 = (y[2 * k] - g * h[2 * k]).powi(2)
-                        + (y[2 * k + 1] - g * h[2 * k + 1]).powi(2);
-                    -(std::f64::consts::PI * var).ln() - e2 / var
-                })
-                .sum::<f64>()
-                .exp()
+    /// [`Self::ln_likelihood`] spread over the residuals into `out` (one term each,
+    /// summing to `ln L_b`): for [`BlockKind::Values`] and [`BlockKind::SharedNoise`]
+    /// each value's own Gaussian term `ln w_i - ln(2 pi)/2 - ln sigma - r_i^2 / (2
+    /// sigma^2)`, with a shared block's Woodbury correction and log determinant spread
+    /// evenly over its values (so those terms are not each a conditional density); for
+    /// the other kinds the block's term spread evenly.
+    pub fn ln_likelihood_pointwise(&self, residuals: &[f64], sigma: f64, out: &mut [f64]) {
+        let (BlockKind::Values { inv_sd, .. } | BlockKind::SharedNoise { inv_sd, .. }) = &self.kind
+        else {
+            let each = self.ln_likelihood(residuals, sigma) / residuals.len() as f64;
+            out.iter_mut().for_each(|v| *v = each);
+            return;
         };
-        let (lo, hi, n) = (-3.0, 5.0, 200_000);
-        let dg = (hi - lo) / n as f64;
-        let integral: f64 = (0..=n)
-            .map(|i| {
-                let w = if i == 0 || i == n { 0.5 } else { 1.0 };
-                w * density(lo + i as f64 * dg)
-            })
-            .sum::<f64>()
-            * dg;
-        assert!(
-            (got - integral.ln()).abs() < 1e-9,
-            "{got} vs {}",
-            integral.ln()
-        );
-        let (g, sd_g) = b.conditional_gain(&h, sigma).unwrap();
-        assert!(g > 0.9 && g < 1.3 && sd_g > 0.0);
-    }
-
-    /// The complex-gain residual Jacobian against central differences, for predictions
-    /// `p(t) = (t0 + t1 k, sin(t0 k))` in k.
-    #[test]
-    fn complex_gain_residual_jacobian_matches_differences() {
-        let y = [1.0, 0.5, -0.3, 0.8, 0.2, -1.1];
-        let b =
-            Block::complex_gain("c", 0..6, &y, &[0.2, 0.3, 0.25], NoiseScale::Fixed(1.0)).unwrap();
-        let pred = |t: &[f64]| -> Vec<f64> {
-            (0..3)
-                .flat_map(|k| [t[0] + t[1] * k as f64, (t[0] * k as f64).sin()])
-                .collect()
-        };
-        let t = [0.7, -0.4];
-        let dpred = DMatrix::from_fn(6, 2, |i, j| {
-            let k = (i / 2) as f64;
-            match (i % 2, j) {
-                (0, 0) => 1.0,
-                (0, _) => k,
-                (_, 0) => k * (t[0] * k).cos(),
-                _ => 0.0,
-            }
-        });
-        let mut jac = DMatrix::zeros(6, 2);
-        b.residual_jacobian(&pred(&t), &dpred, 1.0, 0, &mut jac);
-        for j in 0..2 {
-            let (mut up, mut dn) = (t, t);
-            up[j] += 1e-6;
-            dn[j] -= 1e-6;
-            let (mut ru, mut rd) = ([0.0; 6], [0.0; 6]);
-            b.residuals(&pred(&up), &mut ru);
-            b.residuals(&pred(&dn), &mut rd);
-            for i in 0..6 {
-                let fd = (ru[i] - rd[i]) / 2e-6;
-                assert!(
-                    (jac[(i, j)] - fd).abs() < 1e-7,
-                    "({i}, {j}): {} vs {fd}",
-                    jac[(i, j)]
-                );
-            }
+        let (ln_s, s2) = (sigma.ln(), sigma * sigma);
+        for ((o, r), w) in out.iter_mut().zip(residuals).zip(inv_sd) {
+            *o = w.ln() - HALF_LN_2PI - ln_s - 0.5 * r * r / s2;
+        }
+        if let Some(chain) = &self.chain {
+            out.iter_mut()
+                .zip(chain.ln_inv_sd_factor())
+                .for_each(|(o, f)| *o += f);
+        }
+        if let BlockKind::SharedNoise { factors, .. } = &self.kind {
+            let (_, correction, ln_det) = factors.terms(residuals, s2);
+            let each = 0.5 * (correction / s2 - ln_det) / residuals.len() as f64;
+            out.iter_mut().for_each(|v| *v += each);
         }
     }
 
-    #[test]
-    fn shape_difference_is_zero_for_a_scaled_copy_and_skips_the_reference() {
-        let psi = [0.5, 1.0, -0.25];
-        let b =
-            Block::shape_difference("d", 0..3, &psi, 1, &[2.0, 9.0, 4.0], NoiseScale::Fixed(1.0))
-                .unwrap();
-        let mut r = [1.0; 2];
-        b.residuals(&[-1.0, -2.0, 0.5], &mut r);
-        assert_eq!(r, [0.0, 0.0]);
-        b.residuals(&[0.6, 1.0, -0.25], &mut r);
-        assert!((r[0] - 2.0 * 0.1).abs() < 1e-15 && r[1] == 0.0);
-        assert!((b.ln_norm() - (-2.0 * HALF_LN_2PI + 2f64.ln() + 4f64.ln())).abs() < 1e-15);
+    /// `ln L_b` given the residuals and `sigma`.
+    pub fn ln_likelihood(&self, residuals: &[f64], sigma: f64) -> f64 {
+        self.ln_likelihood_with_norm(residuals, (sigma, sigma.ln()), self.ln_norm())
+    }
+
+    /// `ln L_b` straight from the whole prediction vector `pred`, the residuals formed in
+    /// the same pass as the sums (the density's inner loop), at the noise level
+    /// `(sigma, ln sigma)`, for a [`BlockKind::SharedNoise`] block compared without
+    /// transform or chain; `None` for the others, whose callers form the residuals first.
+    pub fn ln_likelihood_fused(
+        &self,
+        pred: &[f64],
+        level: (f64, f64),
+        ln_norm: f64,
+    ) -> Option<f64> {
+        let (l, det) = self.ln_likelihood_fused_det(pred, level, ln_norm)?;
+        Some(l - 0.5 * det.ln())
+    }
+
+    /// [`Self::ln_likelihood_fused`] as `(ln L_b + ln det_b / 2, det_b)`, `det_b` the
+    /// shared noise's determinant ratio `prod_i (1 + lambda_i / sigma^2)`: a caller
+    /// summing many blocks multiplies the ratios and takes one logarithm.
+    pub fn ln_likelihood_fused_det(
+        &self,
+        pred: &[f64],
+        (sigma, ln_sigma): (f64, f64),
+        ln_norm: f64,
+    ) -> Option<(f64, f64)> {
+        if self.chain.is_some() {
+            return None;
+        }
+        let BlockKind::SharedNoise {
+            observed,
+            inv_sd,
+            transform: Transform::Identity,
+            factors,
+        } = &self.kind
+        else {
+            return None;
+        };
+        let s2 = sigma * sigma;
+        let a = &pred[self.predictions.clone()];
+        let (ss, correction, det) = factors.terms_of_det(a, observed, inv_sd, s2);
+        let base = ln_norm - self.dof() * ln_sigma;
+        Some((base - 0.5 * (ss - correction) / s2, det))
+    }
+
+    /// [`Self::ln_likelihood`] with [`Self::ln_norm`] computed by the caller (once, for
+    /// many evaluations) at the noise level `(sigma, ln sigma)`.
+    pub fn ln_likelihood_with_norm(
+        &self,
+        residuals: &[f64],
+        (sigma, ln_sigma): (f64, f64),
+        ln_norm: f64,
+    ) -> f64 {
+        let s2 = sigma * sigma;
+        let base = ln_norm - self.dof() * ln_sigma;
+        match &self.kind {
+            BlockKind::SharedNoise { factors, .. } => {
+                let (ss, correction, ln_det) = factors.terms(residuals, s2);
+                base - 0.5 * (ss - correction) / s2 - 0.5 * ln_det
+            }
+            _ => {
+                let ss: f64 = residuals.iter().map(|r| r * r).sum();
+                base - 0.5 * ss / s2
+            }
+        }
     }
 }
+
+/// The Woodbury factors of shared loadings `L` on values of weights `inv_sd`, in the
+/// whitened coordinates of `chain` when there is one: `V = R^-1 D^(-1/2) L`.
+fn shared_factors(
+    loadings: &[f64],
+    rank: usize,
+    inv_sd: &[f64],
+    chain: Option<&Chain>,
+) -> Result<SharedFactors> {
+    let sd: Vec<f64> = inv_sd.iter().map(|w| 1.0 / w).collect();
+    let Some(chain) = chain else {
+        return SharedFactors::new(loadings, rank, &sd);
+    };
+    let n = inv_sd.len();
+    if loadings.len() != n * rank {
+        return Err(Error::Usage(format!(
+            "{} shared-noise loadings for {n} values of rank {rank}",
+            loadings.len()
+        )));
+    }
+    let mut whitened = vec![0.0; n * rank];
+    let mut column = vec![0.0; n];
+    for r in 0..rank {
+        for (k, v) in column.iter_mut().enumerate() {
+            *v = loadings[k * rank + r] * inv_sd[k];
+        }
+        chain.whiten(&mut column);
+        for (k, v) in column.iter().enumerate() {
+            whitened[k * rank + r] = *v;
+        }
+    }
+    SharedFactors::new(&whitened, rank, &vec![1.0; n])
+}
+
+#[cfg(test)]
+mod tests;

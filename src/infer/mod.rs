@@ -34,7 +34,7 @@ pub use evidence::{
 };
 pub use fit::{fit_multistart, FitOptions, FitResult};
 pub use laplace::{laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION};
-pub use likelihood::{Block, BlockKind, LinearFit, NoiseScale};
+pub use likelihood::{Block, BlockKind, Chain, Correlation, LinearFit, NoiseScale};
 pub use nested::{
     bridge_evidence, gain_bound, laplace_in_u, BridgeEvidence, BridgeOptions, InUnconstrained,
 };

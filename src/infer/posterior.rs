@@ -31,6 +31,8 @@ pub struct Scratch<W> {
     dpred: DMatrix<f64>,
     /// Per block: [`Block::ln_marginal`] from the residuals' solve.
     marginal: Vec<f64>,
+    /// Per sampled noise scale: `sigma` at the current `z` (one exponential each).
+    scales: Vec<f64>,
 }
 
 /// See the module docs.
@@ -38,6 +40,8 @@ pub struct Posterior<P: Predict> {
     predictor: P,
     prior: BoxPrior,
     blocks: Vec<Block>,
+    /// [`Block::ln_norm`] of each block.
+    ln_norms: Vec<f64>,
     /// Offset of each block's residuals.
     offsets: Vec<usize>,
     n_residuals: usize,
@@ -50,6 +54,7 @@ impl<P: Predict + Clone> Clone for Posterior<P> {
             predictor: self.predictor.clone(),
             prior: self.prior.clone(),
             blocks: self.blocks.clone(),
+            ln_norms: self.ln_norms.clone(),
             offsets: self.offsets.clone(),
             n_residuals: self.n_residuals,
             scratch: ThreadLocal::new(),
@@ -115,6 +120,7 @@ impl<P: Predict> Posterior<P> {
         Ok(Posterior {
             predictor,
             prior,
+            ln_norms: blocks.iter().map(Block::ln_norm).collect(),
             blocks,
             offsets,
             n_residuals,
@@ -139,6 +145,7 @@ impl<P: Predict> Posterior<P> {
             predictor,
             prior: self.prior.clone(),
             blocks: self.blocks.clone(),
+            ln_norms: self.ln_norms.clone(),
             offsets: self.offsets.clone(),
             n_residuals: self.n_residuals,
             scratch: ThreadLocal::new(),
@@ -181,6 +188,7 @@ impl<P: Predict> Posterior<P> {
             res: vec![0.0; self.n_residuals],
             dpred: DMatrix::zeros(0, 0),
             marginal: vec![0.0; self.blocks.len()],
+            scales: Vec::new(),
         }
     }
 
@@ -221,24 +229,101 @@ impl<P: Predict> Posterior<P> {
         }
     }
 
+    /// `(sigma, ln sigma)` of a block at `z`, the sampled scales' `sigma` from `scales`
+    /// ([`Self::fill_scales`]): one exponential per scale, not per block, and no
+    /// logarithm for a sampled scale.
+    fn noise_level(&self, b: &Block, z: &[f64], scales: &[f64]) -> (f64, f64) {
+        match b.scale {
+            NoiseScale::Fixed(s) => (s, s.ln()),
+            NoiseScale::Sampled(i) => (scales[i], z[self.n_model() + i]),
+        }
+    }
+
+    /// `sigma` of every sampled scale at `z` into `scales`.
+    fn fill_scales(&self, z: &[f64], scales: &mut Vec<f64>) {
+        scales.clear();
+        scales.extend(z[self.n_model()..].iter().map(|l| l.exp()));
+    }
+
     /// Log-likelihood at `z` (inside the prior box), one term per block into `terms`
     /// when it is not empty; `-inf` for an inadmissible model.
     pub fn ln_likelihood_terms(&self, z: &[f64], terms: &mut [f64]) -> Result<f64> {
         self.with_scratch(|s| {
-            match self.fill_residuals(&z[..self.n_model()], s) {
+            match self
+                .predictor
+                .predict(&z[..self.n_model()], &mut s.ws, &mut s.pred)
+            {
                 Ok(()) => {}
                 Err(Error::Model(_)) => return Ok(f64::NEG_INFINITY),
                 Err(e) => return Err(e),
             }
             let mut total = 0.0;
+            // the fused blocks' determinant ratios, multiplied: one logarithm for all
+            // (taken early should the product leave a safe range)
+            let mut det = 1.0;
+            self.fill_scales(z, &mut s.scales);
             for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
-                let l = b.ln_likelihood(&s.res[o..o + b.n_residuals()], self.sigma(b, z))
-                    + s.marginal[i];
+                let (level, norm) = (self.noise_level(b, z, &s.scales), self.ln_norms[i]);
+                let l = match fused_into(b, &s.pred, level, norm, (&mut total, &mut det)) {
+                    Some(_) if terms.is_empty() => continue,
+                    Some(own) => own(),
+                    None => {
+                        let res = &mut s.res[o..o + b.n_residuals()];
+                        let marginal = b.residuals_and_marginal(&s.pred, res);
+                        let l = b.ln_likelihood_with_norm(res, level, norm) + marginal;
+                        total += l;
+                        l
+                    }
+                };
                 if !terms.is_empty() {
                     terms[i] = l;
                 }
-                total += l;
             }
+            total -= 0.5 * det.ln();
+            Ok(if total.is_nan() {
+                f64::NEG_INFINITY
+            } else {
+                total
+            })
+        })
+    }
+
+    /// Log-likelihood at `z` (inside the prior box, the same value as
+    /// [`Self::ln_likelihood_terms`]), one term per residual into `out` (length
+    /// [`Self::n_residuals`], [`Block::ln_likelihood_pointwise`], summing to it up to
+    /// rounding); an inadmissible model gives `-inf` everywhere.
+    pub fn ln_likelihood_pointwise(&self, z: &[f64], out: &mut [f64]) -> Result<f64> {
+        if out.len() != self.n_residuals {
+            return Err(Error::Usage(format!(
+                "{} pointwise slots for {} residuals",
+                out.len(),
+                self.n_residuals
+            )));
+        }
+        self.with_scratch(|s| {
+            match self.fill_residuals(&z[..self.n_model()], s) {
+                Ok(()) => {}
+                Err(Error::Model(_)) => {
+                    out.fill(f64::NEG_INFINITY);
+                    return Ok(f64::NEG_INFINITY);
+                }
+                Err(e) => return Err(e),
+            }
+            let (mut total, mut det) = (0.0, 1.0);
+            self.fill_scales(z, &mut s.scales);
+            for (i, (b, &o)) in self.blocks.iter().zip(&self.offsets).enumerate() {
+                let (range, level) = (o..o + b.n_residuals(), self.noise_level(b, z, &s.scales));
+                let out = &mut out[range.clone()];
+                b.ln_likelihood_pointwise(&s.res[range.clone()], level.0, out);
+                let each = s.marginal[i] / out.len() as f64;
+                out.iter_mut().for_each(|v| *v += each);
+                // the same total as without the pointwise terms
+                let norm = self.ln_norms[i];
+                if fused_into(b, &s.pred, level, norm, (&mut total, &mut det)).is_none() {
+                    total += b.ln_likelihood_with_norm(&s.res[range], level, norm) + s.marginal[i];
+                }
+            }
+            total -= 0.5 * det.ln();
             Ok(if total.is_nan() {
                 f64::NEG_INFINITY
             } else {
@@ -364,4 +449,25 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
         )?;
         Ok(())
     }
+}
+
+/// Adds a fused block's log-likelihood to `total` less its `-ln det_b / 2`, whose ratio
+/// `det_b` multiplies `det` (one logarithm for all blocks, taken early should the product
+/// leave a safe range; [`Block::ln_likelihood_fused_det`]); `None` when the block has no
+/// fused form. The returned closure gives the block's own term.
+fn fused_into(
+    b: &Block,
+    pred: &[f64],
+    level: (f64, f64),
+    ln_norm: f64,
+    (total, det): (&mut f64, &mut f64),
+) -> Option<impl FnOnce() -> f64> {
+    let (l, d) = b.ln_likelihood_fused_det(pred, level, ln_norm)?;
+    *total += l;
+    *det *= d;
+    if !(1e-100..1e100).contains(det) {
+        *total -= 0.5 * det.ln();
+        *det = 1.0;
+    }
+    Some(move || l - 0.5 * d.ln())
 }

@@ -22,6 +22,13 @@
 //! Coordinates: the structural ones of the [`Parametrisation`], then the damping ones.
 //! Outputs, block by block, pair-major then frequency: `|H|`, `ln |H|`, or `(Re H, Im H)`
 //! interleaved ([`FrfOutput`]).
+//!
+//! Magnitudes (the likelihood's inner loop) go through the fused kernel of
+//! [`ModalFrf::magnitudes`] on the modes at the observed DOFs, the window applied to the
+//! modal parameters and its gain `|(j omega + eps)^p| / omega^p` per value afterwards; with
+//! a solver that gives [`Modes`] directly ([`ModeSolver::modes`]: the dense solver, with
+//! the shear frame's tridiagonal fast path) the natural frequencies are taken as solved
+//! and an evaluation of a model of up to six DOFs allocates nothing.
 
 use std::sync::Arc;
 
@@ -30,7 +37,8 @@ use num_complex::Complex64;
 use super::modal::ModeSolver;
 use super::{Parametrisation, Predict};
 use crate::error::{Error, Result};
-use crate::frf::{Excitation, FrfBlock};
+use crate::frf::{Excitation, FrfBlock, FrfKind, FrfPair, ModalFrf};
+use crate::modal::Modes;
 use crate::model::StructuralModel;
 
 /// The damping model of an [`FrfPredictor`] and its coordinates.
@@ -85,11 +93,24 @@ pub struct FrfPredictor<S: ModeSolver> {
     model: Arc<StructuralModel>,
     params: Parametrisation,
     damping: FrfDamping,
+    /// Per damping variable (`a0`, `a1` or `xi_i`): its value when held fixed (no
+    /// coordinate), `None` when sampled.
+    fixed_damping: Vec<Option<f64>>,
     output: FrfOutput,
     n_modes: usize,
     /// Model DOFs whose shape entries are solved for (all of them under ground excitation).
     dofs: Vec<usize>,
+    /// `dofs` is every model DOF in order (shapes copied whole).
+    all_dofs: bool,
     blocks: Vec<LocalBlock>,
+    /// The blocks on the local shape rows, for [`ModalFrf`].
+    frf_blocks: Vec<FrfBlock>,
+    /// Per value: `|(j omega + eps)^p| / omega^p`, the window's change of the kind factor.
+    window_gain: Vec<f64>,
+    /// Per block: every gain is exactly 1 (receptance, or no window).
+    unit_gain: Vec<bool>,
+    /// Per block: index of its first value.
+    offsets: Vec<usize>,
     n_values: usize,
 }
 
@@ -102,6 +123,14 @@ pub struct FrfWorkspace<W> {
     shapes: Vec<f64>,
     participation: Vec<f64>,
     modal_c: Vec<f64>,
+    /// Damping variables in their units (`a0`, `a1` or `xi_i`).
+    damping: Vec<f64>,
+    /// The modes at the observed DOFs (shape rows in the order of `dofs`).
+    modes: Modes,
+    /// Unwindowed natural frequencies while `modes` holds windowed ones.
+    omega: Vec<f64>,
+    c_window: Vec<f64>,
+    frfs: Vec<ModalFrf>,
 }
 
 impl<S: ModeSolver> FrfPredictor<S> {
@@ -140,60 +169,74 @@ impl<S: ModeSolver> FrfPredictor<S> {
             )));
         }
         let dofs = needed_dofs(blocks, n_dof)?;
-        let row = |d: usize| dofs.binary_search(&d).unwrap_or(0);
         let mut local = Vec::with_capacity(blocks.len());
-        let mut n_values = 0;
         for (b, tau) in blocks.iter().zip(window_tau_s) {
-            let eps_per_s = match tau {
-                None => 0.0,
-                Some(t) if t.is_finite() && *t > 0.0 => 1.0 / t,
-                Some(t) => {
-                    return Err(Error::Usage(format!(
-                        "exponential window time constant must be positive, got {t} s"
-                    )))
-                }
-            };
-            if let Some(w) = b.omega_rad_s.iter().find(|w| !(w.is_finite() && **w > 0.0)) {
-                return Err(Error::Usage(format!(
-                    "frequencies must be finite and positive, got {w} rad/s"
-                )));
-            }
-            let pairs = b
-                .pairs
-                .iter()
-                .map(|p| {
-                    let e = match p.excitation {
-                        Excitation::Dof(e) => Some(row(e)),
-                        Excitation::Ground => None,
-                    };
-                    (row(p.response), e, p.kind.power())
-                })
-                .collect::<Vec<_>>();
-            n_values += pairs.len() * b.omega_rad_s.len();
-            local.push(LocalBlock {
-                omega_rad_s: b.omega_rad_s.clone(),
-                pairs,
-                eps_per_s,
-            });
+            local.push(local_block(b, *tau, &dofs)?);
         }
+        let frf_blocks: Vec<FrfBlock> = local.iter().map(LocalBlock::frf_block).collect();
+        let (mut window_gain, mut offsets, mut unit_gain) = (Vec::new(), Vec::new(), Vec::new());
+        for b in &local {
+            offsets.push(window_gain.len());
+            let gains = b.window_gains();
+            unit_gain.push(gains.iter().all(|&g| g == 1.0));
+            window_gain.extend(gains);
+        }
+        let n_vars = match damping {
+            FrfDamping::Rayleigh => 2,
+            FrfDamping::Modal => n_modes,
+        };
         Ok(FrfPredictor {
             solver,
             model,
             params,
             damping,
+            fixed_damping: vec![None; n_vars],
             output,
             n_modes,
+            all_dofs: dofs.iter().copied().eq(0..n_dof),
             dofs,
             blocks: local,
-            n_values,
+            frf_blocks,
+            n_values: window_gain.len(),
+            window_gain,
+            unit_gain,
+            offsets,
         })
+    }
+
+    /// The same predictor with damping variables held fixed: `values[j]` is variable
+    /// `j`'s value (`a0` in 1/s, `a1` in s, or `xi_j`) or `None` to keep it sampled.
+    pub fn with_fixed_damping(mut self, values: Vec<Option<f64>>) -> Result<Self> {
+        let bad = values
+            .iter()
+            .flatten()
+            .any(|x| !(x.is_finite() && *x > 0.0));
+        if values.len() != self.fixed_damping.len() || bad {
+            return Err(Error::Usage(format!(
+                "{} fixed damping values (positive, or none) for {} damping variables",
+                values.len(),
+                self.fixed_damping.len()
+            )));
+        }
+        self.fixed_damping = values;
+        Ok(self)
     }
 
     /// Number of damping coordinates (after the structural ones).
     pub fn n_damping(&self) -> usize {
-        match self.damping {
-            FrfDamping::Rayleigh => 2,
-            FrfDamping::Modal => self.n_modes,
+        self.fixed_damping.iter().filter(|v| v.is_none()).count()
+    }
+
+    /// The damping variables in their units from the damping coordinates (logarithms)
+    /// and the fixed values.
+    fn damping_values(&self, theta_damping: &[f64], out: &mut Vec<f64>) {
+        let mut free = theta_damping.iter();
+        out.clear();
+        for v in &self.fixed_damping {
+            out.push(match v {
+                Some(x) => *x,
+                None => free.next().map_or(f64::NAN, |t| t.exp()),
+            });
         }
     }
 
@@ -201,21 +244,175 @@ impl<S: ModeSolver> FrfPredictor<S> {
         &self.params
     }
 
-    /// Modal damping coefficients `c_i` (1/s) from the damping coordinates.
-    fn modal_damping(&self, theta_damping: &[f64], eigenvalues: &[f64], c: &mut [f64]) {
+    /// Modal damping coefficients `c_i` (1/s) from the damping variables `d` (units).
+    fn modal_damping(&self, d: &[f64], eigenvalues: &[f64], c: &mut [f64]) {
         match self.damping {
             FrfDamping::Rayleigh => {
-                let (a0, a1) = (theta_damping[0].exp(), theta_damping[1].exp());
+                let (a0, a1) = (d[0], d[1]);
                 for (ci, &l) in c.iter_mut().zip(eigenvalues) {
                     *ci = a0 + a1 * l;
                 }
             }
             FrfDamping::Modal => {
-                for ((ci, &l), &ln_xi) in c.iter_mut().zip(eigenvalues).zip(theta_damping) {
-                    *ci = 2.0 * ln_xi.exp() * l.sqrt();
+                for ((ci, &l), &xi) in c.iter_mut().zip(eigenvalues).zip(d) {
+                    *ci = 2.0 * xi * l.sqrt();
                 }
             }
         }
+    }
+
+    /// Modal damping coefficients `c_i` (1/s) from the damping variables `d` (units) and
+    /// the natural frequencies `omega_i` (rad/s): `a0 + a1 omega_i^2` or `2 xi_i omega_i`.
+    fn modal_damping_of_omega(&self, d: &[f64], omega: &[f64], c: &mut [f64]) {
+        match self.damping {
+            FrfDamping::Rayleigh => {
+                let (a0, a1) = (d[0], d[1]);
+                for (ci, &w) in c.iter_mut().zip(omega) {
+                    *ci = a0 + a1 * w * w;
+                }
+            }
+            FrfDamping::Modal => {
+                for ((ci, &w), &xi) in c.iter_mut().zip(omega).zip(d) {
+                    *ci = 2.0 * xi * w;
+                }
+            }
+        }
+    }
+
+    /// The lowest modes at `ws.alpha`, `ws.beta` into `ws.modes` (shape rows of `dofs`):
+    /// as the solver gives them when it gives [`Modes`], else from its eigenvalues and
+    /// shapes. [`Error::Model`] when a natural frequency is not positive.
+    fn local_modes<W>(&self, ws: &mut FrfWorkspace<W>) -> Result<()>
+    where
+        S: ModeSolver<Workspace = W>,
+    {
+        let (n, nd) = (self.n_modes, self.dofs.len());
+        let modes = &mut ws.modes;
+        if let Some(full) = self.solver.modes(&ws.alpha, &ws.beta, n, &mut ws.solver)? {
+            if self.all_dofs && full.phi.ncols() == n {
+                // the solver's modes are these: exchanged, not copied (the solver
+                // overwrites what it gets back on its next solve)
+                std::mem::swap(modes, full);
+            } else {
+                modes.omega_rad_s.clear();
+                modes.omega_rad_s.extend_from_slice(&full.omega_rad_s);
+                modes.participation.clear();
+                modes.participation.extend_from_slice(&full.participation);
+                for i in 0..n {
+                    for (row, &d) in self.dofs.iter().enumerate() {
+                        modes.phi[(row, i)] = full.phi[(d, i)];
+                    }
+                }
+            }
+        } else {
+            self.solver.lowest_modes(
+                &ws.alpha,
+                &ws.beta,
+                &self.dofs,
+                &mut ws.solver,
+                &mut ws.eigenvalues,
+                &mut ws.shapes,
+            )?;
+            modes.omega_rad_s.clear();
+            modes
+                .omega_rad_s
+                .extend(ws.eigenvalues.iter().map(|l| l.max(0.0).sqrt()));
+            modes.phi.as_mut_slice().copy_from_slice(&ws.shapes);
+            if nd == self.model.n_dof() {
+                self.participation(ws);
+            }
+            ws.modes.participation.clear();
+            ws.modes.participation.extend_from_slice(&ws.participation);
+        }
+        // branch-free over the modes (NaN fails `w > 0`), the message only on failure
+        let omega = &ws.modes.omega_rad_s;
+        let admissible = omega
+            .iter()
+            .fold(true, |ok, &w| ok & (w > 0.0) & (w < f64::INFINITY));
+        match admissible {
+            true => Ok(()),
+            false => {
+                let w = omega.iter().find(|w| !(**w > 0.0 && w.is_finite()));
+                Err(Error::Model(format!(
+                    "a model natural frequency is {} rad/s (not positive)",
+                    w.copied().unwrap_or(f64::NAN)
+                )))
+            }
+        }
+    }
+
+    /// Magnitudes `|H|` of every block from `ws.modes` and `ws.modal_c`, each block's
+    /// window applied to the modal parameters (computed once per run of blocks with the
+    /// same window) and its gain to the values.
+    fn write_magnitudes<W>(&self, ws: &mut FrfWorkspace<W>, out: &mut [f64]) -> Result<()> {
+        let modes = &mut ws.modes;
+        ws.omega.copy_from_slice(&modes.omega_rad_s);
+        // The window of the modal parameters currently in `modes` / `c_window`.
+        let mut current_eps = 0.0;
+        for (b, frf) in ws.frfs.iter_mut().enumerate() {
+            let eps = self.blocks[b].eps_per_s;
+            let range = self.offsets[b]..self.offsets[b] + frf.len();
+            if eps == 0.0 {
+                if current_eps != 0.0 {
+                    modes.omega_rad_s.copy_from_slice(&ws.omega);
+                    current_eps = 0.0;
+                }
+                frf.magnitudes(modes, &ws.modal_c, &mut out[range])?;
+                continue;
+            }
+            if eps != current_eps {
+                for i in 0..self.n_modes {
+                    let (w, c) = (ws.omega[i], ws.modal_c[i]);
+                    modes.omega_rad_s[i] = (w * w + eps * eps + c * eps).sqrt();
+                    ws.c_window[i] = c + 2.0 * eps;
+                }
+                current_eps = eps;
+            }
+            frf.magnitudes(modes, &ws.c_window, &mut out[range.clone()])?;
+            if !self.unit_gain[b] {
+                for (o, g) in out[range.clone()].iter_mut().zip(&self.window_gain[range]) {
+                    *o *= g;
+                }
+            }
+        }
+        if current_eps != 0.0 {
+            modes.omega_rad_s.copy_from_slice(&ws.omega);
+        }
+        Ok(())
+    }
+
+    /// Complex values from the solver's eigenvalues and shapes (damping in `ws.damping`).
+    fn predict_complex(&self, ws: &mut FrfWorkspace<S::Workspace>, out: &mut [f64]) -> Result<()> {
+        self.solver.lowest_modes(
+            &ws.alpha,
+            &ws.beta,
+            &self.dofs,
+            &mut ws.solver,
+            &mut ws.eigenvalues,
+            &mut ws.shapes,
+        )?;
+        if let Some(l) = ws
+            .eigenvalues
+            .iter()
+            .find(|l| l.partial_cmp(&&0.0) != Some(std::cmp::Ordering::Greater))
+        {
+            return Err(Error::Model(format!(
+                "a model eigenvalue is {l} (not positive)"
+            )));
+        }
+        if self.dofs.len() == self.model.n_dof() {
+            self.participation(ws);
+        }
+        let mut c = std::mem::take(&mut ws.modal_c);
+        self.modal_damping(&ws.damping, &ws.eigenvalues, &mut c);
+        ws.modal_c = c;
+        let mut start = 0;
+        for b in &self.blocks {
+            let len = b.pairs.len() * b.omega_rad_s.len() * self.output.width();
+            self.write_block(b, ws, &mut out[start..start + len]);
+            start += len;
+        }
+        Ok(())
     }
 
     /// `Gamma_i = phi_i^T M(beta) iota` from the full shapes in `ws` (ground excitation).
@@ -261,6 +458,76 @@ impl<S: ModeSolver> FrfPredictor<S> {
     }
 }
 
+/// Block `b` on the local shape rows of `dofs`, observed through a window of `tau` s.
+fn local_block(b: &FrfBlock, tau: Option<f64>, dofs: &[usize]) -> Result<LocalBlock> {
+    let row = |d: usize| dofs.binary_search(&d).unwrap_or(0);
+    let eps_per_s = match tau {
+        None => 0.0,
+        Some(t) if t.is_finite() && t > 0.0 => 1.0 / t,
+        Some(t) => {
+            return Err(Error::Usage(format!(
+                "exponential window time constant must be positive, got {t} s"
+            )))
+        }
+    };
+    if let Some(w) = b.omega_rad_s.iter().find(|w| !(w.is_finite() && **w > 0.0)) {
+        return Err(Error::Usage(format!(
+            "frequencies must be finite and positive, got {w} rad/s"
+        )));
+    }
+    let pairs = b
+        .pairs
+        .iter()
+        .map(|p| {
+            let e = match p.excitation {
+                Excitation::Dof(e) => Some(row(e)),
+                Excitation::Ground => None,
+            };
+            (row(p.response), e, p.kind.power())
+        })
+        .collect();
+    Ok(LocalBlock {
+        omega_rad_s: b.omega_rad_s.clone(),
+        pairs,
+        eps_per_s,
+    })
+}
+
+impl LocalBlock {
+    /// The block as [`ModalFrf`] takes it (local rows).
+    fn frf_block(&self) -> FrfBlock {
+        let pairs = self
+            .pairs
+            .iter()
+            .map(|&(r, e, p)| FrfPair {
+                response: r,
+                excitation: e.map_or(Excitation::Ground, Excitation::Dof),
+                kind: match p {
+                    0 => FrfKind::Receptance,
+                    1 => FrfKind::Mobility,
+                    _ => FrfKind::Accelerance,
+                },
+            })
+            .collect();
+        FrfBlock {
+            omega_rad_s: self.omega_rad_s.clone(),
+            pairs,
+        }
+    }
+
+    /// Per value: `|(j omega + eps)^p| / omega^p = (1 + (eps / omega)^2)^(p / 2)`.
+    fn window_gains(&self) -> Vec<f64> {
+        let eps = self.eps_per_s;
+        let per_pair = |&(_, _, p): &(usize, Option<usize>, i32)| {
+            let half_power = 0.5 * f64::from(p);
+            self.omega_rad_s
+                .iter()
+                .map(move |w| (1.0 + (eps / w).powi(2)).powf(half_power))
+        };
+        self.pairs.iter().flat_map(per_pair).collect()
+    }
+}
+
 /// Sorted model DOFs the pairs need; every DOF when a pair is ground-excited.
 fn needed_dofs(blocks: &[FrfBlock], n_dof: usize) -> Result<Vec<usize>> {
     let mut dofs = Vec::new();
@@ -298,57 +565,65 @@ impl<S: ModeSolver> Predict for FrfPredictor<S> {
 
     fn param_names(&self) -> Vec<String> {
         let mut names = self.params.names();
-        match self.damping {
-            FrfDamping::Rayleigh => names.extend(["ln_a0".to_string(), "ln_a1".to_string()]),
-            FrfDamping::Modal => names.extend((1..=self.n_modes).map(|i| format!("ln_xi{i}"))),
-        }
+        let all: Vec<String> = match self.damping {
+            FrfDamping::Rayleigh => vec!["ln_a0".to_string(), "ln_a1".to_string()],
+            FrfDamping::Modal => (1..=self.n_modes).map(|i| format!("ln_xi{i}")).collect(),
+        };
+        let free = all.into_iter().zip(&self.fixed_damping);
+        names.extend(free.filter(|(_, f)| f.is_none()).map(|(n, _)| n));
         names
     }
 
     fn workspace(&self) -> Self::Workspace {
+        let (n, nd) = (self.n_modes, self.dofs.len());
         FrfWorkspace {
             solver: self.solver.workspace(),
             alpha: Vec::new(),
             beta: Vec::new(),
-            eigenvalues: vec![0.0; self.n_modes],
-            shapes: vec![0.0; self.n_modes * self.dofs.len()],
-            participation: vec![0.0; self.n_modes],
-            modal_c: vec![0.0; self.n_modes],
+            eigenvalues: vec![0.0; n],
+            shapes: vec![0.0; n * nd],
+            participation: vec![0.0; n],
+            modal_c: vec![0.0; n],
+            damping: Vec::with_capacity(self.fixed_damping.len()),
+            modes: Modes {
+                omega_rad_s: vec![0.0; n],
+                phi: nalgebra::DMatrix::zeros(nd, n),
+                participation: vec![0.0; n],
+            },
+            omega: vec![0.0; n],
+            c_window: vec![0.0; n],
+            frfs: self
+                .frf_blocks
+                .iter()
+                .map(|b| ModalFrf::new(vec![b.clone()]))
+                .collect(),
         }
     }
 
     fn predict(&self, theta: &[f64], ws: &mut Self::Workspace, out: &mut [f64]) -> Result<()> {
         let n_struct = self.params.len();
-        self.params
-            .apply(&theta[..n_struct], &mut ws.alpha, &mut ws.beta);
-        self.solver.lowest_modes(
-            &ws.alpha,
-            &ws.beta,
-            &self.dofs,
-            &mut ws.solver,
-            &mut ws.eigenvalues,
-            &mut ws.shapes,
-        )?;
-        if let Some(l) = ws
-            .eigenvalues
-            .iter()
-            .find(|l| l.partial_cmp(&&0.0) != Some(std::cmp::Ordering::Greater))
-        {
-            return Err(Error::Model(format!(
-                "a model eigenvalue is {l} (not positive)"
+        if theta.len() != self.n_params() || out.len() != self.n_outputs() {
+            return Err(Error::Usage(format!(
+                "FRF predictor: {} coordinates (need {}), {} outputs (need {})",
+                theta.len(),
+                self.n_params(),
+                out.len(),
+                self.n_outputs()
             )));
         }
-        if self.dofs.len() == self.model.n_dof() {
-            self.participation(ws);
+        self.params
+            .apply(&theta[..n_struct], &mut ws.alpha, &mut ws.beta);
+        self.damping_values(&theta[n_struct..], &mut ws.damping);
+        if self.output == FrfOutput::Complex {
+            return self.predict_complex(ws, out);
         }
+        self.local_modes(ws)?;
         let mut c = std::mem::take(&mut ws.modal_c);
-        self.modal_damping(&theta[n_struct..], &ws.eigenvalues, &mut c);
+        self.modal_damping_of_omega(&ws.damping, &ws.modes.omega_rad_s, &mut c);
         ws.modal_c = c;
-        let mut start = 0;
-        for b in &self.blocks {
-            let len = b.pairs.len() * b.omega_rad_s.len() * self.output.width();
-            self.write_block(b, ws, &mut out[start..start + len]);
-            start += len;
+        self.write_magnitudes(ws, out)?;
+        if self.output == FrfOutput::LogMagnitude {
+            out.iter_mut().for_each(|v| *v = v.ln());
         }
         Ok(())
     }

@@ -93,6 +93,9 @@ pub struct Parametrisation {
     coordinates: Vec<Coordinate>,
     n_alpha: usize,
     n_beta: usize,
+    /// The coordinates are `[alpha, beta]` themselves, in order, all linear: `apply`
+    /// copies them (the 4-DOF fast path).
+    direct: bool,
 }
 
 impl Parametrisation {
@@ -119,10 +122,17 @@ impl Parametrisation {
             }
             seen.push(c.variable);
         }
+        let in_order = (0..n_alpha)
+            .map(Variable::Alpha)
+            .chain((0..n_beta).map(Variable::Beta));
+        let direct = coordinates.len() == n_alpha + n_beta
+            && coordinates.iter().map(|c| c.variable).eq(in_order)
+            && coordinates.iter().all(|c| c.scale == Scale::Linear);
         Ok(Parametrisation {
             coordinates,
             n_alpha,
             n_beta,
+            direct,
         })
     }
 
@@ -177,6 +187,14 @@ impl Parametrisation {
 
     /// `alpha` and `beta` at `theta` (resized to the model's counts).
     pub fn apply(&self, theta: &[f64], alpha: &mut Vec<f64>, beta: &mut Vec<f64>) {
+        if self.direct && theta.len() == self.n_alpha + self.n_beta {
+            let (a, b) = theta.split_at(self.n_alpha);
+            alpha.clear();
+            alpha.extend_from_slice(a);
+            beta.clear();
+            beta.extend_from_slice(b);
+            return;
+        }
         alpha.clear();
         alpha.resize(self.n_alpha, 0.0);
         beta.clear();
@@ -234,5 +252,35 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("k9") && err.contains("2 alphas"), "{err}");
+    }
+
+    /// The direct path (coordinates `[alpha, beta]` in order, linear) gives what the
+    /// general path gives for the same coordinates listed in another order.
+    #[test]
+    fn direct_coordinates_apply_like_the_general_path() {
+        let model = StructuralModel::shear_frame(&[2.0, 3.0], &[100.0, 200.0]).unwrap();
+        let coordinate = |name: &str, variable| Coordinate {
+            name: name.into(),
+            variable,
+            scale: Scale::Linear,
+        };
+        let ordered = vec![
+            coordinate("k1", Variable::Alpha(0)),
+            coordinate("k2", Variable::Alpha(1)),
+            coordinate("m1", Variable::Beta(0)),
+            coordinate("m2", Variable::Beta(1)),
+        ];
+        let direct = Parametrisation::new(&model, ordered.clone()).unwrap();
+        assert!(direct.direct);
+        let mut shuffled = ordered;
+        shuffled.reverse();
+        let general = Parametrisation::new(&model, shuffled).unwrap();
+        assert!(!general.direct);
+        let theta = [0.1, -0.2, 0.3, -0.05];
+        let reversed: Vec<f64> = theta.iter().rev().copied().collect();
+        let (mut a1, mut b1, mut a2, mut b2) = (vec![9.0; 7], vec![], vec![], vec![1.0]);
+        direct.apply(&theta, &mut a1, &mut b1);
+        general.apply(&reversed, &mut a2, &mut b2);
+        assert_eq!((a1, b1), (a2, b2));
     }
 }

@@ -72,35 +72,117 @@ pub trait ModeSolver: Sync {
         );
         Ok(false)
     }
+
+    /// The lowest `n_modes` modes as [`Modes`] at every DOF (natural frequencies,
+    /// mass-normalised shapes and ground participation factors as [`Modes::solve`] gives
+    /// them), for solvers that compute them in that form ([`DenseModes`]); `Ok(None)`, the
+    /// default, for the others, whose callers use [`Self::lowest_modes`].
+    fn modes<'w>(
+        &self,
+        alpha: &[f64],
+        beta: &[f64],
+        n_modes: usize,
+        ws: &'w mut Self::Workspace,
+    ) -> Result<Option<&'w mut Modes>> {
+        let _ = (alpha, beta, n_modes, ws);
+        Ok(None)
+    }
 }
 
 /// Every mode by the dense solver of [`Modes`] (a tridiagonal solver for shear frames).
+///
+/// `K(alpha)` and `M(beta)` are assembled into the workspace from the non-zero entries of
+/// the influence matrices (the same sums as [`StructuralModel::stiffness`] and
+/// [`StructuralModel::mass`], which add `alpha_r 0` elsewhere), and for models of up to
+/// six DOFs [`Modes::solve_into`] allocates nothing: an evaluation allocates nothing.
 #[derive(Debug, Clone)]
 pub struct DenseModes {
     model: Arc<StructuralModel>,
+    k0: DMatrix<f64>,
+    m0: DMatrix<f64>,
+    /// Non-zero entries `(column-major index, value)` of each stiffness influence matrix.
+    k_terms: Vec<Vec<(usize, f64)>>,
+    /// The same for the mass influence matrices.
+    m_terms: Vec<Vec<(usize, f64)>>,
+}
+
+/// Scratch memory of [`DenseModes`]: the assembled matrices and the modes.
+#[derive(Debug, Clone)]
+pub struct DenseWorkspace {
+    k: DMatrix<f64>,
+    m: DMatrix<f64>,
+    modes: Modes,
 }
 
 impl DenseModes {
     pub fn new(model: Arc<StructuralModel>) -> Self {
-        DenseModes { model }
+        let terms = |matrices: &[DMatrix<f64>]| -> Vec<Vec<(usize, f64)>> {
+            let nonzero = |a: &DMatrix<f64>| {
+                let entries = a.as_slice().iter().enumerate();
+                entries
+                    .filter(|(_, y)| **y != 0.0)
+                    .map(|(i, &y)| (i, y))
+                    .collect()
+            };
+            matrices.iter().map(nonzero).collect()
+        };
+        DenseModes {
+            k0: model.stiffness(&model.alpha_zero()),
+            m0: model.mass(&model.beta_zero()),
+            k_terms: terms(model.stiffness_influence()),
+            m_terms: terms(model.mass_influence()),
+            model,
+        }
     }
     pub fn model(&self) -> &StructuralModel {
         &self.model
     }
+
+    /// `K(alpha)` and `M(beta)` into `ws`, then its lowest `n_modes` modes.
+    fn solve(
+        &self,
+        alpha: &[f64],
+        beta: &[f64],
+        n_modes: usize,
+        ws: &mut DenseWorkspace,
+    ) -> Result<()> {
+        let assemble = |out: &mut DMatrix<f64>,
+                        base: &DMatrix<f64>,
+                        x: &[f64],
+                        terms: &[Vec<(usize, f64)>]| {
+            let out = out.as_mut_slice();
+            out.copy_from_slice(base.as_slice());
+            for (a, terms) in x.iter().zip(terms) {
+                for &(i, y) in terms {
+                    out[i] += a * y;
+                }
+            }
+        };
+        assemble(&mut ws.k, &self.k0, alpha, &self.k_terms);
+        assemble(&mut ws.m, &self.m0, beta, &self.m_terms);
+        ws.modes
+            .solve_into(&ws.k, &ws.m, self.model.ground_influence(), Some(n_modes))
+            .map_err(|e| Error::Model(format!("no modes at alpha {alpha:?}, beta {beta:?}: {e}")))
+    }
 }
 
 impl ModeSolver for DenseModes {
-    type Workspace = Modes;
+    type Workspace = DenseWorkspace;
 
     fn n_dof(&self) -> usize {
         self.model.n_dof()
     }
 
-    fn workspace(&self) -> Modes {
-        Modes {
-            omega_rad_s: Vec::new(),
-            phi: DMatrix::zeros(0, 0),
-            participation: Vec::new(),
+    fn workspace(&self) -> DenseWorkspace {
+        let n = self.model.n_dof();
+        DenseWorkspace {
+            k: DMatrix::zeros(n, n),
+            m: DMatrix::zeros(n, n),
+            modes: Modes {
+                omega_rad_s: Vec::with_capacity(n),
+                phi: DMatrix::zeros(0, 0),
+                participation: Vec::with_capacity(n),
+            },
         }
     }
 
@@ -109,17 +191,13 @@ impl ModeSolver for DenseModes {
         alpha: &[f64],
         beta: &[f64],
         dofs: &[usize],
-        modes: &mut Modes,
+        ws: &mut DenseWorkspace,
         eigenvalues: &mut [f64],
         shapes: &mut [f64],
     ) -> Result<()> {
-        let (k, m) = (self.model.stiffness(alpha), self.model.mass(beta));
         let n = eigenvalues.len();
-        modes
-            .solve_into(&k, &m, self.model.ground_influence(), Some(n))
-            .map_err(|e| {
-                Error::Model(format!("no modes at alpha {alpha:?}, beta {beta:?}: {e}"))
-            })?;
+        self.solve(alpha, beta, n, ws)?;
+        let modes = &ws.modes;
         for i in 0..n {
             eigenvalues[i] = modes.omega_rad_s[i] * modes.omega_rad_s[i];
             for (s, &d) in shapes[i * dofs.len()..(i + 1) * dofs.len()]
@@ -130,6 +208,17 @@ impl ModeSolver for DenseModes {
             }
         }
         Ok(())
+    }
+
+    fn modes<'w>(
+        &self,
+        alpha: &[f64],
+        beta: &[f64],
+        n_modes: usize,
+        ws: &'w mut DenseWorkspace,
+    ) -> Result<Option<&'w mut Modes>> {
+        self.solve(alpha, beta, n_modes, ws)?;
+        Ok(Some(&mut ws.modes))
     }
 }
 

@@ -84,6 +84,7 @@ pub fn observed_blocks<P: crate::predict::Predict>(post: &Posterior<P>) -> Obser
     for (i, b) in post.blocks().iter().enumerate() {
         let (v, kind) = match &b.kind {
             BlockKind::Values { observed, .. } => (observed.clone(), "values"),
+            BlockKind::SharedNoise { observed, .. } => (observed.clone(), "shared_noise"),
             BlockKind::ShapeMac { observed_unit } => (observed_unit.clone(), "shape_mac"),
             BlockKind::ShapeDifference { observed, .. } => (observed.clone(), "shape_difference"),
             BlockKind::LinearMarginal {

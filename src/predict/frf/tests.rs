@@ -79,7 +79,9 @@ const THETA_STRUCT: [f64; 10] = [0.05, -0.1, 0.02, 0.0, 0.08, 0.03, -0.02, 0.0, 
 const A0_A1: (f64, f64) = (0.3, 2e-4);
 
 /// With every mode kept, the modal sum is the direct solve, for force and ground
-/// excitation, every kind, with and without an exponential window.
+/// excitation, every kind, with and without an exponential window: the complex values,
+/// and the magnitudes of the fused kernel (window on the modal parameters, its gain on
+/// the values).
 #[test]
 fn all_modes_match_the_direct_solve() {
     let (model, params) = frame();
@@ -90,23 +92,32 @@ fn all_modes_match_the_direct_solve() {
                 omega_rad_s: omega.clone(),
                 pairs: pairs(kind),
             }];
-            let p = FrfPredictor::new(
-                DenseModes::new(model.clone()),
-                model.clone(),
-                params.clone(),
-                FrfOptions {
+            let predictor = |output| {
+                let options = FrfOptions {
                     damping: FrfDamping::Rayleigh,
-                    output: FrfOutput::Complex,
+                    output,
                     n_modes: 5,
-                },
-                &blocks,
-                &[tau],
-            )
-            .unwrap();
+                };
+                let solver = DenseModes::new(model.clone());
+                FrfPredictor::new(
+                    solver,
+                    model.clone(),
+                    params.clone(),
+                    options,
+                    &blocks,
+                    &[tau],
+                )
+                .unwrap()
+            };
+            let p = predictor(FrfOutput::Complex);
             let mut theta = THETA_STRUCT.to_vec();
             theta.extend([A0_A1.0.ln(), A0_A1.1.ln()]);
             let mut out = vec![0.0; p.n_outputs()];
             p.predict(&theta, &mut p.workspace(), &mut out).unwrap();
+            let pm = predictor(FrfOutput::Magnitude);
+            let mut magnitude = vec![0.0; pm.n_outputs()];
+            pm.predict(&theta, &mut pm.workspace(), &mut magnitude)
+                .unwrap();
             let (mut alpha, mut beta) = (Vec::new(), Vec::new());
             params.apply(&theta[..10], &mut alpha, &mut beta);
             let eps = tau.map_or(0.0, |t| 1.0 / t);
@@ -127,6 +138,12 @@ fn all_modes_match_the_direct_solve() {
                     assert!(
                         (got - h).norm() <= 1e-9 * h.norm(),
                         "{kind:?} tau {tau:?} {pair:?} {w}: {got} vs {h}"
+                    );
+                    let m = magnitude[k / 2];
+                    assert!(
+                        (m - h.norm()).abs() <= 1e-9 * h.norm(),
+                        "{kind:?} tau {tau:?} {pair:?} {w}: |H| {m} vs {}",
+                        h.norm()
                     );
                     k += 2;
                 }
