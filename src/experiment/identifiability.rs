@@ -95,30 +95,11 @@ pub fn fisher_analysis(run: &VariantRun, frfs: &[TestFrf]) -> Result<FisherAnaly
         .collect();
     let jl = DMatrix::from_fn(n, p, |k, j| jac[(k, free[j])] * scales[j]);
     let fisher = (jl.transpose() * &jl) / s2;
-    let eig = fisher.clone().symmetric_eigen();
-    let mut order: Vec<usize> = (0..p).collect();
-    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-    let eigenvalues: Vec<f64> = order.iter().map(|&i| eig.eigenvalues[i]).collect();
-    let eigenvectors = DMatrix::from_fn(p, p, |row, col| eig.eigenvectors[(row, order[col])]);
-    let lmax = eigenvalues
-        .first()
-        .copied()
-        .unwrap_or(0.0)
-        .max(f64::MIN_POSITIVE);
-    let null: Vec<usize> = (0..p)
-        .filter(|&c| eigenvalues[c] <= NULL_RTOL * lmax)
-        .collect();
-    // Pseudo-inverse on the identifiable subspace.
-    let cov = DMatrix::from_fn(p, p, |a, b| {
-        (0..p)
-            .filter(|c| !null.contains(c))
-            .map(|c| eigenvectors[(a, c)] * eigenvectors[(b, c)] / eigenvalues[c])
-            .sum::<f64>()
-    });
-    let touches_null = |a: usize| null.iter().any(|&c| eigenvectors[(a, c)].abs() > 1e-3);
+    let spec = FisherSpectrum::new(&fisher);
+    let cov = spec.pseudo_inverse();
     let cv_percent: Vec<Option<f64>> = (0..p)
         .map(|a| {
-            if touches_null(a) {
+            if spec.touches_null(a) {
                 None
             } else {
                 Some(100.0 * cov[(a, a)].max(0.0).sqrt())
@@ -128,12 +109,97 @@ pub fn fisher_analysis(run: &VariantRun, frfs: &[TestFrf]) -> Result<FisherAnaly
     let correlation = DMatrix::from_fn(p, p, |a, b| {
         cov[(a, b)] / (cov[(a, a)] * cov[(b, b)]).sqrt().max(f64::MIN_POSITIVE)
     });
-    // Frequencies and their CV by the delta method (central differences in log params).
-    // `ln omega_m` against `u_j`, `theta_i = theta_i,0 + u_j scale_j`, at `u = 0`.
     let w0 = omegas(run, theta)?;
+    let freq_cv_percent = frequency_cv_percent(run, &free, &scales, &spec, &cov, w0.len())?;
+    let band_share = xi_band_share(run, frfs, &free, &jl);
+    Ok(FisherAnalysis {
+        variant: format!("{} {}", run.variant.table.key(), run.variant.column()),
+        names: free.iter().map(|&i| vars[i].name.clone()).collect(),
+        cv_percent,
+        eigenvalues: spec.eigenvalues,
+        eigenvectors: spec.eigenvectors,
+        correlation,
+        freq_hz: w0
+            .iter()
+            .map(|w| w / (2.0 * std::f64::consts::PI))
+            .collect(),
+        freq_cv_percent,
+        band_share,
+        residual_variance: s2,
+    })
+}
+
+/// Eigen-decomposition of a Fisher information, eigenvalues descending, with its
+/// unidentified directions.
+struct FisherSpectrum {
+    eigenvalues: Vec<f64>,
+    /// Matching unit eigenvectors (columns).
+    eigenvectors: DMatrix<f64>,
+    /// Columns whose eigenvalue is at most [`NULL_RTOL`] times the largest.
+    null: Vec<usize>,
+}
+
+impl FisherSpectrum {
+    fn new(fisher: &DMatrix<f64>) -> Self {
+        let p = fisher.nrows();
+        let eig = fisher.clone().symmetric_eigen();
+        let mut order: Vec<usize> = (0..p).collect();
+        order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+        let eigenvalues: Vec<f64> = order.iter().map(|&i| eig.eigenvalues[i]).collect();
+        let eigenvectors = DMatrix::from_fn(p, p, |row, col| eig.eigenvectors[(row, order[col])]);
+        let lmax = eigenvalues
+            .first()
+            .copied()
+            .unwrap_or(0.0)
+            .max(f64::MIN_POSITIVE);
+        let null: Vec<usize> = (0..p)
+            .filter(|&c| eigenvalues[c] <= NULL_RTOL * lmax)
+            .collect();
+        FisherSpectrum {
+            eigenvalues,
+            eigenvectors,
+            null,
+        }
+    }
+
+    /// Pseudo-inverse on the identifiable subspace: the asymptotic covariance.
+    fn pseudo_inverse(&self) -> DMatrix<f64> {
+        let p = self.eigenvalues.len();
+        DMatrix::from_fn(p, p, |a, b| {
+            (0..p)
+                .filter(|c| !self.null.contains(c))
+                .map(|c| {
+                    self.eigenvectors[(a, c)] * self.eigenvectors[(b, c)] / self.eigenvalues[c]
+                })
+                .sum::<f64>()
+        })
+    }
+
+    /// Whether parameter `a` has a component along an unidentified direction.
+    fn touches_null(&self, a: usize) -> bool {
+        self.null
+            .iter()
+            .any(|&c| self.eigenvectors[(a, c)].abs() > 1e-3)
+    }
+}
+
+/// CV (%) of each of the `n_modes` natural frequencies by the delta method (central
+/// differences in log parameters): `None` when a frequency depends on an unidentified
+/// direction.
+fn frequency_cv_percent(
+    run: &VariantRun,
+    free: &[usize],
+    scales: &[f64],
+    spec: &FisherSpectrum,
+    cov: &DMatrix<f64>,
+    n_modes: usize,
+) -> Result<Vec<Option<f64>>> {
+    let theta = &run.result.best.theta;
+    let p = free.len();
+    // `ln omega_m` against `u_j`, `theta_i = theta_i,0 + u_j scale_j`, at `u = 0`.
     let ln_omegas = |u: &[f64], out: &mut [f64]| {
         let mut t = theta.clone();
-        for ((&i, s), du) in free.iter().zip(&scales).zip(u) {
+        for ((&i, s), du) in free.iter().zip(scales).zip(u) {
             t[i] += du * s;
         }
         for (o, w) in out.iter_mut().zip(omegas(run, &t)?) {
@@ -141,7 +207,7 @@ pub fn fisher_analysis(run: &VariantRun, frfs: &[TestFrf]) -> Result<FisherAnaly
         }
         Ok(())
     };
-    let mut dlnw = DMatrix::zeros(w0.len(), p);
+    let mut dlnw = DMatrix::zeros(n_modes, p);
     fd_jacobian(
         FdScheme::Central,
         &vec![0.0; p],
@@ -149,17 +215,18 @@ pub fn fisher_analysis(run: &VariantRun, frfs: &[TestFrf]) -> Result<FisherAnaly
         ln_omegas,
         &mut dlnw,
     )?;
-    let grads: Vec<Vec<f64>> = (0..w0.len())
+    let grads: Vec<Vec<f64>> = (0..n_modes)
         .map(|m| dlnw.row(m).iter().copied().collect())
         .collect();
-    let freq_cv_percent = grads
+    Ok(grads
         .iter()
         .map(|g| {
-            let along_null = null
+            let along_null = spec
+                .null
                 .iter()
                 .map(|&c| {
                     (0..p)
-                        .map(|a| g[a] * eigenvectors[(a, c)])
+                        .map(|a| g[a] * spec.eigenvectors[(a, c)])
                         .sum::<f64>()
                         .abs()
                 })
@@ -173,8 +240,21 @@ pub fn fisher_analysis(run: &VariantRun, frfs: &[TestFrf]) -> Result<FisherAnaly
                 .sum();
             Some(100.0 * v.max(0.0).sqrt())
         })
-        .collect();
-    // Band share of the information on each xi.
+        .collect())
+}
+
+/// Band share of the information on each free `xi` (in order): the part of its column
+/// of the log-scaled Jacobian `jl` squared that falls in its mode's half-power band of
+/// the variant's tests (`None` for a zero column).
+fn xi_band_share(
+    run: &VariantRun,
+    frfs: &[TestFrf],
+    free: &[usize],
+    jl: &DMatrix<f64>,
+) -> Vec<Option<f64>> {
+    let problem = &run.problem;
+    let vars = problem.variables().variables();
+    let n = jl.nrows();
     let mut band_share = Vec::new();
     let point_freq_hz: Vec<(usize, f64)> = {
         // (block index, frequency) of every long-vector point.
@@ -215,21 +295,7 @@ pub fn fisher_analysis(run: &VariantRun, frfs: &[TestFrf]) -> Result<FisherAnaly
             });
         }
     }
-    Ok(FisherAnalysis {
-        variant: format!("{} {}", run.variant.table.key(), run.variant.column()),
-        names: free.iter().map(|&i| vars[i].name.clone()).collect(),
-        cv_percent,
-        eigenvalues,
-        eigenvectors,
-        correlation,
-        freq_hz: w0
-            .iter()
-            .map(|w| w / (2.0 * std::f64::consts::PI))
-            .collect(),
-        freq_cv_percent,
-        band_share,
-        residual_variance: s2,
-    })
+    band_share
 }
 
 /// Half-power damping read off an analytic, exponentially windowed FRF sampled every

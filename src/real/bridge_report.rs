@@ -438,16 +438,41 @@ struct Tables {
     pred_md: String,
 }
 
+/// `report.md`: findings, then one section per stage (optimum, basis, identification,
+/// predictive check) and the stage timings.
 fn report_md(
     study: &BridgeStudy,
     fd: &Findings,
     tables: &Tables,
     timings: &[(String, f64)],
 ) -> String {
-    let (s, p, b, post) = (&study.smu, &study.per_entry, &study.basis, &study.posterior);
+    let mut md = findings_section(study, fd);
+    md += &optimum_section(study, &tables.fit_md);
+    md += &basis_section(study);
+    md += &identification_section(study, fd, &tables.post_md);
+    let pred_md = &tables.pred_md;
+    md += &format!(
+        "## 4. Posterior-predictive frequencies and MACs\n\n{pred_md}\n\
+         ![predictive](fig_predictive_frequencies.png)\n\n"
+    );
+    md += "## Run\n\n";
+    md += &md_table(
+        &["stage", "wall (s)"],
+        &timings
+            .iter()
+            .map(|(k, v)| vec![k.clone(), format!("{v:.1}")])
+            .collect::<Vec<_>>(),
+    );
+    md
+}
+
+/// The title, data and findings: SMU's optimum reproduced, time, per-entry weighting and
+/// the posterior in numbers.
+fn findings_section(study: &BridgeStudy, fd: &Findings) -> String {
+    let (s, p) = (&study.smu, &study.per_entry);
     let n = &fd.identified;
     let (se, ss) = (&fd.sigma_eigenvalues, &fd.sigma_shapes);
-    let mut md = format!(
+    format!(
         "# Steel pedestrian bridge (946 DOFs): SMU's updating, reproduced, and its posterior\n\n\
          Data: `../shared/data/real/bridge-fe` (SMU, GPL-3.0), read in place. Formulation: \
          `docs/bridge-smu.md`.\n\n\
@@ -489,9 +514,13 @@ fn report_md(
         ss.geometric_mean,
         ss.q2_5,
         ss.q97_5,
-    );
-    let fit_md = &tables.fit_md;
-    md += &format!(
+    )
+}
+
+/// Section 1: the multistart and the fit table `fit_md`.
+fn optimum_section(study: &BridgeStudy, fit_md: &str) -> String {
+    let s = &study.smu;
+    format!(
         "## 1. SMU's optimum\n\nMultistart: {} uniform-stratified (Latin hypercube) starts in \
          SMU's box, trust-region reflective least squares (ftol = xtol = gtol = 1e-10, at most {} \
          evaluations per start) on the reduced basis, then the best polished with the exact \
@@ -500,8 +529,13 @@ fn report_md(
          one, says f would fall further outside the box.\n\n{fit_md}\n\
          ![multistart](fig_multistart.png)\n\n",
         s.n_starts, study.settings.max_evaluations
-    );
-    md += &format!(
+    )
+}
+
+/// Section 2: the reduced basis and its error against the exact solve.
+fn basis_section(study: &BridgeStudy) -> String {
+    let b = &study.basis;
+    format!(
         "## 2. The reduced basis\n\n{} vectors from {} snapshots (the {} lowest exact modes \
          at the nominal model, the published optimum, each alpha at each bound and {} random \
          points), built in {:.1} s. Against the exact condensed solve at {} fresh random points \
@@ -520,8 +554,14 @@ fn report_md(
         1e6 * b.reduced_eval_s,
         1e3 * b.exact_eval_s,
         b.exact_eval_s / b.reduced_eval_s
-    );
-    md += &format!(
+    )
+}
+
+/// Section 3: the likelihood, the basis at posterior draws, the identification table
+/// `post_md`, the sampler's run line and the posterior table.
+fn identification_section(study: &BridgeStudy, fd: &Findings, post_md: &str) -> String {
+    let post = &study.posterior;
+    let mut md = format!(
         "## 3. What the 5 modes identify\n\nLikelihood: eigenvalue residuals over their \
          measured scatter and shape residuals over theirs (per entry), Gaussian, each kind with \
          a sampled noise scale; uniform prior on SMU's box. Sampled on the reduced basis of \
@@ -533,24 +573,11 @@ fn report_md(
         fd.basis_max_eigenvalue_rel_at_draws,
         fd.basis_max_one_minus_mac_at_draws
     );
-    let (post_md, pred_md) = (&tables.post_md, &tables.pred_md);
     md += &format!(
         "{post_md}\n![contraction](fig_contraction.png)\n\n\
          ![box positions](fig_box_positions.png)\n\n{}\n\n{}\n\n![traces](fig_traces.png)\n\n",
         run_line(&post.sampled),
         posterior_table(&post.rows)
-    );
-    md += &format!(
-        "## 4. Posterior-predictive frequencies and MACs\n\n{pred_md}\n\
-         ![predictive](fig_predictive_frequencies.png)\n\n"
-    );
-    md += "## Run\n\n";
-    md += &md_table(
-        &["stage", "wall (s)"],
-        &timings
-            .iter()
-            .map(|(k, v)| vec![k.clone(), format!("{v:.1}")])
-            .collect::<Vec<_>>(),
     );
     md
 }

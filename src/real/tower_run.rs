@@ -126,27 +126,7 @@ pub fn fit_band(
     let data = TowerData::from_frf(frf, band.0, band.1)?;
     let bounds = TowerLikelihood::bounds();
     let lik = TowerLikelihood::new(data)?;
-    // MAP of ln k, ln xi at s = 1 from the prior's centre and Latin hypercube starts,
-    // the gains profiled out exactly (the complex-gain blocks' projection).
-    let mut x0 = vec![K_CENTRE_N_PER_M.ln(); N];
-    x0.extend([0.02f64.ln(); N]);
-    let ms = fit_multistart(
-        lik.posterior(),
-        &[1.0],
-        Some(&x0),
-        &FitOptions {
-            n_starts: 32,
-            seed,
-            ..Default::default()
-        },
-    )?;
-    let mut start = ms.best.x.clone();
-    let fit = lik.gain_fit(&start)?;
-    let rss: f64 = fit.rss.iter().sum();
-    start.push((rss / lik.data.n_points() as f64).sqrt().ln());
-    for (x, (l, h)) in start.iter_mut().zip(&bounds) {
-        *x = x.clamp(l + 0.03, h - 0.03);
-    }
+    let (start, n_at_best) = map_start(&lik, &bounds, seed)?;
     let sampled = sample_to_targets(
         &lik,
         Start::Ball(Ball {
@@ -163,25 +143,84 @@ pub fn fit_band(
         &format!("tower: band {}-{} Hz", band.0, band.1),
         sampling,
     )?;
-    let tau = &sampled.tau_steps;
-    let mut rows = Vec::new();
-    for i in 0..2 * N + 1 {
-        let name = match i / N {
-            0 => format!("k{}", i + 1),
-            1 => format!("xi{}", i - N + 1),
-            _ => "s".into(),
-        };
-        let unit = if i < N { "N/m" } else { "" };
-        rows.push(row_from_chains(
-            &name,
-            unit,
-            &sampled.chains(i, f64::exp),
-            N_WALKERS,
-            tau[i],
-            near_bound(&sampled.chains(i, |v| v), bounds[i]),
-        ));
+    let mut rows = sampled_rows(&sampled, &bounds);
+    rows.extend(gain_rows(&lik, &sampled, seed)?);
+    let freq_rows = frequency_rows(&sampled);
+    let median: Vec<f64> = (0..lik.dim())
+        .map(|q| {
+            let mut v = sampled.chains(q, |x| x).concat();
+            v.sort_by(f64::total_cmp);
+            quantile_sorted(&v, 0.5)
+        })
+        .collect();
+    let g_median = lik.gain_fit(&median)?.mean();
+    Ok(TowerFit {
+        band_hz: band,
+        lik,
+        start,
+        n_at_best,
+        sampled,
+        rows,
+        freq_rows,
+        median,
+        g_median,
+    })
+}
+
+/// The sampler's start: the MAP of `ln k`, `ln xi` at `s = 1` from the prior's centre and
+/// Latin hypercube starts, the gains profiled out exactly (the complex-gain blocks'
+/// projection), then `ln s` from the residual there; each kept 0.03 inside its `bounds`.
+/// Also how many starts reached the best optimum.
+fn map_start(lik: &TowerLikelihood, bounds: &[(f64, f64)], seed: u64) -> Result<(Vec<f64>, usize)> {
+    let mut x0 = vec![K_CENTRE_N_PER_M.ln(); N];
+    x0.extend([0.02f64.ln(); N]);
+    let ms = fit_multistart(
+        lik.posterior(),
+        &[1.0],
+        Some(&x0),
+        &FitOptions {
+            n_starts: 32,
+            seed,
+            ..Default::default()
+        },
+    )?;
+    let mut start = ms.best.x.clone();
+    let fit = lik.gain_fit(&start)?;
+    let rss: f64 = fit.rss.iter().sum();
+    start.push((rss / lik.data.n_points() as f64).sqrt().ln());
+    for (x, (l, h)) in start.iter_mut().zip(bounds) {
+        *x = x.clamp(l + 0.03, h - 0.03);
     }
-    // Gains: one exact conditional draw per posterior draw (same chain layout).
+    Ok((start, ms.n_at_best))
+}
+
+/// Summary rows of the sampled parameters: `k1..k5` (N/m), `xi1..xi5` and `s`, each
+/// flagged when its posterior presses on the prior bound.
+fn sampled_rows(sampled: &Sampled, bounds: &[(f64, f64)]) -> Vec<ParameterSummary> {
+    let tau = &sampled.tau_steps;
+    (0..2 * N + 1)
+        .map(|i| {
+            let name = match i / N {
+                0 => format!("k{}", i + 1),
+                1 => format!("xi{}", i - N + 1),
+                _ => "s".into(),
+            };
+            let unit = if i < N { "N/m" } else { "" };
+            row_from_chains(
+                &name,
+                unit,
+                &sampled.chains(i, f64::exp),
+                N_WALKERS,
+                tau[i],
+                near_bound(&sampled.chains(i, |v| v), bounds[i]),
+            )
+        })
+        .collect()
+}
+
+/// Summary rows of the channel gains `g1..g5`: one exact conditional draw per posterior
+/// draw (same chain layout).
+fn gain_rows(lik: &TowerLikelihood, sampled: &Sampled, seed: u64) -> Result<Vec<ParameterSummary>> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x6a1e_5eed);
     let d = &sampled.draws;
     let mut gchains = vec![vec![Vec::with_capacity(d.n_draws); d.n_chains]; N];
@@ -196,16 +235,15 @@ pub fn fit_band(
             }
         }
     }
-    for (ch, g) in gchains.iter().enumerate() {
-        rows.push(row_from_chains(
-            &format!("g{}", ch + 1),
-            "",
-            g,
-            N_WALKERS,
-            f64::NAN,
-            None,
-        ));
-    }
+    Ok(gchains
+        .iter()
+        .enumerate()
+        .map(|(ch, g)| row_from_chains(&format!("g{}", ch + 1), "", g, N_WALKERS, f64::NAN, None))
+        .collect())
+}
+
+/// Summary rows of the natural frequencies `f1..f5` (Hz) of the sampled stiffnesses.
+fn frequency_rows(sampled: &Sampled) -> Vec<ParameterSummary> {
     let fchains: Vec<Vec<Vec<f64>>> = (0..N)
         .map(|r| {
             sampled.draws.map_chains(|t| {
@@ -214,28 +252,9 @@ pub fn fit_band(
             })
         })
         .collect();
-    let freq_rows = fchains
+    fchains
         .iter()
         .enumerate()
         .map(|(r, c)| row_from_chains(&format!("f{}", r + 1), "Hz", c, N_WALKERS, f64::NAN, None))
-        .collect();
-    let median: Vec<f64> = (0..lik.dim())
-        .map(|q| {
-            let mut v = sampled.chains(q, |x| x).concat();
-            v.sort_by(f64::total_cmp);
-            quantile_sorted(&v, 0.5)
-        })
-        .collect();
-    let g_median = lik.gain_fit(&median)?.mean();
-    Ok(TowerFit {
-        band_hz: band,
-        lik,
-        start,
-        n_at_best: ms.n_at_best,
-        sampled,
-        rows,
-        freq_rows,
-        median,
-        g_median,
-    })
+        .collect()
 }

@@ -195,18 +195,11 @@ pub fn run_band(
 ) -> Result<BandResult> {
     let lik = BandLikelihood::new(data, spec)?;
     let start = varpro_start(&lik)?;
-    let dim = lik.dim();
-    let mut scale = vec![0.0; dim];
-    for r in 0..lik.n_modes() {
-        scale[2 * r] = 1e-4 * start[2 * r];
-        scale[2 * r + 1] = 0.02;
-    }
-    scale[dim - 1] = 0.02;
     let sampled = sample_to_targets(
         &lik.posterior,
         Start::Ball(Ball {
             center: start.clone(),
-            scale,
+            scale: start_ball_scale(&lik, &start),
         }),
         N_WALKERS,
         seed,
@@ -214,10 +207,47 @@ pub fn run_band(
         &format!("wheel: band {}", lik.spec.label),
         sampling,
     )?;
+    let ref_channel = reference_channels(&lik, &start)?;
+    let mut rows = pole_rows(&lik, &sampled);
+    let derived = draw_derived(&lik, &sampled, &ref_channel, seed)?;
+    rows.extend(residue_rows(&ref_channel, &derived.residue_chains));
+    let bands_abs = derived
+        .abs_samples
+        .into_iter()
+        .map(quantile_bands)
+        .collect();
+    let rms_z = median_rms_z(&lik, &sampled)?;
+    Ok(BandResult {
+        lik,
+        start,
+        sampled,
+        rows,
+        ref_channel,
+        bands_abs,
+        rms_z,
+    })
+}
+
+/// Widths of the walkers' starting ball around the start: `1e-4` of each natural
+/// frequency (Hz), 0.02 in each `ln xi` and 0.02 in `ln s`.
+fn start_ball_scale(lik: &BandLikelihood, start: &[f64]) -> Vec<f64> {
+    let dim = lik.dim();
+    let mut scale = vec![0.0; dim];
+    for r in 0..lik.n_modes() {
+        scale[2 * r] = 1e-4 * start[2 * r];
+        scale[2 * r + 1] = 0.02;
+    }
+    scale[dim - 1] = 0.02;
+    scale
+}
+
+/// Reference channel (0-based) of each mode: the channel with the largest `|A|` in the
+/// least-squares fit at the start.
+fn reference_channels(lik: &BandLikelihood, start: &[f64]) -> Result<Vec<usize>> {
     let fits0 = lik
-        .fit_channels(&start)
+        .fit_channels(start)
         .ok_or_else(|| Error::Numerical("rank-deficient basis at the start".into()))?;
-    let ref_channel: Vec<usize> = (0..lik.n_modes())
+    Ok((0..lik.n_modes())
         .map(|r| {
             (0..N_CHANNELS)
                 .max_by(|&a, &b| {
@@ -227,7 +257,13 @@ pub fn run_band(
                 })
                 .unwrap_or(0)
         })
-        .collect();
+        .collect())
+}
+
+/// Summary rows of the sampled parameters: per mode `f` (Hz) and `xi`, then `s`, each
+/// flagged when its posterior presses on the prior bound.
+fn pole_rows(lik: &BandLikelihood, sampled: &Sampled) -> Vec<ParameterSummary> {
+    let dim = lik.dim();
     let tau = &sampled.tau_steps;
     let b = lik.bounds();
     let mut rows = Vec::new();
@@ -259,9 +295,28 @@ pub fn run_band(
         tau[dim - 1],
         near_bound(&ln_s, b[dim - 1]),
     ));
+    rows
+}
 
-    // Residue draws on a strided subset, one conditional draw per kept posterior draw,
-    // kept as chains (same walker/draw layout) for R-hat and ESS.
+/// What the conditional residue draws give: chains of the residue magnitudes and
+/// samples of the model `|H|`.
+struct DerivedDraws {
+    /// Per mode `|A|` at its reference channel, then `|B|` and `|D|` at the first mode's
+    /// reference channel; each as chains (same walker/draw layout as the sampler's).
+    residue_chains: Vec<Vec<Vec<f64>>>,
+    /// Samples of the model `|H|` per channel of [`PLOT_CHANNELS`] and per frequency bin.
+    abs_samples: Vec<Vec<Vec<f64>>>,
+}
+
+/// Residue draws on a strided subset, one conditional draw per kept posterior draw,
+/// kept as chains (same walker/draw layout) for R-hat and ESS; every `every`-th of them
+/// also gives a sample of the model `|H|` on the band grid.
+fn draw_derived(
+    lik: &BandLikelihood,
+    sampled: &Sampled,
+    ref_channel: &[usize],
+    seed: u64,
+) -> Result<DerivedDraws> {
     let draws = &sampled.draws;
     let stride = (draws.n_chains * draws.n_draws)
         .div_ceil(MAX_DERIVED_DRAWS * 4)
@@ -281,7 +336,7 @@ pub fn run_band(
     for c in 0..draws.n_chains {
         for &d in &kept {
             let theta = draws.draw(c, d);
-            let res = draw_residues(&lik, theta, &mut rng)?;
+            let res = draw_residues(lik, theta, &mut rng)?;
             for r in 0..m {
                 lin_chains[r][c].push(res[ref_channel[r]][r].norm());
             }
@@ -300,6 +355,17 @@ pub fn run_band(
             count += 1;
         }
     }
+    Ok(DerivedDraws {
+        residue_chains: lin_chains,
+        abs_samples,
+    })
+}
+
+/// Summary rows of the residue magnitudes ((m/s^2)/N): per mode `|A|` at its reference
+/// channel, then `|B|` and `|D|` at the first mode's.
+fn residue_rows(ref_channel: &[usize], lin_chains: &[Vec<Vec<f64>>]) -> Vec<ParameterSummary> {
+    let m = ref_channel.len();
+    let mut rows = Vec::new();
     for r in 0..m {
         rows.push(row_from_chains(
             &format!("|A| ch{}", ref_channel[r] + 1),
@@ -326,19 +392,25 @@ pub fn run_band(
         f64::NAN,
         None,
     ));
-    let bands_abs = abs_samples
-        .into_iter()
-        .map(|per_k| {
-            let mut out: [Vec<f64>; 5] = Default::default();
-            for mut v in per_k {
-                v.sort_by(f64::total_cmp);
-                for (o, q) in out.iter_mut().zip([0.025, 0.25, 0.5, 0.75, 0.975]) {
-                    o.push(quantile_sorted(&v, q));
-                }
-            }
-            out
-        })
-        .collect();
+    rows
+}
+
+/// The 2.5, 25, 50, 75 and 97.5 % quantiles of each frequency bin's samples.
+fn quantile_bands(per_bin: Vec<Vec<f64>>) -> [Vec<f64>; 5] {
+    let mut out: [Vec<f64>; 5] = Default::default();
+    for mut v in per_bin {
+        v.sort_by(f64::total_cmp);
+        for (o, q) in out.iter_mut().zip([0.025, 0.25, 0.5, 0.75, 0.975]) {
+            o.push(quantile_sorted(&v, q));
+        }
+    }
+    out
+}
+
+/// RMS of each channel's whitened residual at the posterior median of the sampled
+/// parameters, divided by the posterior-median `s`.
+fn median_rms_z(lik: &BandLikelihood, sampled: &Sampled) -> Result<Vec<f64>> {
+    let dim = lik.dim();
     let median: Vec<f64> = (0..dim)
         .map(|q| {
             let mut v: Vec<f64> = sampled.chains(q, |x| x).concat();
@@ -347,22 +419,14 @@ pub fn run_band(
         })
         .collect();
     let s_med = median[dim - 1].exp();
+    let n = lik.data.freq_hz.len();
     let fits = lik
         .fit_channels(&median)
         .ok_or_else(|| Error::Numerical("rank-deficient basis at the posterior median".into()))?;
-    let rms_z = fits
+    Ok(fits
         .iter()
         .map(|f| (f.rss / n as f64).sqrt() / s_med)
-        .collect();
-    Ok(BandResult {
-        lik,
-        start,
-        sampled,
-        rows,
-        ref_channel,
-        bands_abs,
-        rms_z,
-    })
+        .collect())
 }
 
 /// Samples every band of [`bands`] (band `i` with seed `seed + i`).

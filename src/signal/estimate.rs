@@ -1,15 +1,12 @@
 //! FRF estimates of whole tests and campaigns, and their hand-over to model updating.
 
 use super::bands::{select_bands, Band, BandOptions};
-use super::correlation::{NoiseWindow, WindowDof};
 use super::hammer::{hammer_spectra, HammerOptions, Impact};
 use super::input_noise::InputNoise;
-use super::noise::{
-    add_smooth_input_noise, bendat_piersol_rel_std, local_rational_noise, CoherenceMethod,
-};
+use super::local_coherence::LocalModel;
+use super::noise::{bendat_piersol_rel_std, CoherenceMethod};
 use super::spectra::{bin_freq_hz, CrossSpectra};
 use super::sweep::full_record_spectra;
-use super::windows::exponential_window;
 use crate::error::{Error, Result};
 use crate::frf::{Excitation, FrfBlock, FrfKind, FrfPair};
 use crate::io::{Campaign, Channel, Quantity, Test, TestKind};
@@ -341,98 +338,37 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         resp_idx,
     ) = test_blocks(test, opts)?;
     let n_fft = block_len * pad;
-    let mut freq_hz = bin_freq_hz(n_fft, fs);
-    let n_keep = match opts.freq_max_hz {
-        Some(fmax) => freq_hz.iter().take_while(|&&f| f <= fmax).count(),
-        None => freq_hz.len(),
-    };
-    freq_hz.truncate(n_keep);
+    let freq_hz = kept_freq_hz(n_fft, fs, opts.freq_max_hz);
+    let n_keep = freq_hz.len();
     let n_blocks = f_blocks.len();
-    // local models: bins spaced so that the noise of neighbours is at most 50 % correlated
-    // (exponential window, zero padding), the rest normalised exactly ([`super::correlation`])
     let local = match opts.coherence {
         CoherenceMethod::Ordinary => None,
-        CoherenceMethod::LocalRational { half_width_bins } => {
-            let expw = tau.map(|t| exponential_window(block_len, 1.0 / fs, t));
-            let window = NoiseWindow::new(expw.as_deref(), block_len, n_fft)
-                .map_err(|e| Error::invalid(&path, e.to_string()))?;
-            let step = window.decorrelating_step();
-            let corr = window.window_correlation(half_width_bins, step);
-            let dof = WindowDof::new(Some(&corr), half_width_bins, n_blocks)
-                .map_err(|e| Error::invalid(&path, e.to_string()))?;
-            // bins the windows of the kept bins reach
-            let n_local = (n_keep + 2 * half_width_bins * step).min(n_fft / 2 + 1);
-            Some((half_width_bins, step, corr, dof, n_local))
-        }
+        CoherenceMethod::LocalRational { half_width_bins } => Some(
+            LocalModel::new(half_width_bins, tau, block_len, fs, n_fft, n_keep, n_blocks)
+                .map_err(|e| Error::invalid(&path, e.to_string()))?,
+        ),
     };
     let coherence_dof = match &local {
         None => n_blocks,
-        Some((_, _, _, dof, _)) => dof.effective.round().max(1.0) as usize,
+        Some(l) => l.dof.effective.round().max(1.0) as usize,
     };
     use rayon::prelude::*;
     let responses = resp_idx
         .par_iter()
         .zip(y_blocks.par_iter())
         .map(|(&ci, yb)| {
-            let channel = test.channels[ci].clone();
-            let kind = kind_of(channel.quantity).ok_or_else(|| {
-                Error::Usage(format!("channel {} is not a response", channel.name))
-            })?;
-            let spectra = CrossSpectra::from_blocks(&f_blocks, yb)?;
-            let h1 = spectra.h1();
-            let (mut coherence, mut output_coherence) = match &local {
-                None => {
-                    let c = spectra.ordinary_coherence();
-                    (c.clone(), c)
-                }
-                Some((half_width, step, corr, _, n_local)) => {
-                    let cut = |b: &[Vec<Complex64>]| -> Vec<Vec<Complex64>> {
-                        b.iter().map(|v| v[..*n_local].to_vec()).collect()
-                    };
-                    let fb = cut(&f_blocks);
-                    let mut noise = local_rational_noise(
-                        &fb,
-                        &cut(yb),
-                        &h1[..*n_local],
-                        *half_width,
-                        *step,
-                        Some(corr),
-                    )?;
-                    let mut out = noise.coherence.clone();
-                    add_smooth_input_noise(&mut noise, &h1, &fb, &input_noise)?;
-                    let mut c = noise.coherence;
-                    for ((v, o), null) in c.iter_mut().zip(&mut out).zip(spectra.null_input()) {
-                        if null {
-                            *v = 0.0;
-                            *o = 0.0;
-                        }
-                    }
-                    (c, out)
-                }
-            };
-            let mut h1 = h1;
-            let mut h2 = spectra.h2();
-            h1.truncate(n_keep);
-            h2.truncate(n_keep);
-            coherence.truncate(n_keep);
-            output_coherence.truncate(n_keep);
-            Ok(ResponseFrf {
-                channel,
-                kind,
-                h1,
-                h2,
-                coherence,
-                output_coherence,
-            })
+            estimate_response(
+                &test.channels[ci],
+                &f_blocks,
+                yb,
+                local.as_ref(),
+                &input_noise,
+                n_keep,
+            )
         })
         .collect::<Result<Vec<_>>>()
         .map_err(|e| Error::invalid(&path, e.to_string()))?;
-    let mut input_power = vec![0.0; n_keep];
-    for fb in &f_blocks {
-        for (p, f) in input_power.iter_mut().zip(fb) {
-            *p += f.norm_sqr();
-        }
-    }
+    let input_power = input_power(&f_blocks, n_keep);
     let input_noise = (local.is_some() && input_noise_weights.iter().any(|w| !w.is_empty()))
         .then(|| {
             let force = f_blocks.iter().map(|f| f[..n_keep].to_vec()).collect();
@@ -440,22 +376,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         })
         .transpose()
         .map_err(|e| Error::invalid(&path, e.to_string()))?;
-    let n_peaks = opts
-        .bands
-        .n_peaks
-        .unwrap_or_else(|| responses.iter().map(|r| r.channel.floor).max().unwrap_or(0));
-    let h_refs: Vec<&[Complex64]> = responses.iter().map(|r| r.h1.as_slice()).collect();
-    let mean_coherence: Vec<f64> = (0..n_keep)
-        .map(|k| responses.iter().map(|r| r.coherence[k]).sum::<f64>() / responses.len() as f64)
-        .collect();
-    let (bands, selected) = select_bands(
-        &freq_hz,
-        &h_refs,
-        &input_power,
-        &mean_coherence,
-        &opts.bands,
-        n_peaks,
-    )?;
+    let (bands, selected) = test_bands(&freq_hz, &responses, &input_power, opts)?;
     Ok(TestFrf {
         test: test.name.clone(),
         freq_hz,
@@ -471,6 +392,96 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         selected,
         input_noise,
     })
+}
+
+/// Bin frequencies (Hz) of `n_fft`-point spectra at `fs_hz`, up to `freq_max_hz`
+/// (`None`: up to Nyquist).
+fn kept_freq_hz(n_fft: usize, fs_hz: f64, freq_max_hz: Option<f64>) -> Vec<f64> {
+    let mut freq_hz = bin_freq_hz(n_fft, fs_hz);
+    let n_keep = match freq_max_hz {
+        Some(fmax) => freq_hz.iter().take_while(|&&f| f <= fmax).count(),
+        None => freq_hz.len(),
+    };
+    freq_hz.truncate(n_keep);
+    freq_hz
+}
+
+/// H1, H2 and coherences of one response channel from the input and response spectra per
+/// block, on the first `n_keep` bins: ordinary coherence, or that of the `local` models
+/// (with the smooth input noise `input_noise` per block).
+fn estimate_response(
+    channel: &Channel,
+    f_blocks: &[Vec<Complex64>],
+    y_blocks: &[Vec<Complex64>],
+    local: Option<&LocalModel>,
+    input_noise: &[f64],
+    n_keep: usize,
+) -> Result<ResponseFrf> {
+    let channel = channel.clone();
+    let kind = kind_of(channel.quantity)
+        .ok_or_else(|| Error::Usage(format!("channel {} is not a response", channel.name)))?;
+    let spectra = CrossSpectra::from_blocks(f_blocks, y_blocks)?;
+    let h1 = spectra.h1();
+    let (mut coherence, mut output_coherence) = match local {
+        None => {
+            let c = spectra.ordinary_coherence();
+            (c.clone(), c)
+        }
+        Some(local) => local.coherences(f_blocks, y_blocks, &h1, &spectra, input_noise)?,
+    };
+    let mut h1 = h1;
+    let mut h2 = spectra.h2();
+    h1.truncate(n_keep);
+    h2.truncate(n_keep);
+    coherence.truncate(n_keep);
+    output_coherence.truncate(n_keep);
+    Ok(ResponseFrf {
+        channel,
+        kind,
+        h1,
+        h2,
+        coherence,
+        output_coherence,
+    })
+}
+
+/// Input auto-spectrum summed over blocks (unnormalised, windowed) on the first `n_keep`
+/// bins.
+fn input_power(f_blocks: &[Vec<Complex64>], n_keep: usize) -> Vec<f64> {
+    let mut input_power = vec![0.0; n_keep];
+    for fb in f_blocks {
+        for (p, f) in input_power.iter_mut().zip(fb) {
+            *p += f.norm_sqr();
+        }
+    }
+    input_power
+}
+
+/// Resonance bands and selected bins of a test from its responses' H1 and mean
+/// coherence; as many peaks as `opts.bands.n_peaks`, else as the highest floor measured.
+fn test_bands(
+    freq_hz: &[f64],
+    responses: &[ResponseFrf],
+    input_power: &[f64],
+    opts: &EstimateOptions,
+) -> Result<(Vec<Band>, Vec<usize>)> {
+    let n_keep = freq_hz.len();
+    let n_peaks = opts
+        .bands
+        .n_peaks
+        .unwrap_or_else(|| responses.iter().map(|r| r.channel.floor).max().unwrap_or(0));
+    let h_refs: Vec<&[Complex64]> = responses.iter().map(|r| r.h1.as_slice()).collect();
+    let mean_coherence: Vec<f64> = (0..n_keep)
+        .map(|k| responses.iter().map(|r| r.coherence[k]).sum::<f64>() / responses.len() as f64)
+        .collect();
+    select_bands(
+        freq_hz,
+        &h_refs,
+        input_power,
+        &mean_coherence,
+        &opts.bands,
+        n_peaks,
+    )
 }
 
 /// Estimates every test of a campaign (in test order). `n_peaks` defaults to the number of
@@ -493,125 +504,4 @@ pub fn estimate_campaign(campaign: &Campaign, opts: &EstimateOptions) -> Result<
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::io::NominalModel;
-
-    fn channel(name: &str, quantity: Quantity, floor: usize) -> Channel {
-        Channel {
-            name: name.into(),
-            quantity,
-            floor,
-            unit: quantity.unit().into(),
-        }
-    }
-
-    /// A damped oscillation "response" to a pulse: enough for the error paths.
-    fn record(n: usize) -> (Vec<f64>, Vec<f64>) {
-        let mut f = vec![0.0; n];
-        f[100] = 10.0;
-        f[101] = 5.0;
-        let y = (0..n)
-            .map(|i| {
-                let t = i.saturating_sub(100) as f64 * 0.01;
-                if i < 100 {
-                    0.0
-                } else {
-                    (-0.5 * t).exp() * (6.0 * t).sin()
-                }
-            })
-            .collect();
-        (f, y)
-    }
-
-    fn hammer(channels: Vec<Channel>, data: Vec<Vec<f64>>) -> Test {
-        Test {
-            name: "h".into(),
-            kind: TestKind::Hammer { excited_floor: 1 },
-            sample_rate_hz: 100.0,
-            channels,
-            data,
-        }
-    }
-
-    #[test]
-    fn estimate_test_errors_name_the_file_and_the_problem() {
-        let (f, y) = record(4000);
-        let no_force = hammer(
-            vec![channel("acc1", Quantity::Acceleration, 1)],
-            vec![y.clone()],
-        );
-        let e = estimate_test(&no_force, &EstimateOptions::default()).unwrap_err();
-        assert!(e.to_string().contains("tests/h/data.csv") && e.to_string().contains("force"));
-        let no_resp = hammer(vec![channel("force", Quantity::Force, 1)], vec![f.clone()]);
-        assert!(estimate_test(&no_resp, &EstimateOptions::default()).is_err());
-        let mut shake = hammer(
-            vec![channel("acc1", Quantity::Acceleration, 1)],
-            vec![y.clone()],
-        );
-        shake.kind = TestKind::ShakeTable;
-        let e = estimate_test(&shake, &EstimateOptions::default()).unwrap_err();
-        assert!(e.to_string().contains("ground_acceleration"));
-        let quiet = hammer(
-            vec![
-                channel("force", Quantity::Force, 1),
-                channel("acc1", Quantity::Acceleration, 1),
-            ],
-            vec![vec![0.0; 4000], y.clone()],
-        );
-        let e = estimate_test(&quiet, &EstimateOptions::default()).unwrap_err();
-        assert!(e.to_string().contains("no impact"));
-        let mut bad_rate = quiet.clone();
-        bad_rate.sample_rate_hz = 0.0;
-        assert!(estimate_test(&bad_rate, &EstimateOptions::default()).is_err());
-    }
-
-    #[test]
-    fn campaign_defaults_peaks_to_floors_and_prefixes_root() {
-        let (f, y) = record(4000);
-        let test = hammer(
-            vec![
-                channel("force", Quantity::Force, 1),
-                channel("acc1", Quantity::Acceleration, 1),
-                channel("disp1", Quantity::Displacement, 1),
-            ],
-            vec![f, y.clone(), y],
-        );
-        let campaign = Campaign {
-            root: PathBuf::from("/data/c"),
-            title: "t".into(),
-            nominal: NominalModel::shear_frame(vec![1.0], vec![1.0]),
-            tests: vec![test.clone()],
-            warnings: Vec::new(),
-        };
-        let est = estimate_campaign(&campaign, &EstimateOptions::default()).unwrap();
-        assert_eq!(est.len(), 1);
-        let e = &est[0];
-        assert_eq!(e.bands.len(), 1);
-        assert!((e.bands[0].peak_hz - 6.0 / (2.0 * std::f64::consts::PI)).abs() < 0.02);
-        assert_eq!(
-            e.input,
-            InputKind::Force {
-                floor: 1,
-                channel: "force".into()
-            }
-        );
-        let pairs = e.pairs().unwrap();
-        assert_eq!(pairs[0].kind, FrfKind::Accelerance);
-        assert_eq!(pairs[1].kind, FrfKind::Receptance);
-        assert_eq!(pairs[0].excitation, Excitation::Dof(0));
-        let block = e.frf_block().unwrap();
-        assert_eq!(block.omega_rad_s.len(), e.selected.len());
-        let mags = e.selected_magnitudes();
-        assert_eq!(mags.len(), 2 * e.selected.len());
-        assert_eq!(mags[0], e.responses[0].h1[e.selected[0]].norm());
-        assert_eq!(e.selected_rel_std().len(), mags.len());
-        let mut broken = campaign;
-        broken.tests[0].data[0] = vec![0.0; 4000];
-        let err = estimate_campaign(&broken, &EstimateOptions::default()).unwrap_err();
-        assert!(
-            err.to_string().starts_with("/data/c/tests/h/data.csv"),
-            "{err}"
-        );
-    }
-}
+mod tests;

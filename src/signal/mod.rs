@@ -53,6 +53,7 @@ mod estimate;
 pub mod frf_csv;
 pub mod hammer;
 pub mod input_noise;
+mod local_coherence;
 pub mod measured;
 pub mod noise;
 mod settings;

@@ -99,87 +99,17 @@ impl NonlinearFoh {
         let ne = self.n_external;
         let ni = ne + self.springs.len();
         let no = outputs.c.nrows();
-        if inputs.len() != ne || outputs.c.ncols() != ns || outputs.d.ncols() != ni {
-            return Err(Error::Usage(format!(
-                "simulation with {} input series for {ne} inputs, or read-out of the wrong shape",
-                inputs.len()
-            )));
-        }
-        let n_steps = inputs.first().map_or(0, Vec::len);
-        if inputs.iter().any(|u| u.len() != n_steps) {
-            return Err(Error::Usage("input series of different lengths".into()));
-        }
+        let n_steps = self.check_input_shapes(outputs, inputs)?;
         let h = self.step_s;
-        let row_major = |m: &DMatrix<f64>| -> Vec<f64> { m.transpose().as_slice().to_vec() };
-        let phi = row_major(&self.phi);
-        // External inputs (first-order hold): z += Gamma0 u_k + Gamma1 u_{k+1}.
-        let ext = |m: &DMatrix<f64>| row_major(&m.columns(0, ne).into_owned());
-        let gamma1 = ext(&self.g[1]);
-        let gamma0 = ext(&(&self.g[0] - &self.g[1]));
-        // Spring force columns: known part from (q_k, q'_k), unknown from (q_{k+1}, q'_{k+1}).
-        let col = |m: &DMatrix<f64>, s: usize| -> Vec<f64> {
-            m.column(ne + s).iter().copied().collect::<Vec<f64>>()
-        };
-        let [g0, g1, g2, g3] = [&self.g[0], &self.g[1], &self.g[2], &self.g[3]];
-        struct Cols {
-            // z_{k+1} gains kq q_k + kp q'_k + uq q_{k+1} + up q'_{k+1}.
-            kq: Vec<f64>,
-            kp: Vec<f64>,
-            uq: Vec<f64>,
-            up: Vec<f64>,
-        }
-        let lin = |a: &[(f64, &DMatrix<f64>)], s: usize| -> Vec<f64> {
-            let mut out = vec![0.0; ns];
-            for (w, m) in a {
-                for (o, v) in out.iter_mut().zip(col(m, s)) {
-                    *o += w * v;
-                }
-            }
-            out
-        };
-        let cols: Vec<Cols> = (0..self.springs.len())
-            .map(|s| Cols {
-                kq: lin(&[(1.0, g0), (-3.0, g2), (2.0, g3)], s),
-                kp: lin(&[(h, g1), (-2.0 * h, g2), (h, g3)], s),
-                uq: lin(&[(3.0, g2), (-2.0, g3)], s),
-                up: lin(&[(-h, g2), (h, g3)], s),
-            })
-            .collect();
-        // Drift and drift velocity read-outs of each spring.
-        let drift = |s: &CubicSpring, z: &[f64]| -> (f64, f64) {
-            let (lo_d, lo_v) = s.lower_dof.map_or((0.0, 0.0), |l| (z[l], z[n + l]));
-            (z[s.upper_dof] - lo_d, z[n + s.upper_dof] - lo_v)
-        };
-        let m = self.springs.len();
-        // B: sensitivity of (d_j, v_j) of the new state to (q_i, q'_i) at the step end.
-        let mut b = vec![0.0; 4 * m * m];
-        for (j, sj) in self.springs.iter().enumerate() {
-            for (i, ci) in cols.iter().enumerate() {
-                let (dq, vq) = drift(sj, &ci.uq);
-                let (dp, vp) = drift(sj, &ci.up);
-                let r = 2 * j;
-                b[r * 2 * m + 2 * i] = dq;
-                b[r * 2 * m + 2 * i + 1] = dp;
-                b[(r + 1) * 2 * m + 2 * i] = vq;
-                b[(r + 1) * 2 * m + 2 * i + 1] = vp;
-            }
-        }
+        let ops = self.step_operators();
         let oc = row_major(&outputs.c);
         let od = row_major(&outputs.d);
-        let mut z = match z0 {
-            Some(z0) if z0.len() == ns => z0.as_slice().to_vec(),
-            Some(z0) => {
-                return Err(Error::Usage(format!(
-                    "initial state has {} entries, expected {ns}",
-                    z0.len()
-                )))
-            }
-            None => vec![0.0; ns],
-        };
+        let mut z = initial_state(z0, ns)?;
+        let m = self.springs.len();
         // Forces and their derivatives (q_s, q'_s) at the current state, flat.
         let mut qk = vec![0.0; 2 * m];
         for (s, sp) in self.springs.iter().enumerate() {
-            let (d, v) = drift(sp, &z);
+            let (d, v) = spring_drift(sp, &z, n);
             (qk[2 * s], qk[2 * s + 1]) = sp.force(d, v);
         }
         let mut z_star = vec![0.0; ns];
@@ -202,25 +132,17 @@ impl NonlinearFoh {
             if k + 1 == n_steps {
                 break;
             }
-            // Known part of the new state.
-            for (i, zi) in z_star.iter_mut().enumerate() {
-                let mut v = dot(&phi[i * ns..(i + 1) * ns], &z);
-                for j in 0..ne {
-                    v += gamma0[i * ne + j] * inputs[j][k] + gamma1[i * ne + j] * inputs[j][k + 1];
-                }
-                for (s, c) in cols.iter().enumerate() {
-                    v += c.kq[i] * qk[2 * s] + c.kp[i] * qk[2 * s + 1];
-                }
-                *zi = v;
-            }
+            ops.known_state(&z, inputs, k, &qk, &mut z_star);
             for (s, sp) in self.springs.iter().enumerate() {
-                (a[2 * s], a[2 * s + 1]) = drift(sp, &z_star);
+                (a[2 * s], a[2 * s + 1]) = spring_drift(sp, &z_star, n);
             }
             let t_s = (k + 1) as f64 * h;
-            newton.solve(&self.springs, &a, &b, &qk).map_err(|what| {
-                Error::Numerical(format!("cubic spring step at t = {t_s:.6} s: {what}"))
-            })?;
-            for (s, c) in cols.iter().enumerate() {
+            newton
+                .solve(&self.springs, &a, &ops.b, &qk)
+                .map_err(|what| {
+                    Error::Numerical(format!("cubic spring step at t = {t_s:.6} s: {what}"))
+                })?;
+            for (s, c) in ops.cols.iter().enumerate() {
                 let (q, p) = (newton.forces[2 * s], newton.forces[2 * s + 1]);
                 for (zi, (cq, cp)) in z_star.iter_mut().zip(c.uq.iter().zip(&c.up)) {
                     *zi += cq * q + cp * p;
@@ -228,15 +150,7 @@ impl NonlinearFoh {
             }
             std::mem::swap(&mut z, &mut z_star);
             qk.copy_from_slice(&newton.forces);
-            for (s, sp) in self.springs.iter().enumerate() {
-                let d = newton.y[2 * s];
-                if sp.linear_stiffness_n_per_m + 3.0 * sp.k3_n_per_m3 * d * d <= 0.0 {
-                    return Err(Error::Numerical(format!(
-                        "softening spring at DOF {} lost its stiffness (drift {d:.3e} m at t = {t_s:.3} s); lower |k3| or the excitation",
-                        sp.upper_dof,
-                    )));
-                }
-            }
+            check_tangent_stiffness(&self.springs, &newton.y, t_s)?;
             if (k + 1).is_multiple_of(CHUNK) {
                 progress(CHUNK as u64);
                 reported += CHUNK;
@@ -248,6 +162,172 @@ impl NonlinearFoh {
         }
         Ok(y_out)
     }
+
+    /// Checks that there is one input series per external input, all of one length, and
+    /// that `outputs` reads this state space; returns the number of samples.
+    fn check_input_shapes(&self, outputs: &OutputMap, inputs: &[Vec<f64>]) -> Result<usize> {
+        let ns = self.phi.nrows();
+        let ne = self.n_external;
+        let ni = ne + self.springs.len();
+        if inputs.len() != ne || outputs.c.ncols() != ns || outputs.d.ncols() != ni {
+            return Err(Error::Usage(format!(
+                "simulation with {} input series for {ne} inputs, or read-out of the wrong shape",
+                inputs.len()
+            )));
+        }
+        let n_steps = inputs.first().map_or(0, Vec::len);
+        if inputs.iter().any(|u| u.len() != n_steps) {
+            return Err(Error::Usage("input series of different lengths".into()));
+        }
+        Ok(n_steps)
+    }
+
+    /// The flat, row-major stepping operators: `Phi`, the external inputs' first-order
+    /// hold, each spring's Hermite-hold columns and the Newton sensitivity `B`.
+    fn step_operators(&self) -> StepOperators {
+        let ns = self.phi.nrows();
+        let n = ns / 2;
+        let ne = self.n_external;
+        let h = self.step_s;
+        let phi = row_major(&self.phi);
+        // External inputs (first-order hold): z += Gamma0 u_k + Gamma1 u_{k+1}.
+        let ext = |m: &DMatrix<f64>| row_major(&m.columns(0, ne).into_owned());
+        let gamma1 = ext(&self.g[1]);
+        let gamma0 = ext(&(&self.g[0] - &self.g[1]));
+        // Spring force columns: known part from (q_k, q'_k), unknown from (q_{k+1}, q'_{k+1}).
+        let col = |m: &DMatrix<f64>, s: usize| -> Vec<f64> {
+            m.column(ne + s).iter().copied().collect::<Vec<f64>>()
+        };
+        let [g0, g1, g2, g3] = [&self.g[0], &self.g[1], &self.g[2], &self.g[3]];
+        let lin = |a: &[(f64, &DMatrix<f64>)], s: usize| -> Vec<f64> {
+            let mut out = vec![0.0; ns];
+            for (w, m) in a {
+                for (o, v) in out.iter_mut().zip(col(m, s)) {
+                    *o += w * v;
+                }
+            }
+            out
+        };
+        let cols: Vec<SpringCols> = (0..self.springs.len())
+            .map(|s| SpringCols {
+                kq: lin(&[(1.0, g0), (-3.0, g2), (2.0, g3)], s),
+                kp: lin(&[(h, g1), (-2.0 * h, g2), (h, g3)], s),
+                uq: lin(&[(3.0, g2), (-2.0, g3)], s),
+                up: lin(&[(-h, g2), (h, g3)], s),
+            })
+            .collect();
+        let m = self.springs.len();
+        // B: sensitivity of (d_j, v_j) of the new state to (q_i, q'_i) at the step end.
+        let mut b = vec![0.0; 4 * m * m];
+        for (j, sj) in self.springs.iter().enumerate() {
+            for (i, ci) in cols.iter().enumerate() {
+                let (dq, vq) = spring_drift(sj, &ci.uq, n);
+                let (dp, vp) = spring_drift(sj, &ci.up, n);
+                let r = 2 * j;
+                b[r * 2 * m + 2 * i] = dq;
+                b[r * 2 * m + 2 * i + 1] = dp;
+                b[(r + 1) * 2 * m + 2 * i] = vq;
+                b[(r + 1) * 2 * m + 2 * i + 1] = vp;
+            }
+        }
+        StepOperators {
+            ns,
+            ne,
+            phi,
+            gamma0,
+            gamma1,
+            cols,
+            b,
+        }
+    }
+}
+
+/// The stepping operators of [`NonlinearFoh::simulate`], flat and row-major.
+struct StepOperators {
+    /// State size.
+    ns: usize,
+    /// Number of external inputs.
+    ne: usize,
+    phi: Vec<f64>,
+    gamma0: Vec<f64>,
+    gamma1: Vec<f64>,
+    /// Per spring.
+    cols: Vec<SpringCols>,
+    /// Sensitivity of the new drifts and drift velocities to the end forces (`2m x 2m`).
+    b: Vec<f64>,
+}
+
+/// One spring's columns of the Hermite hold: z_{k+1} gains
+/// `kq q_k + kp q'_k + uq q_{k+1} + up q'_{k+1}`.
+struct SpringCols {
+    kq: Vec<f64>,
+    kp: Vec<f64>,
+    uq: Vec<f64>,
+    up: Vec<f64>,
+}
+
+impl StepOperators {
+    /// The known part of the new state (`z_star`): `Phi z_k`, the external inputs'
+    /// first-order hold over step `k` and the springs' start forces `(q_k, q'_k)`.
+    fn known_state(
+        &self,
+        z: &[f64],
+        inputs: &[Vec<f64>],
+        k: usize,
+        qk: &[f64],
+        z_star: &mut [f64],
+    ) {
+        let (ns, ne) = (self.ns, self.ne);
+        for (i, zi) in z_star.iter_mut().enumerate() {
+            let mut v = dot(&self.phi[i * ns..(i + 1) * ns], z);
+            for (j, u) in inputs.iter().enumerate().take(ne) {
+                v += self.gamma0[i * ne + j] * u[k] + self.gamma1[i * ne + j] * u[k + 1];
+            }
+            for (s, c) in self.cols.iter().enumerate() {
+                v += c.kq[i] * qk[2 * s] + c.kp[i] * qk[2 * s + 1];
+            }
+            *zi = v;
+        }
+    }
+}
+
+/// `m` row-major, flat.
+fn row_major(m: &DMatrix<f64>) -> Vec<f64> {
+    m.transpose().as_slice().to_vec()
+}
+
+/// The state to start from: `z0` (checked to be of size `ns`) or rest.
+fn initial_state(z0: Option<&DVector<f64>>, ns: usize) -> Result<Vec<f64>> {
+    match z0 {
+        Some(z0) if z0.len() == ns => Ok(z0.as_slice().to_vec()),
+        Some(z0) => Err(Error::Usage(format!(
+            "initial state has {} entries, expected {ns}",
+            z0.len()
+        ))),
+        None => Ok(vec![0.0; ns]),
+    }
+}
+
+/// Drift (m) and drift velocity (m/s) of spring `s` read from the state `z`
+/// (`n` displacements, then `n` velocities).
+fn spring_drift(s: &CubicSpring, z: &[f64], n: usize) -> (f64, f64) {
+    let (lo_d, lo_v) = s.lower_dof.map_or((0.0, 0.0), |l| (z[l], z[n + l]));
+    (z[s.upper_dof] - lo_d, z[n + s.upper_dof] - lo_v)
+}
+
+/// Stops when a softening spring's tangent stiffness `k + 3 k3 d^2` (N/m) at the new
+/// drifts `y = (d_1, v_1, ...)` has reached zero (time `t_s` for the message).
+fn check_tangent_stiffness(springs: &[CubicSpring], y: &[f64], t_s: f64) -> Result<()> {
+    for (s, sp) in springs.iter().enumerate() {
+        let d = y[2 * s];
+        if sp.linear_stiffness_n_per_m + 3.0 * sp.k3_n_per_m3 * d * d <= 0.0 {
+            return Err(Error::Numerical(format!(
+                "softening spring at DOF {} lost its stiffness (drift {d:.3e} m at t = {t_s:.3} s); lower |k3| or the excitation",
+                sp.upper_dof,
+            )));
+        }
+    }
+    Ok(())
 }
 
 impl CubicSpring {
