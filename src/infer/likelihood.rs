@@ -579,17 +579,11 @@ impl Block {
                     }
                 }
                 if let Some(chain) = &self.chain {
-                    let mut column = vec![0.0; p.len()];
+                    // each column's rows of this block are contiguous (column-major)
+                    let n_rows = jac.nrows();
                     for t in 0..n_par {
-                        column
-                            .iter_mut()
-                            .enumerate()
-                            .for_each(|(i, v)| *v = jac[(row0 + i, t)]);
-                        chain.whiten(&mut column);
-                        column
-                            .iter()
-                            .enumerate()
-                            .for_each(|(i, v)| jac[(row0 + i, t)] = *v);
+                        let start = t * n_rows + row0;
+                        chain.whiten(&mut jac.as_mut_slice()[start..start + p.len()]);
                     }
                 }
             }
@@ -680,20 +674,10 @@ impl Block {
     /// `ln L_b` straight from the whole prediction vector `pred`, the residuals formed in
     /// the same pass as the sums (the density's inner loop), at the noise level
     /// `(sigma, ln sigma)`, for a [`BlockKind::SharedNoise`] block compared without
-    /// transform or chain; `None` for the others, whose callers form the residuals first.
-    pub fn ln_likelihood_fused(
-        &self,
-        pred: &[f64],
-        level: (f64, f64),
-        ln_norm: f64,
-    ) -> Option<f64> {
-        let (l, det) = self.ln_likelihood_fused_det(pred, level, ln_norm)?;
-        Some(l - 0.5 * det.ln())
-    }
-
-    /// [`Self::ln_likelihood_fused`] as `(ln L_b + ln det_b / 2, det_b)`, `det_b` the
-    /// shared noise's determinant ratio `prod_i (1 + lambda_i / sigma^2)`: a caller
-    /// summing many blocks multiplies the ratios and takes one logarithm.
+    /// transform or chain (`None` for the others, whose callers form the residuals
+    /// first), as `(ln L_b + ln det_b / 2, det_b)`: `det_b` is the shared noise's
+    /// determinant ratio `prod_i (1 + lambda_i / sigma^2)`, so that a caller summing many
+    /// blocks multiplies the ratios and takes one logarithm.
     pub fn ln_likelihood_fused_det(
         &self,
         pred: &[f64],

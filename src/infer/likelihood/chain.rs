@@ -33,16 +33,6 @@ impl Chain {
         }))
     }
 
-    /// Number of values.
-    pub fn len(&self) -> usize {
-        self.rho.len()
-    }
-
-    /// Whether the chain has no values.
-    pub fn is_empty(&self) -> bool {
-        self.rho.is_empty()
-    }
-
     /// Whether the first value starts a run (`rho_0 = 0`): a block's chain may not
     /// continue one from before it.
     pub fn starts_a_run(&self) -> bool {

@@ -10,7 +10,7 @@
 //! - `ln det cov = ln det D + 2 n ln sigma + sum_i ln(1 + lambda_i / sigma^2)`
 //!
 //! (Woodbury and the matrix determinant lemma on `sigma^2 I + V V^T`), so an evaluation
-//! costs `O(n rank)`. In the density's inner loop ([`SharedFactors::terms_of`]) one pass
+//! costs `O(n rank)`. In the density's inner loop ([`SharedFactors::terms_of_det`]) one pass
 //! forms the residuals and computes `d^T d` and every `u_i`, four values per step (AVX
 //! when the CPU has it; the same operations in the same order either way, so the same
 //! bits).
@@ -111,14 +111,9 @@ impl SharedFactors {
     }
 
     /// [`Self::terms`] of the residuals `d_k = (a_k - t_k) w_k`, formed in one pass with
-    /// the sums, four values per step (the density's inner loop).
-    pub fn terms_of(&self, a: &[f64], t: &[f64], w: &[f64], s2: f64) -> (f64, f64, f64) {
-        let (ss, correction, det) = self.terms_of_det(a, t, w, s2);
-        (ss, correction, det.ln())
-    }
-
-    /// [`Self::terms_of`] with the determinant ratio `prod_i (1 + lambda_i / s2)` in
-    /// place of its logarithm (so that a caller summing many blocks takes one logarithm).
+    /// the sums, four values per step (the density's inner loop), with the determinant
+    /// ratio `prod_i (1 + lambda_i / s2)` in place of its logarithm (so that a caller
+    /// summing many blocks takes one logarithm).
     pub fn terms_of_det(&self, a: &[f64], t: &[f64], w: &[f64], s2: f64) -> (f64, f64, f64) {
         if self.rank > MAX_FIXED_RANK {
             let d: Vec<f64> = (0..a.len()).map(|k| (a[k] - t[k]) * w[k]).collect();
@@ -311,7 +306,9 @@ mod tests {
                 b.residuals(&pred, &mut r);
                 for sigma in [0.3, 1.0, 2.5] {
                     let got = b.ln_likelihood(&r, sigma);
-                    let fused = b.ln_likelihood_fused(&pred, (sigma, sigma.ln()), b.ln_norm());
+                    let fused = b
+                        .ln_likelihood_fused_det(&pred, (sigma, sigma.ln()), b.ln_norm())
+                        .map(|(l, det)| l - 0.5 * det.ln());
                     match (transform, chain.is_empty(), fused) {
                         (Transform::Identity, true, Some(fused)) => {
                             assert!((fused - got).abs() <= 1e-12 * got.abs().max(1.0))

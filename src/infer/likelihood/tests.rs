@@ -79,6 +79,35 @@ fn complex_gain_block_is_the_gain_integral() {
     assert!(g > 0.9 && g < 1.3 && sd_g > 0.0);
 }
 
+/// `b`'s residual Jacobian at `t` against central differences (step 1e-6) of its
+/// residuals, to `tol`: the block's rows are written at row 2 of a larger matrix, so its
+/// row offset is exercised too.
+fn assert_jacobian_matches_differences(
+    b: &Block,
+    pred: impl Fn(&[f64]) -> Vec<f64>,
+    dpred: &DMatrix<f64>,
+    t: &[f64],
+    tol: f64,
+) {
+    let (n, n_par, row0) = (b.n_residuals(), t.len(), 2);
+    let mut jac = DMatrix::from_element(n + row0 + 1, n_par, f64::NAN);
+    b.residual_jacobian(&pred(t), dpred, 1.0, row0, &mut jac);
+    for j in 0..n_par {
+        let (mut up, mut dn) = (t.to_vec(), t.to_vec());
+        up[j] += 1e-6;
+        dn[j] -= 1e-6;
+        let (mut ru, mut rd) = (vec![0.0; n], vec![0.0; n]);
+        b.residuals(&pred(&up), &mut ru);
+        b.residuals(&pred(&dn), &mut rd);
+        for i in 0..n {
+            let (fd, got) = ((ru[i] - rd[i]) / 2e-6, jac[(row0 + i, j)]);
+            assert!((got - fd).abs() < tol, "({i}, {j}): {got} vs {fd}");
+        }
+        // the rows outside the block are left as they were
+        assert!(jac[(0, j)].is_nan() && jac[(n + row0, j)].is_nan());
+    }
+}
+
 /// The complex-gain residual Jacobian against central differences, for predictions
 /// `p(t) = (t0 + t1 k, sin(t0 k))` in k.
 #[test]
@@ -100,24 +129,7 @@ fn complex_gain_residual_jacobian_matches_differences() {
             _ => 0.0,
         }
     });
-    let mut jac = DMatrix::zeros(6, 2);
-    b.residual_jacobian(&pred(&t), &dpred, 1.0, 0, &mut jac);
-    for j in 0..2 {
-        let (mut up, mut dn) = (t, t);
-        up[j] += 1e-6;
-        dn[j] -= 1e-6;
-        let (mut ru, mut rd) = ([0.0; 6], [0.0; 6]);
-        b.residuals(&pred(&up), &mut ru);
-        b.residuals(&pred(&dn), &mut rd);
-        for i in 0..6 {
-            let fd = (ru[i] - rd[i]) / 2e-6;
-            assert!(
-                (jac[(i, j)] - fd).abs() < 1e-7,
-                "({i}, {j}): {} vs {fd}",
-                jac[(i, j)]
-            );
-        }
-    }
+    assert_jacobian_matches_differences(&b, pred, &dpred, &t, 1e-7);
 }
 
 #[test]
@@ -150,24 +162,7 @@ fn chained_values_residual_jacobian_matches_differences() {
     let t = [0.1, 0.35];
     let p = pred(&t);
     let dpred = DMatrix::from_fn(5, 2, |i, j| p[i] * if j == 0 { 1.0 } else { i as f64 });
-    let mut jac = DMatrix::zeros(5, 2);
-    b.residual_jacobian(&p, &dpred, 1.0, 0, &mut jac);
-    for j in 0..2 {
-        let (mut up, mut dn) = (t, t);
-        up[j] += 1e-6;
-        dn[j] -= 1e-6;
-        let (mut ru, mut rd) = ([0.0; 5], [0.0; 5]);
-        b.residuals(&pred(&up), &mut ru);
-        b.residuals(&pred(&dn), &mut rd);
-        for i in 0..5 {
-            let fd = (ru[i] - rd[i]) / 2e-6;
-            assert!(
-                (jac[(i, j)] - fd).abs() < 1e-6,
-                "({i}, {j}): {} vs {fd}",
-                jac[(i, j)]
-            );
-        }
-    }
+    assert_jacobian_matches_differences(&b, pred, &dpred, &t, 1e-6);
 }
 
 /// A block's chain may not continue one from before it, and needs one correlation per
