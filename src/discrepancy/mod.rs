@@ -9,6 +9,7 @@ pub mod consistency;
 pub mod data;
 pub mod diagnose;
 pub mod effect_summary;
+pub mod extension;
 pub mod figures;
 pub mod fit;
 pub mod forward;

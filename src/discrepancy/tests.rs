@@ -654,3 +654,111 @@ fn correlated_gain_likelihood_is_the_dense_gaussian() {
     assert!((half - quad).abs() < 1e-9 * quad, "{half} vs {quad}");
     assert!((post.chi2_per_dof_of(&pred, 0.01) - quad / n as f64).abs() < 1e-9 * quad);
 }
+
+/// Two structural effects (an oscillator on floor 2, then a flexible base) predict what
+/// the simulator's system with both applied predicts; a sensor effect on top multiplies
+/// by its analytic factor; and a composite with nothing accepted is its hypothesis.
+#[test]
+fn several_effects_are_the_simulators_system_with_all_of_them() {
+    use super::extension::{Effect, WithEffects};
+    let data = synthetic();
+    let by = |n: &str| -> Arc<dyn Hypothesis> { Arc::from(hypothesis_by_name(n).unwrap()) };
+    let (m, f, z) = (0.4, 3.5, 0.02);
+    let osc = Oscillator {
+        floor: 2,
+        mass_kg: m,
+        stiffness_n_per_m: m * (2.0 * std::f64::consts::PI * f).powi(2),
+        damping_ratio: z,
+    };
+    let f_b = (8900.0f64 / 5.0).sqrt() / (2.0 * std::f64::consts::PI);
+    let zeta_b = 10.0 / (2.0 * (8900.0f64 * 5.0).sqrt());
+    let flex = BaseFlexibility {
+        mass_kg: 5.0,
+        stiffness_n_per_m: 8900.0,
+        damping_n_s_per_m: 10.0,
+    };
+    let accepted = vec![Effect {
+        hypothesis: by("secondary_oscillator"),
+        location: Location::Floor(2),
+    }];
+    let both = WithEffects::new(&data, accepted.clone(), by("base_flexibility")).unwrap();
+    let both: Arc<dyn Hypothesis> = Arc::new(both);
+    let params = both.parameters(&data, &Location::Whole).unwrap();
+    assert_eq!(params.len(), 6);
+    assert_eq!(both.name(), "base_flexibility");
+    let effect = [m, f, z, 5.0, f_b, zeta_b];
+    let model = ExtendedModel::new(data.clone(), Some((both.clone(), Location::Whole))).unwrap();
+    let pred = model.predict(&base(), &effect).unwrap();
+    let sys = simulator_system(&[&osc, &flex]);
+    let err = max_rel_err(&model, &pred, |seg, ch, s| {
+        oracle(&sys, seg, ch.channel.floor, power(ch.kind), s)
+    });
+    assert!(err < 1e-9, "oscillator + base: {err:e}");
+
+    // A sensor delay on every displacement channel on top of both.
+    let accepted2 = vec![
+        accepted[0].clone(),
+        Effect {
+            hypothesis: by("base_flexibility"),
+            location: Location::Whole,
+        },
+    ];
+    let three: Arc<dyn Hypothesis> =
+        Arc::new(WithEffects::new(&data, accepted2, by("sensor_timing")).unwrap());
+    let loc = Location::Quantity(Quantity::Displacement);
+    let model3 = ExtendedModel::new(data.clone(), Some((three, loc.clone()))).unwrap();
+    let delay = 0.004;
+    let pred3 = model3
+        .predict(&base(), &[m, f, z, 5.0, f_b, zeta_b, delay])
+        .unwrap();
+    let err3 = max_rel_err(&model3, &pred3, |seg, ch, s| {
+        let h = oracle(&sys, seg, ch.channel.floor, power(ch.kind), s);
+        let covered = |c: &Channel| loc.covers_channel(&c.name, c.quantity);
+        let fac = |c: &Channel| {
+            if covered(c) {
+                (-s * delay).exp()
+            } else {
+                1.0.into()
+            }
+        };
+        h * fac(&ch.channel) / fac(&seg.input_channel)
+    });
+    assert!(err3 < 1e-9, "oscillator + base + delay: {err3:e}");
+
+    // Nothing accepted: the hypothesis itself, bit for bit.
+    let alone = WithEffects::new(&data, vec![], by("secondary_oscillator")).unwrap();
+    let alone = ExtendedModel::new(data.clone(), Some((Arc::new(alone), Location::Floor(2))));
+    let direct = ExtendedModel::new(data, Some((by("secondary_oscillator"), Location::Floor(2))));
+    assert_eq!(
+        alone.unwrap().predict(&base(), &[m, f, z]).unwrap(),
+        direct.unwrap().predict(&base(), &[m, f, z]).unwrap()
+    );
+}
+
+/// The same hypothesis accepted twice gets distinct parameter names, and the added
+/// hypothesis is not offered where it is already accepted.
+#[test]
+fn a_second_oscillator_has_its_own_names_and_locations() {
+    use super::extension::{Effect, WithEffects};
+    let data = synthetic();
+    let osc: Arc<dyn Hypothesis> = Arc::from(hypothesis_by_name("secondary_oscillator").unwrap());
+    let accepted = vec![Effect {
+        hypothesis: osc.clone(),
+        location: Location::Floor(3),
+    }];
+    let two = WithEffects::new(&data, accepted, osc).unwrap();
+    let locs = two.locations(&data);
+    assert!(!locs.contains(&Location::Floor(3)), "{locs:?}");
+    assert_eq!(locs.len(), 3);
+    let names: Vec<String> = two
+        .parameters(&data, &Location::Floor(1))
+        .unwrap()
+        .into_iter()
+        .map(|p| p.name)
+        .collect();
+    let mut unique = names.clone();
+    unique.sort();
+    unique.dedup();
+    assert_eq!(unique.len(), names.len(), "{names:?}");
+    assert!(names[3].ends_with("_2"), "{names:?}");
+}
