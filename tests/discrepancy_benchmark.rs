@@ -50,6 +50,12 @@ fn check_case(id: &str) {
     assert!(r.fit_before.chi2_per_point.is_finite() && r.fit_after.chi2_per_point.is_finite());
     assert!(r.fit_after.chi2_per_point <= r.fit_before.chi2_per_point + 1e-12);
     assert_eq!(r.hypotheses.len(), 6);
+    // Open world (issue 14): data simulated with at most one effect of the library get
+    // exactly that effect, nothing more, and the final model explains them.
+    let expected_effects = usize::from(case.verdict != "none");
+    assert_eq!(r.effects.len(), expected_effects, "{id}: {}", r.explanation);
+    assert!(r.adequate, "{id}: {:?}", r.unexplained);
+    assert!(r.unexplained.is_none() && r.ambiguous.is_none());
 }
 
 #[test]

@@ -47,6 +47,9 @@ impl Effect {
     }
 }
 
+/// One part of a [`WithEffects`]: a hypothesis, its location and its effect values.
+type Part<'a> = (&'a dyn Hypothesis, &'a Location, &'a [f64]);
+
 /// Accepted effects plus the hypothesis under test (see the module docs).
 #[derive(Debug, Clone)]
 pub struct WithEffects {
@@ -82,11 +85,7 @@ impl WithEffects {
 
     /// Every part with its location and its slice of `effect` (`added` at `loc`, last,
     /// takes what the accepted effects leave).
-    fn parts<'a>(
-        &'a self,
-        loc: &'a Location,
-        effect: &'a [f64],
-    ) -> Result<Vec<(&'a dyn Hypothesis, &'a Location, &'a [f64])>> {
+    fn parts<'a>(&'a self, loc: &'a Location, effect: &'a [f64]) -> Result<Vec<Part<'a>>> {
         let mut out = Vec::with_capacity(self.accepted.len() + 1);
         let mut at = 0;
         for (e, &n) in self.accepted.iter().zip(&self.counts) {

@@ -263,11 +263,12 @@ pub fn nominal_start(post: &ModelPosterior, xi0: f64) -> Vec<f64> {
     z
 }
 
-/// Starts for a hypothesis: the frame part of `base` (a nominal fit's `z`, whose length
-/// is at least `eta_index + 1`) with, first, the effect at the end of its box nearest to
-/// no effect (each parameter's [`super::EffectParam::no_effect`]; the middle where it
-/// has none), then `n` effect points of a Latin hypercube over the effect's box
-/// (seeded).
+/// Starts for a hypothesis: `base` (the fit of the model it extends: the frame and error
+/// floor, then the coordinates of any effects already accepted, which lead the effect
+/// coordinates of [`super::extension::WithEffects`]) with, for the remaining effect
+/// coordinates, first the end of the box nearest to no effect (each parameter's
+/// [`super::EffectParam::no_effect`]; the middle where it has none), then `n` points of
+/// a Latin hypercube over their box (seeded).
 pub fn effect_starts(
     post: &ModelPosterior,
     base: &[f64],
@@ -282,16 +283,22 @@ pub fn effect_starts(
             ie + 1
         )));
     }
-    let (lo, hi) = post.bounds();
-    let n_eff = post.dim() - ie - 1;
-    if n_eff == 0 {
-        return Ok(vec![base[..=ie].to_vec()]);
+    if base.len() > post.dim() {
+        return Err(Error::Usage(format!(
+            "base start of {} entries; the model has {}",
+            base.len(),
+            post.dim()
+        )));
     }
-    let b = Bounds::new(lo[ie + 1..].to_vec(), hi[ie + 1..].to_vec())?;
+    let (lo, hi) = post.bounds();
+    let known = base.len();
+    if known == post.dim() {
+        return Ok(vec![base.to_vec()]);
+    }
+    let b = Bounds::new(lo[known..].to_vec(), hi[known..].to_vec())?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut pts = latin_hypercube(&b, n, &mut rng)?;
-    let near_nominal: Vec<f64> = post
-        .effect_params()
+    let near_nominal: Vec<f64> = post.effect_params()[known - ie - 1..]
         .iter()
         .map(|p| match (p.no_effect, p.coordinate) {
             (Some(v), super::hypothesis::Coordinate::Linear { .. }) => {
@@ -306,7 +313,7 @@ pub fn effect_starts(
     Ok(pts
         .into_iter()
         .map(|p| {
-            let mut z = base[..=ie].to_vec();
+            let mut z = base.to_vec();
             z.extend(p);
             z
         })

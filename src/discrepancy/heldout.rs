@@ -61,87 +61,91 @@ fn subset(data: &DiagnosisData, keep: impl Fn(usize) -> bool) -> DiagnosisData {
     d
 }
 
-/// A posterior of `data` under `hypothesis`, or of the nominal model when the
-/// hypothesis cannot act on this data (e.g. its channels are not in these segments); the
-/// second value says which (`true`: the hypothesis).
-fn posterior_or_nominal(
-    data: DiagnosisData,
-    hypothesis: Option<(Arc<dyn Hypothesis>, Location)>,
-) -> Result<(ModelPosterior, bool)> {
+/// A model: the nominal one (`None`) or an extension at its location.
+type Model = Option<(Arc<dyn Hypothesis>, Location)>;
+
+/// A posterior of `data` under the first model of `chain` that can act on it (a
+/// hypothesis cannot when, say, its channels are not in these segments), and its index;
+/// the nominal model when none can.
+fn first_posterior(data: DiagnosisData, chain: &[Model]) -> Result<(ModelPosterior, usize)> {
     let data = Arc::new(data);
-    if hypothesis.is_some() {
-        if let Ok(p) = ModelPosterior::new(data.clone(), hypothesis) {
-            return Ok((p, true));
+    for (k, m) in chain.iter().enumerate() {
+        if m.is_some() {
+            if let Ok(p) = ModelPosterior::new(data.clone(), m.clone()) {
+                return Ok((p, k));
+            }
         }
     }
-    Ok((ModelPosterior::new(data, None)?, false))
+    Ok((ModelPosterior::new(data, None)?, chain.len()))
 }
 
 /// Steps of a held-out fit that replays the tests (it starts from the full-data fit).
 const HELD_OUT_REPLAY_EVALUATIONS: usize = 6;
 
-/// The frame (and error floor) of `z`, then, when `post` has the hypothesis, the
-/// coordinates of the physical effect values `effect` in `post` (an effect's coordinate
-/// may be scaled by the data, as the cubic spring's is by the largest drift weight, so
-/// coordinates do not carry over between subsets of the data).
-fn start_for(z: &[f64], effect: &[f64], full: bool, post: &ModelPosterior) -> Vec<f64> {
+/// The frame (and error floor) of `z`, then the coordinates in `post` of the leading
+/// physical effect values `effect` (all of them for the model they came from, the
+/// accepted effects' for the model it extends: effects lead in the order they were
+/// accepted). An effect's coordinate may be scaled by the data, as the cubic spring's is
+/// by the largest drift weight, so coordinates do not carry over between subsets of the
+/// data.
+fn start_for(z: &[f64], effect: &[f64], post: &ModelPosterior) -> Vec<f64> {
     let mut out = z[..=post.eta_index()].to_vec();
-    if full {
-        out.extend(
-            post.effect_params()
-                .iter()
-                .zip(effect)
-                .map(|(p, &v)| p.coordinate_of(v)),
-        );
-    }
+    out.extend(
+        post.effect_params()
+            .iter()
+            .zip(effect)
+            .map(|(p, &v)| p.coordinate_of(v)),
+    );
     out
 }
 
-/// Log density of segment `i` under a fit of all other segments, starting from `z`
-/// (effect: physical values `effect`). Where the hypothesis cannot act on the rest (its
-/// channels are only in segment `i`) the rest is fitted by the nominal model; where it
-/// cannot act on segment `i` that segment is scored with the frame of the fit. With
-/// `replay`, the hypothesis' fits replay the tests in the time domain.
+/// Log density of segment `i` under a fit of all other segments by the first model of
+/// `chain` that can act on them (the model compared, then the models it extends),
+/// starting from `z` (effect: physical values `effect`). Segment `i` is scored by the
+/// first model from there on that can act on it, with the fit's frame and effects. With
+/// `replay`, fits by the first model of `chain` replay the tests in the time domain.
 fn held_out_density(
     data: &DiagnosisData,
     i: usize,
-    hypothesis: Option<(Arc<dyn Hypothesis>, Location)>,
+    chain: &[Model],
     (z, effect): (&[f64], &[f64]),
     map: &MapOptions,
     replay: Option<&Campaign>,
 ) -> Result<f64> {
-    let with_replay = |post: ModelPosterior, full: bool| -> Result<ModelPosterior> {
+    let with_replay = |post: ModelPosterior, k: usize| -> Result<ModelPosterior> {
         match replay {
-            Some(c) if full => {
+            Some(c) if k == 0 => {
                 let td = TimeDomainModel::new(c, post.data().clone())?;
                 post.with_time_domain(Arc::new(td))
             }
             _ => Ok(post),
         }
     };
-    let (post, full) = posterior_or_nominal(subset(data, |j| j != i), hypothesis.clone())?;
-    let post = with_replay(post, full)?;
+    let (post, k) = first_posterior(subset(data, |j| j != i), chain)?;
+    let post = with_replay(post, k)?;
     let map = if post.is_time_domain() {
         &replay_map_options(map, HELD_OUT_REPLAY_EVALUATIONS, 1)
     } else {
         map
     };
-    let fit = fit_map(&post, &[start_for(z, effect, full, &post)], map)?;
+    let fit = fit_map(&post, &[start_for(z, effect, &post)], map)?;
     let fitted_effect = post.effect_physical(&fit.z)?;
-    let hyp = if full { hypothesis } else { None };
-    let (post_one, full_one) = posterior_or_nominal(subset(data, |j| j == i), hyp)?;
-    let post_one = with_replay(post_one, full_one)?;
-    post_one.ln_likelihood(&start_for(&fit.z, &fitted_effect, full_one, &post_one))
+    let rest = chain.get(k..).unwrap_or(&[]);
+    let (post_one, k_one) = first_posterior(subset(data, |j| j == i), rest)?;
+    let post_one = with_replay(post_one, k + k_one)?;
+    post_one.ln_likelihood(&start_for(&fit.z, &fitted_effect, &post_one))
 }
 
 /// Leave-one-segment-out comparison of `hypothesis` at `location` (full-data MAP
-/// `hyp_z`) with the nominal model (full-data MAP `nominal_z`). Needs two segments.
+/// `hyp_z`) with the model it extends, `base` (the nominal model when `None`; full-data
+/// MAP `base_z`). Needs two segments.
 #[allow(clippy::too_many_arguments)]
 pub fn held_out(
     data: &DiagnosisData,
+    base: &Model,
+    base_z: &[f64],
     hypothesis: &Arc<dyn Hypothesis>,
     location: &Location,
-    nominal_z: &[f64],
     hyp_z: &[f64],
     map: &MapOptions,
     replay: Option<&Campaign>,
@@ -163,22 +167,25 @@ pub fn held_out(
         n_ranked: 0,
     };
     let hyp = Some((hypothesis.clone(), location.clone()));
-    let effect =
-        ModelPosterior::new(Arc::new(data.clone()), hyp.clone())?.effect_physical(hyp_z)?;
+    let shared = Arc::new(data.clone());
+    let effect = ModelPosterior::new(shared.clone(), hyp.clone())?.effect_physical(hyp_z)?;
+    let base_effect = ModelPosterior::new(shared, base.clone())?.effect_physical(base_z)?;
+    let base_chain = [base.clone()];
+    let chain = [hyp, base.clone()];
     for i in 0..n {
         out.segments.push(data.segments[i].name.clone());
         out.nominal.push(held_out_density(
             data,
             i,
-            None,
-            (nominal_z, &[]),
+            &base_chain,
+            (base_z, &base_effect),
             map,
             None,
         )?);
         out.hypothesis.push(held_out_density(
             data,
             i,
-            hyp.clone(),
+            &chain,
             (hyp_z, &effect),
             map,
             replay,

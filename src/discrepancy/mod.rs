@@ -2,6 +2,7 @@
 //! (hypotheses) that add what the nominal model left out, compare them by marginal
 //! likelihood and held-out prediction, and decide (issue 5).
 
+pub mod adequacy;
 mod amplitude;
 pub mod benchmark;
 mod bins;
@@ -25,7 +26,9 @@ pub mod posterior;
 pub mod refine;
 pub mod report;
 pub mod residual_map;
+pub mod round;
 pub mod search;
+pub mod stepwise;
 #[cfg(test)]
 mod tests;
 pub mod time_domain;

@@ -5,7 +5,7 @@
 
 use super::diagnose::{Diagnosis, ModelResult};
 use super::figures::{channel_misfits, channels_to_show, write_figures};
-use super::report::{explanation, record};
+use super::report::record;
 use super::verdict::decisive_ln_bayes_factor;
 use crate::error::{Error, Result};
 use crate::io::{write_atomic, StagedDir};
@@ -37,13 +37,127 @@ fn model_row(m: &ModelResult, nominal_ln_z: f64, laplace: Option<f64>, reason: &
     )
 }
 
+/// The accepted effects, the later rounds and the adequacy tests, as Markdown.
+fn open_world_section(d: &Diagnosis) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "## Effects, rounds and adequacy\n");
+    if d.effects.is_empty() {
+        let _ = writeln!(s, "No effect accepted.\n");
+    } else {
+        let _ = writeln!(
+            s,
+            "| # | effect | location | parameters (final model, mean [95 %]) |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|");
+        for (k, e) in d.effects.iter().enumerate() {
+            let params: Vec<String> = e
+                .effect_parameters
+                .iter()
+                .map(|(n, v)| {
+                    format!(
+                        "{n} {:.4e} [{:.4e}, {:.4e}] {}",
+                        v.mean, v.q2_5, v.q97_5, v.unit
+                    )
+                })
+                .collect();
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} |",
+                k + 1,
+                e.hypothesis,
+                e.location,
+                params.join("; ")
+            );
+        }
+        s.push('\n');
+    }
+    for (k, r) in d.later.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "Round {} (on the model with {}; ln Z {:.1} +- {:.1}):\n",
+            k + 2,
+            r.extends.join(", "),
+            r.base_ln_z,
+            r.base_ln_z_sd
+        );
+        for (f, why) in r.finalists.iter().zip(&r.decision.reasons) {
+            let _ = writeln!(s, "- {} at {}: {why}", f.name, f.location);
+        }
+        s.push('\n');
+    }
+    let q = &d.adequacy;
+    let _ = writeln!(
+        s,
+        "Adequacy of the final model (Bendat-Piersol errors plus a {} % floor for all points \
+         and the cells, 0.3 % where the inconsistent checks point; level {} %, Holm over the \
+         cells and over the checks; cells locate, they do not decide): **{}**.\n",
+        100.0 * super::adequacy::ADEQUACY_FLOOR,
+        100.0 * super::adequacy::ADEQUACY_LEVEL,
+        if q.adequate {
+            "adequate"
+        } else {
+            "not adequate"
+        }
+    );
+    let _ = writeln!(
+        s,
+        "| place | tests | channels | bands (Hz) | points | chi2 per point | p (Holm) | fails |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    for t in std::iter::once(&q.global)
+        .chain(&q.failed_cells)
+        .chain(&q.checks)
+    {
+        let bands: Vec<String> = t
+            .bands_hz
+            .iter()
+            .map(|(a, b)| format!("{a:.2}-{b:.2}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} | {:.2} | {:.2e} | {} |",
+            t.source,
+            if t.tests.len() > 4 {
+                format!("{} tests", t.tests.len())
+            } else {
+                t.tests.join(", ")
+            },
+            if t.channels.len() > 4 {
+                format!("{} channels", t.channels.len())
+            } else {
+                t.channels.join(", ")
+            },
+            if t.off_band {
+                "off-band".to_string()
+            } else {
+                bands.join(", ")
+            },
+            t.n_points,
+            t.chi2_per_point,
+            t.p_adjusted,
+            if t.failed { "yes" } else { "no" }
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n{} cells tested; only failing cells are listed (they show where the residual \
+         concentrates and do not decide).\n",
+        q.n_cells
+    );
+    if let Some(why) = &q.checks_unavailable {
+        let _ = writeln!(s, "The consistency checks could not run: {why}.\n");
+    }
+    s
+}
+
 /// `diagnosis.md`.
 pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String> {
     let rec = record(d);
     let mut s = String::new();
     let _ = writeln!(s, "# Diagnosis: {title}\n");
     let _ = writeln!(s, "**Verdict: `{}`** at `{}`.\n", rec.verdict, rec.location);
-    let _ = writeln!(s, "{}\n", explanation(d));
+    let _ = writeln!(s, "{}\n", rec.explanation);
+    s.push_str(&open_world_section(d));
     let _ = writeln!(s, "## Fit\n");
     let _ = writeln!(s, "| | mean FDAC | chi2 per point |");
     let _ = writeln!(s, "|---|---|---|");
@@ -54,7 +168,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
     );
     let _ = writeln!(
         s,
-        "| after the verdict | {:.4} | {:.2} |\n",
+        "| final model (every accepted effect) | {:.4} | {:.2} |\n",
         d.fit_after.fdac_mean, d.fit_after.chi2_per_point
     );
     let _ = writeln!(

@@ -531,9 +531,15 @@ impl ModelPosterior {
     /// `min_g |D^-1/2 (e - V g)|^2 + |g|^2 = e^* Sigma^-1 e`).
     pub fn whitened_residuals(&self, z: &[f64], eta: f64, out: &mut [f64]) -> Result<()> {
         let pred = self.predict(z)?;
+        self.whitened_residuals_of(&pred, eta, out);
+        Ok(())
+    }
+
+    /// [`Self::whitened_residuals`] of a given prediction (flat layout).
+    pub fn whitened_residuals_of(&self, pred: &[Complex64], eta: f64, out: &mut [f64]) {
         let eta2 = eta * eta;
         let mut gains = Vec::with_capacity(self.gains.len());
-        self.quadratic_and_ln_det(&pred, eta, Some(&mut gains));
+        self.quadratic_and_ln_det(pred, eta, Some(&mut gains));
         let mut corr = vec![Complex64::new(0.0, 0.0); pred.len()];
         for (gs, g) in self.gains.iter().zip(&gains) {
             for (j, &k) in gs.freq_of.iter().enumerate() {
@@ -557,7 +563,6 @@ impl ModelPosterior {
                 j += 2;
             }
         }
-        Ok(())
     }
 
     /// `z` of physical frame parameters and effect values (for truths and starts);

@@ -2,7 +2,7 @@
 
 use super::diagnose::{Diagnosis, ModelResult};
 use super::hypotheses::hypothesis_by_name;
-use super::verdict::{decisive_ln_bayes_factor, DiagnosisRecord, HypothesisEvidence};
+use super::verdict::{decisive_ln_bayes_factor, DiagnosisRecord, EffectRecord, HypothesisEvidence};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
@@ -149,7 +149,11 @@ pub fn explanation(d: &Diagnosis) -> String {
                 .filter(|(_, r)| r.starts_with("decisive"))
                 .map(|(f, r)| format!("{} was {}", f.name.replace('_', " "), r))
                 .collect();
-            let opening = if blocked.is_empty() {
+            let opening = if !d.adequacy.adequate {
+                "No named effect: no hypothesis passes against the nominal model (shear frame, \
+                 proportional damping, ideal sensors), yet that model does not explain the \
+                 recordings (below)"
+            } else if blocked.is_empty() {
                 "Nothing missing: no hypothesis is decisively better than the nominal model \
                  (shear frame, proportional damping, ideal sensors)"
             } else {
@@ -204,26 +208,138 @@ pub fn explanation(d: &Diagnosis) -> String {
 
 /// `diagnosis.json`.
 pub fn record(d: &Diagnosis) -> DiagnosisRecord {
-    let (verdict, location, effect_parameters) = match d.winner {
-        Some(w) => {
-            let f = &d.finalists[w];
-            (
-                f.name.clone(),
-                serde_json::to_value(&f.location).unwrap_or_else(|_| serde_json::json!({})),
-                f.effect.iter().cloned().collect::<BTreeMap<_, _>>(),
-            )
-        }
-        None => ("none".to_string(), serde_json::json!({}), BTreeMap::new()),
+    let effects: Vec<EffectRecord> = d
+        .effects
+        .iter()
+        .map(|e| EffectRecord {
+            hypothesis: e.hypothesis.clone(),
+            location: json_of(&e.location),
+            effect_parameters: e.effect_parameters.iter().cloned().collect(),
+        })
+        .collect();
+    let unexplained = d.adequacy.unexplained.clone();
+    let tie_first = d.ambiguity.as_ref().is_some_and(|a| a.round == 0);
+    let (verdict, location, effect_parameters) = match (effects.first(), &unexplained) {
+        _ if tie_first => (
+            "ambiguous".to_string(),
+            serde_json::json!({}),
+            BTreeMap::new(),
+        ),
+        (Some(e), _) => (
+            e.hypothesis.clone(),
+            e.location.clone(),
+            e.effect_parameters.clone(),
+        ),
+        (None, Some(u)) => (
+            "unexplained".to_string(),
+            json_of(&u.place),
+            BTreeMap::new(),
+        ),
+        (None, None) => ("none".to_string(), serde_json::json!({}), BTreeMap::new()),
     };
     DiagnosisRecord {
         verdict,
         location,
         effect_parameters,
+        effects,
+        adequate: d.adequacy.adequate,
+        unexplained,
+        ambiguous: d.ambiguity.clone(),
         fit_before: d.fit_before,
         fit_after: d.fit_after,
         hypotheses: hypothesis_evidence(d),
-        explanation: explanation(d),
+        // A tie in the first round is stated by the open-world part alone.
+        explanation: if tie_first {
+            open_world_explanation(d)
+        } else {
+            format!("{} {}", explanation(d), open_world_explanation(d))
+        },
     }
+}
+
+fn json_of<T: serde::Serialize>(v: &T) -> serde_json::Value {
+    serde_json::to_value(v).unwrap_or_else(|_| serde_json::json!({}))
+}
+
+/// The later rounds, a tie, and the adequacy of the final model, in words.
+pub fn open_world_explanation(d: &Diagnosis) -> String {
+    let mut s = String::new();
+    for (k, r) in d.later.iter().enumerate() {
+        let with = r.extends.join(" and ").replace('_', " ");
+        match r.decision.winner {
+            Some(w) if d.effects.len() > k + 1 => {
+                let f = &r.finalists[w];
+                let _ = write!(
+                    s,
+                    "With {with} in the model, {} at {} is also missing (delta ln Z = {:.1} over that model). ",
+                    f.name.replace('_', " "),
+                    plain_location(&f.location),
+                    f.ln_z().unwrap_or(f64::NAN) - r.base_ln_z
+                );
+            }
+            _ => {
+                let _ = write!(
+                    s,
+                    "With {with} in the model, no further hypothesis passes. "
+                );
+            }
+        }
+    }
+    if let Some(a) = &d.ambiguity {
+        let _ = write!(
+            s,
+            "Ambiguous: {} at {} and {} at {} both pass every test and are {:.1} nats apart (decisive needs {:.1}); {}. ",
+            a.hypotheses[0].replace('_', " "),
+            plain_location(&a.locations[0]),
+            a.hypotheses[1].replace('_', " "),
+            plain_location(&a.locations[1]),
+            a.delta_ln_z,
+            decisive_ln_bayes_factor(),
+            a.separating_test
+        );
+    }
+    let q = &d.adequacy;
+    let named = if d.effects.is_empty() {
+        "The nominal model".to_string()
+    } else {
+        "The final model".to_string()
+    };
+    match &q.unexplained {
+        None => {
+            let _ = write!(
+                s,
+                "{named} explains the recordings within the estimator's own error: chi2 per point {:.2} at a {:.1} % floor, {} of {} cells fail (they locate, they do not decide), and it fits the places of all {} inconsistent consistency checks.",
+                q.global.chi2_per_point,
+                100.0 * super::adequacy::ADEQUACY_FLOOR,
+                q.failed_cells.len(),
+                q.n_cells,
+                q.checks.len()
+            );
+        }
+        Some(u) => {
+            let p = &u.place;
+            let bands: Vec<String> = p
+                .bands_hz
+                .iter()
+                .map(|(a, b)| format!("{a:.2}-{b:.2} Hz"))
+                .collect();
+            let _ = write!(
+                s,
+                "Unexplained: {named} still fails against the estimator's own error (all points: chi2 per point {:.2}, p = {:.1e}; {} of {} cells; {} of {} inconsistent-check places) at tests {}; channels {}; bands {}. What the residual shows: {}.",
+                q.global.chi2_per_point,
+                q.global.p_value,
+                q.failed_cells.len(),
+                q.n_cells,
+                q.checks.iter().filter(|c| c.failed).count(),
+                q.checks.len(),
+                p.tests.join(", "),
+                p.channels.join(", "),
+                if bands.is_empty() { "off the resonances".to_string() } else { bands.join(", ") },
+                u.signature.join("; ")
+            );
+        }
+    }
+    s
 }
 
 /// `v` to four significant digits (scientific notation outside 1e-3..1e5).

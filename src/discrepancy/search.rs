@@ -62,7 +62,8 @@ impl HypothesisSearch {
     }
 }
 
-/// MAP fit of `hypothesis` at `location`, starting from the frame of `nominal_z`.
+/// MAP fit of `hypothesis` at `location`, starting from `nominal_z`, the fit of the model
+/// it extends (frame, error floor and the effects already accepted).
 pub fn fit_location(
     data: &Arc<DiagnosisData>,
     hypothesis: &Arc<dyn Hypothesis>,
@@ -147,7 +148,8 @@ pub fn search(
                 if tried.iter().any(|f| f.location == loc) {
                     continue;
                 }
-                let Ok(f) = fit_location(data, hypothesis, &loc, &best.map.z, opts) else {
+                let from = &best.map.z[..nominal_z.len()];
+                let Ok(f) = fit_location(data, hypothesis, &loc, from, opts) else {
                     continue;
                 };
                 progress(hypothesis.name(), &loc);

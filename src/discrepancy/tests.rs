@@ -74,7 +74,7 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
     }
 }
 
-fn synthetic() -> Arc<DiagnosisData> {
+pub(super) fn synthetic() -> Arc<DiagnosisData> {
     let nominal = NominalModel::shear_frame(vec![4.64; 4], vec![1019.0, 1217.0, 1420.0, 2473.0]);
     let freq: Vec<f64> = (1..=60).map(|i| 0.3 * i as f64).collect();
     let force = |f: usize| InputKind::Force {
@@ -107,7 +107,7 @@ fn synthetic() -> Arc<DiagnosisData> {
     })
 }
 
-fn base() -> BaseParams {
+pub(super) fn base() -> BaseParams {
     BaseParams {
         stiffness_n_per_m: STIFF.to_vec(),
         mass_kg: MASS.to_vec(),

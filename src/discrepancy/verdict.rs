@@ -78,14 +78,38 @@ pub struct HypothesisEvidence {
     pub gain_bound: Option<f64>,
 }
 
-/// `diagnosis.json`, exactly the schema of issue 5.
+/// One accepted effect in `diagnosis.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EffectRecord {
+    pub hypothesis: String,
+    pub location: serde_json::Value,
+    /// Its parameters' posterior in the final model (every accepted effect in it).
+    pub effect_parameters: BTreeMap<String, EffectSummary>,
+}
+
+/// `diagnosis.json`: the schema of issue 5 plus the open-world fields of issue 14.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DiagnosisRecord {
-    /// A hypothesis name or `"none"`.
+    /// The first effect's name, `"none"`, `"ambiguous"` or `"unexplained"`.
     pub verdict: String,
-    /// `{}`, `{"story": s}`, `{"floor": f}`, `{"channels": [...]}` or `{"quantity": q}`.
+    /// The first effect's location: `{}`, `{"story": s}`, `{"floor": f}`,
+    /// `{"channels": [...]}` or `{"quantity": q}`; for `unexplained` its `where`.
     pub location: serde_json::Value,
+    /// The first effect's parameters.
     pub effect_parameters: BTreeMap<String, EffectSummary>,
+    /// Every accepted effect, in the order it was added.
+    #[serde(default)]
+    pub effects: Vec<EffectRecord>,
+    /// Whether the final model explains the recordings within the estimator's error
+    /// ([`super::adequacy`]).
+    #[serde(default = "yes")]
+    pub adequate: bool,
+    /// Where and how the final model fails, when it does.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unexplained: Option<super::adequacy::Unexplained>,
+    /// Two explanations that tie, when they stopped the diagnosis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ambiguous: Option<super::stepwise::Ambiguity>,
     pub fit_before: FitQuality,
     pub fit_after: FitQuality,
     pub hypotheses: Vec<HypothesisEvidence>,
@@ -120,6 +144,10 @@ pub struct Candidate {
     /// The held-out check was skipped: it replays the tests (minutes) and a candidate
     /// with more evidence had already passed every test, so this one cannot win.
     pub heldout_skipped: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 fn infinite() -> f64 {
@@ -162,6 +190,9 @@ pub struct Decision {
     pub winner: Option<usize>,
     /// For every candidate, why it was or was not named.
     pub reasons: Vec<String>,
+    /// Indices of the candidates that pass every rule (the winner among them).
+    #[serde(default)]
+    pub passing: Vec<usize>,
 }
 
 /// Applies the rule of this module's documentation. `nominal_se` is the standard error
@@ -169,6 +200,7 @@ pub struct Decision {
 pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidate]) -> Decision {
     let threshold = decisive_ln_bayes_factor();
     let mut winner: Option<usize> = None;
+    let mut passing = Vec::new();
     let mut reasons = Vec::with_capacity(candidates.len());
     for (i, c) in candidates.iter().enumerate() {
         let delta = c.log_evidence - nominal_log_evidence;
@@ -210,12 +242,17 @@ pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidat
                 if winner.is_none_or(|w| c.log_evidence > candidates[w].log_evidence) {
                     winner = Some(i);
                 }
+                passing.push(i);
                 format!("decisive (delta ln Z = {delta:.1} +- {se:.1}), plausible, {how}")
             }
         };
         reasons.push(reason);
     }
-    Decision { winner, reasons }
+    Decision {
+        winner,
+        reasons,
+        passing,
+    }
 }
 
 #[cfg(test)]
@@ -253,6 +290,7 @@ mod tests {
         let c = vec![cand("a", 3.0), cand("b", 30.0), cand("c", 20.0)];
         let d = decide(0.0, 0.5, &c);
         assert_eq!(d.winner, Some(1));
+        assert_eq!(d.passing, vec![1, 2]);
         assert!(d.reasons[0].starts_with("not decisive"), "{}", d.reasons[0]);
     }
 
@@ -344,7 +382,7 @@ mod tests {
         let r = DiagnosisRecord {
             verdict: "sensor_timing".into(),
             location: serde_json::json!({"quantity": "acceleration"}),
-            effect_parameters: effect,
+            effect_parameters: effect.clone(),
             fit_before: FitQuality {
                 fdac_mean: 0.9,
                 chi2_per_point: 10.0,
@@ -362,6 +400,14 @@ mod tests {
                 gain_bound: Some(60.0),
             }],
             explanation: "x".into(),
+            effects: vec![EffectRecord {
+                hypothesis: "sensor_timing".into(),
+                location: serde_json::json!({"quantity": "acceleration"}),
+                effect_parameters: effect.clone(),
+            }],
+            adequate: true,
+            unexplained: None,
+            ambiguous: None,
         };
         let v = serde_json::to_value(&r).unwrap();
         let keys: Vec<&str> = v.as_object().unwrap().keys().map(|k| k.as_str()).collect();
@@ -373,6 +419,8 @@ mod tests {
             "fit_after",
             "hypotheses",
             "explanation",
+            "effects",
+            "adequate",
         ];
         expected.sort();
         let mut keys_sorted = keys.clone();

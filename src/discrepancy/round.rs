@@ -1,0 +1,479 @@
+//! One round of a stepwise diagnosis: every hypothesis, added to the model of the round
+//! (the nominal model, or the nominal model with the effects accepted so far:
+//! [`super::extension::WithEffects`]), is searched over its locations; its best location
+//! gets Laplace and the screened evidence; amplitude-dependent hypotheses that are
+//! decisive are refitted in the time domain; decisive, plausible ones are checked on
+//! held-out segments; and [`super::verdict::decide`] judges them against the round's
+//! model. The first round is the diagnosis of issue 5; each later one asks whether
+//! anything more is missing once the winner is in the model.
+
+use super::data::DiagnosisData;
+use super::diagnose::{DiagnoseOptions, DiagnoseStage, ModelResult};
+use super::extension::{Effect, WithEffects};
+use super::heldout::held_out;
+use super::hypothesis::Hypothesis;
+use super::location::Location;
+use super::model_evidence::{
+    completion, evidence_key, extension_of, laplace_u, model_result, LaplaceOutcome,
+};
+use super::posterior::ModelPosterior;
+use super::refine::refit_in_time_domain;
+use super::search::{search, HypothesisSearch, SearchOptions};
+use super::verdict::{decide, decisive_ln_bayes_factor, held_out_passes, Candidate, Decision};
+use crate::error::Result;
+use crate::io::stages::{staged, Stages};
+use crate::io::Campaign;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The model a round extends.
+#[derive(Debug, Clone)]
+pub struct BaseModel {
+    /// Its fit, evidence and effects.
+    pub result: ModelResult,
+    /// Laplace at its mode in logit coordinates (the screen's reference).
+    pub laplace: LaplaceOutcome,
+    /// Its extension of the nominal model (`None`: the nominal model itself).
+    pub extension: Option<(Arc<dyn Hypothesis>, Location)>,
+    /// The effects it contains, in the order they were accepted.
+    pub effects: Vec<Effect>,
+}
+
+impl BaseModel {
+    /// `result` of a round, accepted: its hypothesis is the one effect added to `self`.
+    pub fn accept(&self, result: &ModelResult, plain: Arc<dyn Hypothesis>) -> BaseModel {
+        let mut effects = self.effects.clone();
+        effects.push(Effect {
+            hypothesis: plain,
+            location: result.location.clone(),
+        });
+        BaseModel {
+            laplace: laplace_u(&result.posterior, &result.map.z),
+            extension: result.posterior.model().hypothesis().cloned(),
+            result: result.clone(),
+            effects,
+        }
+    }
+}
+
+/// What a round found.
+#[derive(Debug, Clone)]
+pub struct Round {
+    /// Names of the effects in the model the round extended, in order (empty: the
+    /// nominal model).
+    pub extends: Vec<String>,
+    /// Log evidence of that model and its sd.
+    pub base_ln_z: f64,
+    pub base_ln_z_sd: f64,
+    /// Every hypothesis' location search.
+    pub searches: Vec<HypothesisSearch>,
+    /// Laplace's log evidence of every hypothesis' best location (`None` where there is
+    /// no mode or its curvature is not positive definite).
+    pub laplace: Vec<(String, Option<f64>)>,
+    /// Hypotheses whose evidence was computed, ranked by log evidence.
+    pub finalists: Vec<ModelResult>,
+    pub decision: Decision,
+}
+
+/// What every round shares.
+pub struct RoundContext<'a> {
+    pub campaign: &'a Campaign,
+    pub data: &'a Arc<DiagnosisData>,
+    pub opts: &'a DiagnoseOptions,
+    pub stages: Option<&'a Stages>,
+    /// The hypotheses, each on its own.
+    pub hypotheses: &'a [Arc<dyn Hypothesis>],
+}
+
+/// Wall times of the stages, s, in order.
+pub type Timings = Vec<(String, f64)>;
+
+/// Records the time since the last mark as `what`.
+pub struct Stopwatch {
+    lap: Instant,
+}
+
+impl Stopwatch {
+    pub fn new(from: Instant) -> Self {
+        Stopwatch { lap: from }
+    }
+
+    pub fn mark(&mut self, what: &str, timings: &mut Timings) {
+        timings.push((what.to_string(), self.lap.elapsed().as_secs_f64()));
+        self.lap = Instant::now();
+    }
+}
+
+/// The stage-key prefix of round `step` (none for the first, so that runs of the
+/// one-round diagnosis resume).
+fn tag(step: usize) -> String {
+    if step == 0 {
+        String::new()
+    } else {
+        format!("step{step}-")
+    }
+}
+
+/// Runs round `step` on `base` (see the module docs).
+pub fn run_round(
+    ctx: &RoundContext<'_>,
+    base: &BaseModel,
+    step: usize,
+    (watch, timings): (&mut Stopwatch, &mut Timings),
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<Round> {
+    let hypotheses: Vec<Arc<dyn Hypothesis>> = ctx
+        .hypotheses
+        .iter()
+        .map(|h| -> Result<Arc<dyn Hypothesis>> {
+            if base.effects.is_empty() {
+                Ok(h.clone())
+            } else {
+                let w = WithEffects::new(ctx.data, base.effects.clone(), h.clone())?;
+                Ok(Arc::new(w))
+            }
+        })
+        .collect::<Result<_>>()?;
+    let searches = search_all(ctx, base, &hypotheses, step, (watch, timings), progress)?;
+    let (mut posts, laplace) = best_laplace(ctx.data, &searches)?;
+    watch.mark(&format!("{}Laplace", tag(step)), timings);
+    let mut finalists = evidence_runs(
+        ctx,
+        base,
+        &searches,
+        &mut posts,
+        step,
+        (watch, timings),
+        progress,
+    )?;
+    refit_amplitude_dependent(
+        ctx,
+        base,
+        &hypotheses,
+        &mut finalists,
+        (watch, timings),
+        progress,
+    );
+    let skipped = held_out_checks(
+        ctx,
+        base,
+        &hypotheses,
+        &mut finalists,
+        (watch, timings),
+        progress,
+    )?;
+    let base_ln_z = base.result.ln_z().unwrap_or(f64::NEG_INFINITY);
+    let base_ln_z_sd = base.result.evidence.as_ref().map_or(0.0, |e| e.ln_z_sd);
+    let candidates: Vec<Candidate> = finalists
+        .iter()
+        .zip(&skipped)
+        .map(|(f, &skipped)| candidate(f, skipped))
+        .collect();
+    let decision = decide(base_ln_z, base_ln_z_sd, &candidates);
+    Ok(Round {
+        extends: base
+            .effects
+            .iter()
+            .map(|e| e.hypothesis.name().to_string())
+            .collect(),
+        base_ln_z,
+        base_ln_z_sd,
+        searches: searches.into_iter().map(|(_, s)| s).collect(),
+        laplace,
+        finalists,
+        decision,
+    })
+}
+
+type Searched = Vec<(Arc<dyn Hypothesis>, HypothesisSearch)>;
+
+/// Every hypothesis' location search, one farmed task each (over the ranks of an MPI
+/// run), from the base model's fit.
+fn search_all(
+    ctx: &RoundContext<'_>,
+    base: &BaseModel,
+    hypotheses: &[Arc<dyn Hypothesis>],
+    step: usize,
+    (watch, timings): (&mut Stopwatch, &mut Timings),
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<Searched> {
+    let sopts = SearchOptions {
+        n_effect_starts: ctx.opts.n_effect_starts,
+        map: ctx.opts.map.clone(),
+        seed: ctx.opts.seed,
+    };
+    let key = |h: &Arc<dyn Hypothesis>| format!("{}search-{}", tag(step), h.name());
+    let found = crate::dist::farm(
+        hypotheses.len(),
+        |i| {
+            let h = &hypotheses[i];
+            let mut cb = |name: &str, loc: &Location| {
+                progress(DiagnoseStage::Search {
+                    hypothesis: name,
+                    location: loc,
+                })
+            };
+            staged(ctx.stages, &key(h), || {
+                search(ctx.data, h, &base.result.map.z, &sopts, &mut cb)
+                    .map(|s| (s.tried, s.failed))
+            })
+        },
+        |i, found| {
+            let name = hypotheses[i].name();
+            watch.mark(&format!("{}search {name}", tag(step)), timings);
+            ctx.stages
+                .map_or(Ok(()), |s| s.save_if_absent(&key(&hypotheses[i]), found))
+        },
+    )?;
+    Ok(hypotheses
+        .iter()
+        .zip(found)
+        .map(|(h, (tried, failed))| {
+            let found = HypothesisSearch {
+                name: h.name(),
+                tried,
+                failed,
+            };
+            (h.clone(), found)
+        })
+        .collect())
+}
+
+type BestLaplace = (
+    Vec<Option<(ModelPosterior, LaplaceOutcome)>>,
+    Vec<(String, Option<f64>)>,
+);
+
+/// Laplace at the mode in logit coordinates of every hypothesis' best location: the
+/// screen of the evidence and the reference of its generalised stepping-stone.
+fn best_laplace(data: &Arc<DiagnosisData>, searches: &Searched) -> Result<BestLaplace> {
+    let mut posts = Vec::with_capacity(searches.len());
+    let mut values = Vec::with_capacity(searches.len());
+    for (h, s) in searches {
+        let p = match s.best() {
+            Some(b) => {
+                let post =
+                    ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())))?;
+                let lap = laplace_u(&post, &b.map.z);
+                Some((post, lap))
+            }
+            None => None,
+        };
+        let v = p
+            .as_ref()
+            .and_then(|(_, l)| l.as_ref().ok().map(|l| l.laplace.ln_z));
+        values.push((h.name().to_string(), v));
+        posts.push(p);
+    }
+    Ok((posts, values))
+}
+
+/// The screened evidence of every hypothesis' best location, the best fits first, up to
+/// `max_evidence_runs`, one farmed task each; ranked by log evidence.
+fn evidence_runs(
+    ctx: &RoundContext<'_>,
+    base: &BaseModel,
+    searches: &Searched,
+    posts: &mut [Option<(ModelPosterior, LaplaceOutcome)>],
+    step: usize,
+    (watch, timings): (&mut Stopwatch, &mut Timings),
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<Vec<ModelResult>> {
+    let best_ln_l = |i: usize| {
+        searches[i]
+            .1
+            .best()
+            .map_or(f64::NEG_INFINITY, |f| f.map.ln_likelihood)
+    };
+    let mut order: Vec<usize> = (0..searches.len())
+        .filter(|&i| searches[i].1.best().is_some())
+        .collect();
+    order.sort_by(|&a, &b| best_ln_l(b).total_cmp(&best_ln_l(a)));
+    order.truncate(ctx.opts.max_evidence_runs);
+    let picked: Vec<_> = order
+        .iter()
+        .filter_map(|&i| {
+            let b = searches[i].1.best()?;
+            let (post, lap) = posts[i].take()?;
+            Some((&searches[i].0, b, post, lap))
+        })
+        .collect();
+    let stage_name = |h: &Arc<dyn Hypothesis>| format!("{}{}", tag(step), h.name());
+    let done = crate::dist::farm(
+        picked.len(),
+        |k| {
+            let (h, best, post, lap) = &picked[k];
+            let x = extension_of(&base.result, base.laplace.as_ref().ok(), &best.map);
+            let index = (64 * step + k + 1) as u64;
+            let name = stage_name(h);
+            completion(
+                &name,
+                post,
+                &best.map,
+                lap,
+                Some(&x),
+                ctx.opts,
+                index,
+                ctx.stages,
+                progress,
+            )
+        },
+        |k, done| {
+            let name = stage_name(picked[k].0);
+            watch.mark(&format!("evidence {name}"), timings);
+            ctx.stages
+                .map_or(Ok(()), |s| s.save_if_absent(&evidence_key(&name), done))
+        },
+    )?;
+    let mut finalists: Vec<ModelResult> = picked
+        .into_iter()
+        .zip(done)
+        .map(|((h, best, post, _), done)| {
+            model_result(
+                h.name(),
+                best.location.clone(),
+                post,
+                best.map.clone(),
+                done,
+            )
+        })
+        .collect();
+    rank_by_evidence(&mut finalists);
+    Ok(finalists)
+}
+
+fn rank_by_evidence(finalists: &mut [ModelResult]) {
+    finalists.sort_by(|a, b| {
+        b.ln_z()
+            .unwrap_or(f64::NEG_INFINITY)
+            .total_cmp(&a.ln_z().unwrap_or(f64::NEG_INFINITY))
+    });
+}
+
+/// Rule 1 of [`super::verdict`] against the base model.
+fn decisive(base: &BaseModel, f: &ModelResult) -> bool {
+    let base_ln_z = base.result.ln_z().unwrap_or(f64::NEG_INFINITY);
+    let base_sd = base.result.evidence.as_ref().map_or(0.0, |e| e.ln_z_sd);
+    let ev = f.evidence.as_ref();
+    let delta = ev.map_or(f64::NEG_INFINITY, |e| e.ln_z - base_ln_z);
+    let se = ev.map_or(0.0, |e| e.ln_z_sd.hypot(base_sd));
+    let bound = ev.and_then(|e| e.gain_bound_nats).unwrap_or(f64::INFINITY);
+    let thr = decisive_ln_bayes_factor();
+    delta - 2.0 * se >= thr && bound >= thr
+}
+
+fn is_amplitude_dependent(hypotheses: &[Arc<dyn Hypothesis>], name: &str) -> bool {
+    hypotheses
+        .iter()
+        .any(|h| h.name() == name && h.amplitude_dependent())
+}
+
+/// Amplitude-dependent hypotheses that are decisive when linearised: refit by replaying
+/// the tests in the time domain, and judge the effect on that fit.
+fn refit_amplitude_dependent(
+    ctx: &RoundContext<'_>,
+    base: &BaseModel,
+    hypotheses: &[Arc<dyn Hypothesis>],
+    finalists: &mut [ModelResult],
+    (watch, timings): (&mut Stopwatch, &mut Timings),
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) {
+    for f in finalists.iter_mut() {
+        if !(is_amplitude_dependent(hypotheses, &f.name) && decisive(base, f)) {
+            continue;
+        }
+        progress(DiagnoseStage::TimeDomain {
+            hypothesis: &f.name,
+        });
+        // A replay that fails (a softening spring losing its stiffness, say) leaves
+        // only the linearisation, which cannot size this effect: not plausible.
+        match refit_in_time_domain(ctx.campaign, f, ctx.opts) {
+            Ok(r) => f.time_domain = Some(r),
+            Err(e) => {
+                f.plausible = false;
+                f.implausible_because = format!("its time-domain refit failed ({e})");
+            }
+        }
+        watch.mark(&format!("time-domain refit {}", f.name), timings);
+    }
+    rank_by_evidence(finalists);
+}
+
+/// Held-out checks only where they can change the decision: decisive and plausible, and,
+/// for a check that replays the tests, not below a hypothesis that already passed.
+/// Returns, per finalist, whether its check was skipped for that reason.
+fn held_out_checks(
+    ctx: &RoundContext<'_>,
+    base: &BaseModel,
+    hypotheses: &[Arc<dyn Hypothesis>],
+    finalists: &mut [ModelResult],
+    (watch, timings): (&mut Stopwatch, &mut Timings),
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<Vec<bool>> {
+    let mut passed = false;
+    let mut skipped = vec![false; finalists.len()];
+    for (k, f) in finalists.iter_mut().enumerate() {
+        if !(f.plausible && decisive(base, f)) {
+            continue;
+        }
+        if passed && f.time_domain.is_some() {
+            skipped[k] = true;
+            continue;
+        }
+        let h = hypotheses
+            .iter()
+            .find(|h| h.name() == f.name)
+            .expect("finalists come from the hypotheses");
+        let name = f.name.clone();
+        let mut cb = |done: usize, of: usize| {
+            progress(DiagnoseStage::HeldOut {
+                hypothesis: &name,
+                done,
+                of,
+            })
+        };
+        let replay = f.time_domain.is_some().then_some(ctx.campaign);
+        let checked = held_out(
+            ctx.data,
+            &base.extension,
+            &base.result.map.z,
+            h,
+            &f.location,
+            &f.map.z,
+            &ctx.opts.map,
+            replay,
+            &mut cb,
+        );
+        match checked {
+            Ok(ho) => f.held_out = Some(ho),
+            Err(e) if replay.is_some() => {
+                f.plausible = false;
+                f.implausible_because = format!("its time-domain held-out check failed ({e})");
+            }
+            Err(e) => return Err(e),
+        }
+        watch.mark(&format!("held-out {name}"), timings);
+        passed |= f.held_out.as_ref().is_some_and(held_out_passes);
+    }
+    Ok(skipped)
+}
+
+/// What [`decide`] needs of one finalist.
+fn candidate(f: &ModelResult, heldout_skipped: bool) -> Candidate {
+    let ev = f.evidence.as_ref();
+    let ho = f.held_out.as_ref();
+    Candidate {
+        heldout_skipped,
+        name: f.name.clone(),
+        log_evidence: f.ln_z().unwrap_or(f64::NEG_INFINITY),
+        log_evidence_se: ev.map_or(0.0, |e| e.ln_z_sd),
+        gain_bound: ev.and_then(|e| e.gain_bound_nats).unwrap_or(f64::INFINITY),
+        estimator: ev.map_or(String::new(), |e| e.estimator.label().to_string()),
+        plausible: f.plausible,
+        implausible_because: f.implausible_because.clone(),
+        heldout_gain: ho.map_or(f64::NEG_INFINITY, |h| h.gain),
+        heldout_gain_se: ho.map_or(0.0, |h| h.gain_se),
+        heldout_p_value: ho.map_or(1.0, |h| h.p_value),
+        heldout_n_ranked: ho.map_or(0, |h| h.n_ranked),
+    }
+}

@@ -1,0 +1,166 @@
+//! The stepwise, open-world decision (issue 14, item 2): add the winner of a round to the
+//! model and diagnose again, until no hypothesis passes ([`super::verdict::decide`] against
+//! the model of the round), two pass within a decisive Bayes factor of each other
+//! (ambiguous), or [`MAX_EFFECTS`] effects are in; then judge the final model's adequacy
+//! ([`super::adequacy`]).
+
+use super::diagnose::{DiagnoseStage, ModelResult};
+use super::location::Location;
+use super::round::{run_round, BaseModel, Round, RoundContext, Stopwatch, Timings};
+use super::verdict::{decisive_ln_bayes_factor, EffectSummary};
+use crate::error::Result;
+use serde::{Deserialize, Serialize};
+
+/// The most effects a diagnosis adds (each costs a round of searches and evidence).
+pub const MAX_EFFECTS: usize = 3;
+
+/// An accepted effect with its parameters' posterior in the final model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AcceptedEffect {
+    pub hypothesis: String,
+    pub location: Location,
+    pub effect_parameters: Vec<(String, EffectSummary)>,
+}
+
+/// Two explanations that both pass, within a decisive Bayes factor of each other.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Ambiguity {
+    /// The round (0: against the nominal model) and the two, the more likely first.
+    pub round: usize,
+    pub hypotheses: [String; 2],
+    pub locations: [Location; 2],
+    /// Their difference in log evidence, nats (below `ln 150`).
+    pub delta_ln_z: f64,
+    /// Where their fitted models differ most, relative to the noise there: what a test
+    /// would have to measure to separate them.
+    pub separating_test: String,
+}
+
+/// The rounds after `first`, the final model, and an ambiguity if one stopped them.
+pub struct Stepwise {
+    pub later: Vec<Round>,
+    pub last: BaseModel,
+    pub ambiguity: Option<Ambiguity>,
+}
+
+/// Runs rounds after `first` while a hypothesis is accepted (see the module docs).
+pub fn continue_rounds(
+    ctx: &RoundContext<'_>,
+    nominal: BaseModel,
+    first: &Round,
+    (watch, timings): (&mut Stopwatch, &mut Timings),
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<Stepwise> {
+    let mut later: Vec<Round> = Vec::new();
+    let mut base = nominal;
+    loop {
+        let step = later.len();
+        let round = later.last().unwrap_or(first);
+        if let Some(a) = ambiguity(round, step)? {
+            return Ok(Stepwise {
+                later,
+                last: base,
+                ambiguity: Some(a),
+            });
+        }
+        let Some(w) = round.decision.winner else {
+            break;
+        };
+        let won = &round.finalists[w];
+        let plain = ctx
+            .hypotheses
+            .iter()
+            .find(|h| h.name() == won.name)
+            .cloned()
+            .expect("finalists come from the hypotheses");
+        base = base.accept(won, plain);
+        if base.effects.len() >= MAX_EFFECTS {
+            break;
+        }
+        let next = run_round(ctx, &base, base.effects.len(), (watch, timings), progress)?;
+        later.push(next);
+    }
+    Ok(Stepwise {
+        later,
+        last: base,
+        ambiguity: None,
+    })
+}
+
+/// The ambiguity of `round`, if its winner has a passing rival of another hypothesis
+/// within `ln 150` in log evidence.
+fn ambiguity(round: &Round, step: usize) -> Result<Option<Ambiguity>> {
+    let Some(w) = round.decision.winner else {
+        return Ok(None);
+    };
+    let a = &round.finalists[w];
+    let ln_z = |m: &ModelResult| m.ln_z().unwrap_or(f64::NEG_INFINITY);
+    let rival = round
+        .decision
+        .passing
+        .iter()
+        .map(|&i| &round.finalists[i])
+        .filter(|b| b.name != a.name && ln_z(a) - ln_z(b) < decisive_ln_bayes_factor())
+        .max_by(|x, y| ln_z(x).total_cmp(&ln_z(y)));
+    let Some(b) = rival else {
+        return Ok(None);
+    };
+    Ok(Some(Ambiguity {
+        round: step,
+        hypotheses: [a.name.clone(), b.name.clone()],
+        locations: [a.location.clone(), b.location.clone()],
+        delta_ln_z: ln_z(a) - ln_z(b),
+        separating_test: separating_test(a, b)?,
+    }))
+}
+
+/// Where the MAP predictions of `a` and `b` differ most in units of the noise of the
+/// measurement there (the Bendat-Piersol error and `a`'s fitted floor).
+fn separating_test(a: &ModelResult, b: &ModelResult) -> Result<String> {
+    let pa = a.posterior.predict(&a.map.z)?;
+    let pb = b.posterior.predict(&b.map.z)?;
+    let h = a.posterior.measured();
+    let data = a.posterior.data();
+    let mut best = (0.0, String::new());
+    for (si, seg) in a.posterior.model().layout().iter().enumerate() {
+        let sd = &data.segments[si];
+        for (ci, range) in seg.iter().enumerate() {
+            let ch = &sd.channels[ci];
+            for (j, i) in range.clone().enumerate() {
+                let sigma = ch.rel_err[j].hypot(a.map.eta) * h[i].norm();
+                let z = (pa[i] - pb[i]).norm() / sigma;
+                if z > best.0 {
+                    let f = sd.freq_hz[ch.freq_index[j]];
+                    best = (
+                        z,
+                        format!("{} in {} at {f:.2} Hz", ch.channel.name, sd.test),
+                    );
+                }
+            }
+        }
+    }
+    Ok(format!(
+        "the two fitted models differ most on {} ({:.1} noise standard deviations at one \
+         frequency): more averages or a longer record there, or an excitation and sensor \
+         placed for that frequency, would separate them",
+        best.1, best.0
+    ))
+}
+
+/// The final model's effect summaries split by accepted effect.
+pub fn accepted_effects(last: &BaseModel) -> Result<Vec<AcceptedEffect>> {
+    let data = last.result.posterior.data();
+    let mut out = Vec::with_capacity(last.effects.len());
+    let mut at = 0;
+    for e in &last.effects {
+        let n = e.hypothesis.parameters(data, &e.location)?.len();
+        let params = last.result.effect.get(at..at + n).unwrap_or(&[]).to_vec();
+        at += n;
+        out.push(AcceptedEffect {
+            hypothesis: e.hypothesis.name().to_string(),
+            location: e.location.clone(),
+            effect_parameters: params,
+        });
+    }
+    Ok(out)
+}
