@@ -31,7 +31,7 @@ use super::hypotheses::all_hypotheses;
 use super::hypothesis::Hypothesis;
 use super::locate::LocateReport;
 use super::location::Location;
-use super::model_evidence::{completion, laplace_u, model_result};
+use super::model_evidence::{completion, laplace_u, model_result, LaplaceOutcome};
 use super::posterior::ModelPosterior;
 use super::refine::TimeDomainRefit;
 use super::residual_map::{ResidualMap, ResidualRow};
@@ -264,20 +264,8 @@ pub fn diagnose_resumable(
     let mut timings: Timings = Vec::new();
     let mut watch = Stopwatch::new(t0);
     watch.mark("data", &mut timings);
-    progress(DiagnoseStage::NominalFit);
-    let post0 = ModelPosterior::new(data.clone(), None)?;
-    let map0 = staged(stages, "nominal-map", || {
-        let starts = frame_starts(&post0, opts.n_frame_starts, 0.3, opts.seed)?;
-        fit_map(&post0, &starts, &opts.map)
-    })?;
-    watch.mark("nominal MAP", &mut timings);
-    let lap0 = laplace_u(&post0, &map0.z);
+    let (nominal, lap0) = nominal_model(&data, opts, stages, &mut watch, &mut timings, progress)?;
     let nominal_laplace = lap0.as_ref().ok().map(|l| l.laplace.ln_z);
-    let done = completion(
-        "nominal", &post0, &map0, &lap0, None, opts, 0, stages, progress,
-    )?;
-    let nominal = model_result("nominal", Location::Whole, post0, map0.clone(), done);
-    watch.mark("nominal evidence", &mut timings);
 
     let hypotheses: Vec<Arc<dyn Hypothesis>> = all_hypotheses()
         .into_iter()
@@ -304,26 +292,9 @@ pub fn diagnose_resumable(
     let eta0 = nominal.map.eta;
     let pred0 = nominal.posterior.predict(&nominal.map.z)?;
     let fit_before = fit_quality(&nominal.posterior, &pred0, eta0);
-    let locate = check_campaign(campaign, &ConsistencyOptions::default())
-        .map_err(|e| e.to_string())
-        .and_then(|c| {
-            let map = residual_map(&nominal.posterior, &nominal.map.z, eta0)
-                .map_err(|e| e.to_string())?;
-            Ok(LocateReport::new(c, Some(map)))
-        });
-    watch.mark("consistency checks", &mut timings);
+    let (locate, adequacy) = locate_and_assess(campaign, &nominal, &steps.last.result)?;
+    watch.mark("consistency checks and adequacy", &mut timings);
     let last = &steps.last.result;
-    let pred = last.posterior.predict(&last.map.z)?;
-    let adequacy = assess(
-        &last.posterior,
-        &pred,
-        &mode_bands(&last.posterior, &last.map.z)?,
-        locate
-            .as_ref()
-            .map(|l| &l.consistency)
-            .map_err(|e| e.clone()),
-    )?;
-    watch.mark("adequacy", &mut timings);
     let residual_after = match effects.is_empty() {
         false => Some(residual_map(&last.posterior, &last.map.z, eta0)?),
         true => None,
@@ -350,6 +321,58 @@ pub fn diagnose_resumable(
         locate,
         residual_after,
     })
+}
+
+/// The nominal model's MAP (multistart), Laplace and evidence.
+fn nominal_model(
+    data: &Arc<DiagnosisData>,
+    opts: &DiagnoseOptions,
+    stages: Option<&Stages>,
+    watch: &mut Stopwatch,
+    timings: &mut Timings,
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<(ModelResult, LaplaceOutcome)> {
+    progress(DiagnoseStage::NominalFit);
+    let post0 = ModelPosterior::new(data.clone(), None)?;
+    let map0 = staged(stages, "nominal-map", || {
+        let starts = frame_starts(&post0, opts.n_frame_starts, 0.3, opts.seed)?;
+        fit_map(&post0, &starts, &opts.map)
+    })?;
+    watch.mark("nominal MAP", timings);
+    let lap0 = laplace_u(&post0, &map0.z);
+    let done = completion(
+        "nominal", &post0, &map0, &lap0, None, opts, 0, stages, progress,
+    )?;
+    let nominal = model_result("nominal", Location::Whole, post0, map0, done);
+    watch.mark("nominal evidence", timings);
+    Ok((nominal, lap0))
+}
+
+/// The consistency checks with the nominal model's residual map (or why they could not
+/// run), and the adequacy of the final model `last`, which they feed.
+fn locate_and_assess(
+    campaign: &Campaign,
+    nominal: &ModelResult,
+    last: &ModelResult,
+) -> Result<(std::result::Result<LocateReport, String>, Adequacy)> {
+    let locate = check_campaign(campaign, &ConsistencyOptions::default())
+        .map_err(|e| e.to_string())
+        .and_then(|c| {
+            let map = residual_map(&nominal.posterior, &nominal.map.z, nominal.map.eta)
+                .map_err(|e| e.to_string())?;
+            Ok(LocateReport::new(c, Some(map)))
+        });
+    let pred = last.posterior.predict(&last.map.z)?;
+    let adequacy = assess(
+        &last.posterior,
+        &pred,
+        &mode_bands(&last.posterior, &last.map.z)?,
+        locate
+            .as_ref()
+            .map(|l| &l.consistency)
+            .map_err(|e| e.clone()),
+    )?;
+    Ok((locate, adequacy))
 }
 
 impl crate::infer::TemperedTarget for ModelPosterior {
