@@ -88,9 +88,9 @@ fn open_world_section(d: &Diagnosis) -> String {
     let q = &d.adequacy;
     let _ = writeln!(
         s,
-        "Adequacy of the final model (Bendat-Piersol errors plus a {} % floor for all points \
-         and the cells, 0.3 % where the inconsistent checks point; level {} %, Holm over the \
-         cells and over the checks; cells locate, they do not decide): **{}**.\n",
+        "Adequacy of the final model (Bendat-Piersol errors plus a {:.1} % floor for all \
+         points and the cells, 0.3 % where the inconsistent checks point; level {:.0} %, Holm \
+         over the cells and over the checks; cells locate, they do not decide): **{}**.\n",
         100.0 * super::adequacy::ADEQUACY_FLOOR,
         100.0 * super::adequacy::ADEQUACY_LEVEL,
         if q.adequate {
