@@ -26,13 +26,18 @@ fn shared_four_story() -> Option<PathBuf> {
     }
 }
 
-/// Relative paths of all files under `root`, sorted.
+/// Relative paths of all files under `root`, sorted, less the manifest frfbayes writes
+/// into every folder it creates ([`frfbayes::io::output::MANIFEST`]: the unpacked copy is
+/// one), which is not campaign data.
 fn files(root: &Path) -> Vec<String> {
     fn walk(root: &Path, dir: &Path, out: &mut Vec<String>) {
         for e in std::fs::read_dir(dir).unwrap() {
             let p = e.unwrap().path();
             if p.is_dir() {
                 walk(root, &p, out);
+            } else if p.file_name().and_then(|n| n.to_str()) == Some(frfbayes::io::output::MANIFEST)
+            {
+                continue;
             } else {
                 out.push(p.strip_prefix(root).unwrap().to_string_lossy().into_owned());
             }
