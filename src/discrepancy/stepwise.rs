@@ -95,16 +95,12 @@ fn ambiguity(round: &Round, step: usize) -> Result<Option<Ambiguity>> {
     };
     let a = &round.finalists[w];
     let ln_z = |m: &ModelResult| m.ln_z().unwrap_or(f64::NEG_INFINITY);
-    let rival = round
-        .decision
-        .passing
-        .iter()
-        .map(|&i| &round.finalists[i])
-        .filter(|b| b.name != a.name && ln_z(a) - ln_z(b) < decisive_ln_bayes_factor())
-        .max_by(|x, y| ln_z(x).total_cmp(&ln_z(y)));
-    let Some(b) = rival else {
+    let names: Vec<&str> = round.finalists.iter().map(|f| f.name.as_str()).collect();
+    let values: Vec<f64> = round.finalists.iter().map(ln_z).collect();
+    let Some(r) = rival(w, &round.decision.passing, &names, &values) else {
         return Ok(None);
     };
+    let b = &round.finalists[r];
     Ok(Some(Ambiguity {
         round: step,
         hypotheses: [a.name.clone(), b.name.clone()],
@@ -112,6 +108,16 @@ fn ambiguity(round: &Round, step: usize) -> Result<Option<Ambiguity>> {
         delta_ln_z: ln_z(a) - ln_z(b),
         separating_test: separating_test(a, b)?,
     }))
+}
+
+/// The passing candidate of another hypothesis than the winner `w` whose log evidence
+/// is within `ln 150` of the winner's (the closest), if any.
+fn rival(w: usize, passing: &[usize], names: &[&str], ln_z: &[f64]) -> Option<usize> {
+    passing
+        .iter()
+        .copied()
+        .filter(|&i| names[i] != names[w] && ln_z[w] - ln_z[i] < decisive_ln_bayes_factor())
+        .max_by(|&x, &y| ln_z[x].total_cmp(&ln_z[y]))
 }
 
 /// Where the MAP predictions of `a` and `b` differ most in units of the noise of the
@@ -163,4 +169,27 @@ pub fn accepted_effects(last: &BaseModel) -> Result<Vec<AcceptedEffect>> {
         });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::rival;
+
+    #[test]
+    fn a_rival_is_another_passing_hypothesis_within_a_decisive_factor() {
+        let names = ["a", "b", "c", "a"];
+        // b passes 3 nats below the winner: a tie.
+        assert_eq!(rival(0, &[0, 1], &names, &[100.0, 97.0, 0.0, 0.0]), Some(1));
+        // 6 nats below (> ln 150 = 5.01): the winner is decisively better.
+        assert_eq!(rival(0, &[0, 1], &names, &[100.0, 94.0, 0.0, 0.0]), None);
+        // c is close but does not pass.
+        assert_eq!(rival(0, &[0, 1], &names, &[100.0, 80.0, 99.0, 0.0]), None);
+        // The same hypothesis elsewhere is not a rival explanation.
+        assert_eq!(rival(0, &[0, 3], &names, &[100.0, 0.0, 0.0, 99.0]), None);
+        // The closest of two rivals.
+        assert_eq!(
+            rival(0, &[0, 1, 2], &names, &[100.0, 97.0, 98.0, 0.0]),
+            Some(2)
+        );
+    }
 }
