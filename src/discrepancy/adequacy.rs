@@ -52,6 +52,7 @@ use crate::io::Channel;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
+use std::collections::BTreeMap;
 
 /// Family-wise level of each family of adequacy tests.
 pub const ADEQUACY_LEVEL: f64 = 0.01;
@@ -226,23 +227,16 @@ fn judge(family: &mut [&mut PlaceTest]) {
 
 /// Cells: segment x channel x band (`bands` of the fitted frame, then off-band).
 fn cells(pts: &[Point], bands: &[(f64, f64)]) -> Vec<PlaceTest> {
-    let mut keys: Vec<(usize, String, Option<usize>)> = Vec::new();
-    let mut members: Vec<Vec<usize>> = Vec::new();
+    let mut members: BTreeMap<(usize, &str, Option<usize>), Vec<usize>> = BTreeMap::new();
     for (i, p) in pts.iter().enumerate() {
         let band = bands
             .iter()
             .position(|(lo, hi)| (*lo..=*hi).contains(&p.freq_hz));
-        let key = (p.segment, p.channel.name.clone(), band);
-        match keys.iter().position(|k| *k == key) {
-            Some(k) => members[k].push(i),
-            None => {
-                keys.push(key);
-                members.push(vec![i]);
-            }
-        }
+        let key = (p.segment, p.channel.name.as_str(), band);
+        members.entry(key).or_default().push(i);
     }
-    keys.iter()
-        .zip(&members)
+    members
+        .iter()
         .map(|((_, _, band), idx)| {
             let mut t = place("cell", pts, idx, None);
             match band {

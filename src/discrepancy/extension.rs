@@ -78,11 +78,6 @@ impl WithEffects {
         })
     }
 
-    /// The accepted effects.
-    pub fn accepted(&self) -> &[Effect] {
-        &self.accepted
-    }
-
     /// Every part with its location and its slice of `effect` (`added` at `loc`, last,
     /// takes what the accepted effects leave).
     fn parts<'a>(&'a self, loc: &'a Location, effect: &'a [f64]) -> Result<Vec<Part<'a>>> {

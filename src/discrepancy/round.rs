@@ -19,7 +19,7 @@ use super::model_evidence::{
 use super::posterior::ModelPosterior;
 use super::refine::refit_in_time_domain;
 use super::search::{search, HypothesisSearch, SearchOptions};
-use super::verdict::{decide, decisive_ln_bayes_factor, held_out_passes, Candidate, Decision};
+use super::verdict::{decide, held_out_passes, is_decisive, Candidate, Decision};
 use crate::error::Result;
 use crate::io::stages::{staged, Stages};
 use crate::io::Campaign;
@@ -358,8 +358,7 @@ fn decisive(base: &BaseModel, f: &ModelResult) -> bool {
     let delta = ev.map_or(f64::NEG_INFINITY, |e| e.ln_z - base_ln_z);
     let se = ev.map_or(0.0, |e| e.ln_z_sd.hypot(base_sd));
     let bound = ev.and_then(|e| e.gain_bound_nats).unwrap_or(f64::INFINITY);
-    let thr = decisive_ln_bayes_factor();
-    delta - 2.0 * se >= thr && bound >= thr
+    is_decisive(delta, se, bound)
 }
 
 fn is_amplitude_dependent(hypotheses: &[Arc<dyn Hypothesis>], name: &str) -> bool {

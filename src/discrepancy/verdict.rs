@@ -35,6 +35,13 @@ pub fn decisive_ln_bayes_factor() -> f64 {
     150f64.ln()
 }
 
+/// Rule 1: a log Bayes factor `delta` +- `se` over the base model, whose gain bound
+/// is `gain_bound`, is decisive (NaN is not).
+pub fn is_decisive(delta: f64, se: f64, gain_bound: f64) -> bool {
+    let threshold = decisive_ln_bayes_factor();
+    gain_bound >= threshold && delta - 2.0 * se >= threshold
+}
+
 /// Summary of one effect parameter's posterior, as in `diagnosis.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EffectSummary {
@@ -212,7 +219,7 @@ pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidat
             )
         } else if !delta.is_finite() {
             "its evidence could not be computed".to_string()
-        } else if delta - 2.0 * se < threshold {
+        } else if !is_decisive(delta, se, c.gain_bound) {
             format!(
                 "not decisive: delta ln Z = {delta:.1} +- {se:.1} by {} (needs >= {threshold:.1} after two standard deviations)",
                 c.estimator.replace('_', " ")
