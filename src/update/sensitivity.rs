@@ -19,7 +19,7 @@
 //! `d|H| = omega^p Re(conj(S) dS) / |S|` (Eq. 17).
 
 use crate::error::{Error, Result};
-use crate::frf::{Excitation, FrfBlock};
+use crate::frf::{Excitation, FrfBlock, FrfPair};
 use crate::modal::Modes;
 use crate::model::{Damping, StructuralModel};
 use nalgebra::{DMatrix, DVector};
@@ -257,6 +257,47 @@ fn magnitude_jacobian_body(
     let n_s = model.n_alpha() + model.n_beta();
     eigen_derivatives(model, mass, modes, m, ws)?;
     let omega_n = &modes.omega_rad_s[..m];
+    modal_damping(damping, omega_n, ws)?;
+    let n_d = columns.len() - n_s;
+    for v in [&mut ws.cx, &mut ws.cy, &mut ws.zeros] {
+        v.clear();
+        v.resize(m, 0.0);
+    }
+    let mut row = 0;
+    for block in blocks {
+        let omega = &block.omega_rad_s[..];
+        let nw = omega.len();
+        pole_factors(omega, omega_n, ws);
+        for pair in &block.pairs {
+            if pair.response >= n || matches!(pair.excitation, Excitation::Dof(e) if e >= n) {
+                return Err(Error::Usage(format!(
+                    "FRF pair {pair:?} outside a {n}-DOF model"
+                )));
+            }
+            pair_coefficients(pair, modes, m, n_s, ws);
+            let weights = &rows.weights[row..row + nw];
+            magnitudes_and_gain(
+                omega,
+                pair.kind.power(),
+                weights,
+                rows.log,
+                ws,
+                &mut mag[row..row + nw],
+            );
+            mode_projections(omega, m, ws);
+            structural_columns(&columns[..n_s], m, row, nw, ws, jac);
+            damping_columns(&columns[n_s..], n_d, damping, omega_n, row, nw, ws, jac);
+            row += nw;
+        }
+    }
+    Ok(())
+}
+
+/// Modal damping `c_i` (Rayleigh or Caughey) into `ws.c` and its slope through the
+/// structure, `dc_i / d lambda_i`, into `ws.dc_dlam`.
+#[inline(always)]
+fn modal_damping(damping: &Damping, omega_n: &[f64], ws: &mut SensitivityWorkspace) -> Result<()> {
+    let m = omega_n.len();
     ws.c.resize(m, 0.0);
     damping.modal_coefficients(omega_n, &mut ws.c)?;
     // dc_i / d lambda_i through the structure.
@@ -267,170 +308,225 @@ fn magnitude_jacobian_body(
             .dc_dlam
             .extend(omega_n.iter().zip(xi).map(|(w, x)| x / w)),
     }
-    let n_rows = jac.nrows();
-    let n_d = columns.len() - n_s;
-    for v in [&mut ws.cx, &mut ws.cy, &mut ws.zeros] {
-        v.clear();
-        v.resize(m, 0.0);
-    }
-    let mut row = 0;
-    for block in blocks {
-        let omega = &block.omega_rad_s[..];
-        let nw = omega.len();
-        for v in [
-            &mut ws.pole_re,
-            &mut ws.pole_im,
-            &mut ws.pole2_re,
-            &mut ws.pole2_im,
-            &mut ws.u,
-            &mut ws.x,
-            &mut ws.y,
-        ] {
-            v.resize(m * nw, 0.0);
-        }
-        ws.g_re.resize(nw, 0.0);
-        ws.g_im.resize(nw, 0.0);
-        ws.rf.resize(nw, 0.0);
-        for (i, (&wn, &c)) in omega_n.iter().zip(&ws.c).enumerate() {
-            let range = i * nw..(i + 1) * nw;
-            let (pr, pi) = (
-                &mut ws.pole_re[range.clone()],
-                &mut ws.pole_im[range.clone()],
-            );
-            let (qr, qi) = (&mut ws.pole2_re[range.clone()], &mut ws.pole2_im[range]);
-            for k in 0..nw {
-                let w = omega[k];
-                let (re, im) = (wn * wn - w * w, c * w);
-                let inv = 1.0 / (re * re + im * im);
-                let (a, b) = (re * inv, -im * inv);
-                pr[k] = a;
-                pi[k] = b;
-                qr[k] = a * a - b * b;
-                qi[k] = 2.0 * a * b;
-            }
-        }
-        for pair in &block.pairs {
-            if pair.response >= n || matches!(pair.excitation, Excitation::Dof(e) if e >= n) {
-                return Err(Error::Usage(format!(
-                    "FRF pair {pair:?} outside a {n}-DOF model"
-                )));
-            }
-            ws.coef.clear();
-            ws.dcoef.resize(n_s * m, 0.0);
-            let r = pair.response;
-            for i in 0..m {
-                let phi_r = modes.phi[(r, i)];
-                ws.coef.push(match pair.excitation {
-                    Excitation::Dof(e) => phi_r * modes.phi[(e, i)],
-                    Excitation::Ground => -phi_r * modes.participation[i],
-                });
-                for p in 0..n_s {
-                    let dphi = &ws.dphi[(p * m + i) * n..(p * m + i + 1) * n];
-                    ws.dcoef[p * m + i] = match pair.excitation {
-                        Excitation::Dof(e) => dphi[r] * modes.phi[(e, i)] + phi_r * dphi[e],
-                        Excitation::Ground => {
-                            -(dphi[r] * modes.participation[i] + phi_r * ws.dgam[p * m + i])
-                        }
-                    };
-                }
-            }
-            // S = sum_i a_i / D_i, |H| = omega^p |S|, g = omega^p conj(S) / |S|.
-            let (g_re, g_im) = (&mut ws.g_re[..nw], &mut ws.g_im[..nw]);
-            g_re.fill(0.0);
-            g_im.fill(0.0);
-            for (i, &a) in ws.coef.iter().enumerate() {
-                let (pr, pi) = (
-                    &ws.pole_re[i * nw..(i + 1) * nw],
-                    &ws.pole_im[i * nw..(i + 1) * nw],
-                );
-                for k in 0..nw {
-                    g_re[k] += a * pr[k];
-                    g_im[k] += a * pi[k];
-                }
-            }
-            let power = pair.kind.power();
-            let out = &mut mag[row..row + nw];
-            let rf = &mut ws.rf[..nw];
-            for k in 0..nw {
-                let fac = match power {
-                    0 => 1.0,
-                    1 => omega[k],
-                    _ => omega[k] * omega[k],
-                };
-                let s_abs = (g_re[k] * g_re[k] + g_im[k] * g_im[k]).sqrt();
-                out[k] = fac * s_abs;
-                let h = if s_abs > 0.0 { fac / s_abs } else { 0.0 };
-                g_re[k] *= h;
-                g_im[k] *= -h;
-                let w = rows.weights[row + k];
-                let f = if rows.log { w / out[k] } else { w };
-                rf[k] = if f.is_finite() { f } else { 0.0 };
-            }
-            for i in 0..m {
-                let range = i * nw..(i + 1) * nw;
-                let (pr, pi) = (&ws.pole_re[range.clone()], &ws.pole_im[range.clone()]);
-                let (qr, qi) = (&ws.pole2_re[range.clone()], &ws.pole2_im[range.clone()]);
-                let dc = ws.dc_dlam[i];
-                let (u, x, y) = (
-                    &mut ws.u[range.clone()],
-                    &mut ws.x[range.clone()],
-                    &mut ws.y[range],
-                );
-                for k in 0..nw {
-                    let (gr, gi) = (g_re[k], g_im[k]);
-                    u[k] = gr * pr[k] - gi * pi[k];
-                    let yk = omega[k] * (gr * qi[k] + gi * qr[k]);
-                    x[k] = gr * qr[k] - gi * qi[k] - dc * yk;
-                    y[k] = yk;
-                }
-            }
-            let (u, x, y) = (&ws.u[..m * nw], &ws.x[..m * nw], &ws.y[..m * nw]);
-            for (p, col) in columns[..n_s].iter().enumerate() {
-                let Some(col) = *col else { continue };
-                let dst = &mut jac.as_mut_slice()[col * n_rows + row..col * n_rows + row + nw];
-                for ((cx, dl), a) in ws.cx.iter_mut().zip(&ws.dlam[p * m..]).zip(&ws.coef) {
-                    *cx = -dl * a;
-                }
-                combine(
-                    dst,
-                    &ws.rf[..nw],
-                    &ws.dcoef[p * m..(p + 1) * m],
-                    u,
-                    &ws.cx,
-                    x,
-                );
-            }
-            for (d, col) in columns[n_s..].iter().enumerate().take(n_d) {
-                let Some(col) = *col else { continue };
-                let dst = &mut jac.as_mut_slice()[col * n_rows + row..col * n_rows + row + nw];
-                match damping {
-                    // dc_i/da0 = 1, dc_i/da1 = lambda_i.
-                    Damping::Rayleigh { .. } => {
-                        for ((cy, a), wn) in ws.cy.iter_mut().zip(&ws.coef).zip(omega_n) {
-                            *cy = if d == 0 { *a } else { a * wn * wn };
-                        }
-                        combine(dst, &ws.rf[..nw], &ws.cy, y, &ws.zeros, y);
-                    }
-                    // dc_i/dxi_d = 2 omega_d for i = d only.
-                    Damping::Caughey { .. } => {
-                        let cy = ws.coef[d] * 2.0 * omega_n[d];
-                        let y = &y[d * nw..(d + 1) * nw];
-                        for ((o, v), sc) in dst.iter_mut().zip(y).zip(&ws.rf[..nw]) {
-                            *o = cy * v * sc;
-                        }
-                    }
-                }
-            }
-            row += nw;
-        }
-    }
     Ok(())
+}
+
+/// `1 / D_i` and `1 / D_i^2` with `D_i = lambda_i - omega^2 + j c_i omega`, mode-major
+/// over the block's frequencies `omega` (rad/s); sizes the block's per-mode scratch.
+#[inline(always)]
+fn pole_factors(omega: &[f64], omega_n: &[f64], ws: &mut SensitivityWorkspace) {
+    let (m, nw) = (omega_n.len(), omega.len());
+    for v in [
+        &mut ws.pole_re,
+        &mut ws.pole_im,
+        &mut ws.pole2_re,
+        &mut ws.pole2_im,
+        &mut ws.u,
+        &mut ws.x,
+        &mut ws.y,
+    ] {
+        v.resize(m * nw, 0.0);
+    }
+    ws.g_re.resize(nw, 0.0);
+    ws.g_im.resize(nw, 0.0);
+    ws.rf.resize(nw, 0.0);
+    for (i, (&wn, &c)) in omega_n.iter().zip(&ws.c).enumerate() {
+        let range = i * nw..(i + 1) * nw;
+        let (pr, pi) = (
+            &mut ws.pole_re[range.clone()],
+            &mut ws.pole_im[range.clone()],
+        );
+        let (qr, qi) = (&mut ws.pole2_re[range.clone()], &mut ws.pole2_im[range]);
+        for k in 0..nw {
+            let w = omega[k];
+            let (re, im) = (wn * wn - w * w, c * w);
+            let inv = 1.0 / (re * re + im * im);
+            let (a, b) = (re * inv, -im * inv);
+            pr[k] = a;
+            pi[k] = b;
+            qr[k] = a * a - b * b;
+            qi[k] = 2.0 * a * b;
+        }
+    }
+}
+
+/// Modal coefficients of one FRF pair, `a_i = phi_ri phi_ei` (Eqs. 7, 10) or
+/// `-phi_ri Gamma_i` (Eqs. 15, 16), into `ws.coef`, and their derivatives for every
+/// structural variable into `ws.dcoef` (`p*m + i`).
+#[inline(always)]
+fn pair_coefficients(
+    pair: &FrfPair,
+    modes: &Modes,
+    m: usize,
+    n_s: usize,
+    ws: &mut SensitivityWorkspace,
+) {
+    let n = modes.phi.nrows();
+    ws.coef.clear();
+    ws.dcoef.resize(n_s * m, 0.0);
+    let r = pair.response;
+    for i in 0..m {
+        let phi_r = modes.phi[(r, i)];
+        ws.coef.push(match pair.excitation {
+            Excitation::Dof(e) => phi_r * modes.phi[(e, i)],
+            Excitation::Ground => -phi_r * modes.participation[i],
+        });
+        for p in 0..n_s {
+            let dphi = &ws.dphi[(p * m + i) * n..(p * m + i + 1) * n];
+            ws.dcoef[p * m + i] = match pair.excitation {
+                Excitation::Dof(e) => dphi[r] * modes.phi[(e, i)] + phi_r * dphi[e],
+                Excitation::Ground => {
+                    -(dphi[r] * modes.participation[i] + phi_r * ws.dgam[p * m + i])
+                }
+            };
+        }
+    }
+}
+
+/// Magnitudes `|H_k| = omega^p |S|` of one pair into `out` (Eq. 17), the gain `g =
+/// omega^p conj(S) / |S|` into `ws.g_re`/`ws.g_im` and the row factors `dr_k / d|H_k|`
+/// (see [`RowScale`]) into `ws.rf`; `weights` are the pair's rows of `w_k`.
+#[inline(always)]
+fn magnitudes_and_gain(
+    omega: &[f64],
+    power: i32,
+    weights: &[f64],
+    log: bool,
+    ws: &mut SensitivityWorkspace,
+    out: &mut [f64],
+) {
+    let nw = omega.len();
+    // S = sum_i a_i / D_i, |H| = omega^p |S|, g = omega^p conj(S) / |S|.
+    let (g_re, g_im) = (&mut ws.g_re[..nw], &mut ws.g_im[..nw]);
+    g_re.fill(0.0);
+    g_im.fill(0.0);
+    for (i, &a) in ws.coef.iter().enumerate() {
+        let (pr, pi) = (
+            &ws.pole_re[i * nw..(i + 1) * nw],
+            &ws.pole_im[i * nw..(i + 1) * nw],
+        );
+        for k in 0..nw {
+            g_re[k] += a * pr[k];
+            g_im[k] += a * pi[k];
+        }
+    }
+    let rf = &mut ws.rf[..nw];
+    for k in 0..nw {
+        let fac = match power {
+            0 => 1.0,
+            1 => omega[k],
+            _ => omega[k] * omega[k],
+        };
+        let s_abs = (g_re[k] * g_re[k] + g_im[k] * g_im[k]).sqrt();
+        out[k] = fac * s_abs;
+        let h = if s_abs > 0.0 { fac / s_abs } else { 0.0 };
+        g_re[k] *= h;
+        g_im[k] *= -h;
+        let w = weights[k];
+        let f = if log { w / out[k] } else { w };
+        rf[k] = if f.is_finite() { f } else { 0.0 };
+    }
+}
+
+/// Per-mode frequency arrays of one pair: `u = Re(g / D)`, `y = omega Im(g / D^2)` and
+/// `x = Re(g / D^2) - dc/dlambda y`, into `ws.u`, `ws.y`, `ws.x` (mode-major).
+#[inline(always)]
+fn mode_projections(omega: &[f64], m: usize, ws: &mut SensitivityWorkspace) {
+    let nw = omega.len();
+    let (g_re, g_im) = (&ws.g_re[..nw], &ws.g_im[..nw]);
+    for i in 0..m {
+        let range = i * nw..(i + 1) * nw;
+        let (pr, pi) = (&ws.pole_re[range.clone()], &ws.pole_im[range.clone()]);
+        let (qr, qi) = (&ws.pole2_re[range.clone()], &ws.pole2_im[range.clone()]);
+        let dc = ws.dc_dlam[i];
+        let (u, x, y) = (
+            &mut ws.u[range.clone()],
+            &mut ws.x[range.clone()],
+            &mut ws.y[range],
+        );
+        for k in 0..nw {
+            let (gr, gi) = (g_re[k], g_im[k]);
+            u[k] = gr * pr[k] - gi * pi[k];
+            let yk = omega[k] * (gr * qi[k] + gi * qr[k]);
+            x[k] = gr * qr[k] - gi * qi[k] - dc * yk;
+            y[k] = yk;
+        }
+    }
+}
+
+/// Jacobian rows `row..row + nw` of the structural columns: `sum_i da_pi Re(g/D_i) -
+/// dlambda_pi a_i [Re(g/D_i^2) - dc_i/dlambda_i omega Im(g/D_i^2)]`, scaled by `ws.rf`.
+#[inline(always)]
+fn structural_columns(
+    columns: &[Option<usize>],
+    m: usize,
+    row: usize,
+    nw: usize,
+    ws: &mut SensitivityWorkspace,
+    jac: &mut DMatrix<f64>,
+) {
+    let n_rows = jac.nrows();
+    let (u, x) = (&ws.u[..m * nw], &ws.x[..m * nw]);
+    for (p, col) in columns.iter().enumerate() {
+        let Some(col) = *col else { continue };
+        let dst = &mut jac.as_mut_slice()[col * n_rows + row..col * n_rows + row + nw];
+        for ((cx, dl), a) in ws.cx.iter_mut().zip(&ws.dlam[p * m..]).zip(&ws.coef) {
+            *cx = -dl * a;
+        }
+        combine(
+            dst,
+            &ws.rf[..nw],
+            &ws.dcoef[p * m..(p + 1) * m],
+            u,
+            &ws.cx,
+            x,
+        );
+    }
+}
+
+/// Jacobian rows `row..row + nw` of the first `n_d` damping columns: `sum_i a_i
+/// dc_i/dd omega Im(g/D_i^2)`, scaled by `ws.rf`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn damping_columns(
+    columns: &[Option<usize>],
+    n_d: usize,
+    damping: &Damping,
+    omega_n: &[f64],
+    row: usize,
+    nw: usize,
+    ws: &mut SensitivityWorkspace,
+    jac: &mut DMatrix<f64>,
+) {
+    let (n_rows, m) = (jac.nrows(), omega_n.len());
+    let y = &ws.y[..m * nw];
+    for (d, col) in columns.iter().enumerate().take(n_d) {
+        let Some(col) = *col else { continue };
+        let dst = &mut jac.as_mut_slice()[col * n_rows + row..col * n_rows + row + nw];
+        match damping {
+            // dc_i/da0 = 1, dc_i/da1 = lambda_i.
+            Damping::Rayleigh { .. } => {
+                for ((cy, a), wn) in ws.cy.iter_mut().zip(&ws.coef).zip(omega_n) {
+                    *cy = if d == 0 { *a } else { a * wn * wn };
+                }
+                combine(dst, &ws.rf[..nw], &ws.cy, y, &ws.zeros, y);
+            }
+            // dc_i/dxi_d = 2 omega_d for i = d only.
+            Damping::Caughey { .. } => {
+                let cy = ws.coef[d] * 2.0 * omega_n[d];
+                let y = &y[d * nw..(d + 1) * nw];
+                for ((o, v), sc) in dst.iter_mut().zip(y).zip(&ws.rf[..nw]) {
+                    *o = cy * v * sc;
+                }
+            }
+        }
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frf::{FrfKind, FrfPair};
+    use crate::frf::FrfKind;
 
     #[test]
     fn vector_paths_agree_bit_for_bit() {
