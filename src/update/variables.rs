@@ -162,130 +162,11 @@ impl Variables {
         n_modes: usize,
         config: &VariablesConfig,
     ) -> Result<Self> {
-        let damping_scale = if config.log_damping {
-            Scale::Log
-        } else {
-            Scale::Linear
-        };
-        let mut vars = Vec::new();
-        let mut push = |name: String, unit: &str, kind, b: [f64; 2], initial: f64, scale| {
-            vars.push(Variable {
-                name,
-                unit: unit.into(),
-                kind,
-                lower: b[0],
-                upper: b[1],
-                initial,
-                scale,
-                fixed: None,
-            })
-        };
-        for (r, p) in model.alpha_parameters().iter().enumerate() {
-            push(
-                p.name.clone(),
-                "1",
-                VariableKind::Alpha(r),
-                config.alpha,
-                0.0,
-                Scale::Linear,
-            );
-        }
-        for (r, p) in model.beta_parameters().iter().enumerate() {
-            push(
-                p.name.clone(),
-                "1",
-                VariableKind::Beta(r),
-                config.beta,
-                0.0,
-                Scale::Linear,
-            );
-        }
-        match damping {
-            DampingModel::Rayleigh => {
-                let c = config;
-                push(
-                    "a0".into(),
-                    "1/s",
-                    VariableKind::A0,
-                    c.a0_per_s,
-                    c.initial_a0_per_s,
-                    damping_scale,
-                );
-                push(
-                    "a1".into(),
-                    "s",
-                    VariableKind::A1,
-                    c.a1_s,
-                    c.initial_a1_s,
-                    damping_scale,
-                );
-            }
-            DampingModel::Caughey => {
-                for i in 0..n_modes {
-                    push(
-                        format!("xi{}", i + 1),
-                        "1",
-                        VariableKind::Xi(i),
-                        config.xi,
-                        config.initial_xi,
-                        damping_scale,
-                    );
-                }
-            }
-        }
-        let names: Vec<String> = vars.iter().map(|v| v.name.clone()).collect();
-        let find = |name: &str, what: &str| {
-            names.iter().position(|n| n == name).ok_or_else(|| {
-                Error::Usage(format!(
-                    "{what}: no variable named '{name}'; the variables are {}",
-                    names.join(", ")
-                ))
-            })
-        };
-        for (name, b) in &config.bounds {
-            let i = find(name, "bounds")?;
-            vars[i].lower = b[0];
-            vars[i].upper = b[1];
-        }
-        for (name, &v) in &config.initial {
-            vars[find(name, "initial")?].initial = v;
-        }
-        for (name, &v) in &config.fixed {
-            let i = find(name, "fixed")?;
-            if !v.is_finite()
-                || (matches!(
-                    vars[i].kind,
-                    VariableKind::A0 | VariableKind::A1 | VariableKind::Xi(_)
-                ) && v < 0.0)
-            {
-                return Err(Error::Usage(format!(
-                    "fixed value {v} of {name} is not admissible"
-                )));
-            }
-            vars[i].fixed = Some(v);
-        }
+        let mut vars = default_variables(model, damping, n_modes, config);
+        apply_overrides(&mut vars, config)?;
         for v in &vars {
-            if v.fixed.is_some() {
-                continue;
-            }
-            if !(v.lower.is_finite() && v.upper.is_finite() && v.lower < v.upper) {
-                return Err(Error::Usage(format!(
-                    "bounds of {} must be finite with lower < upper, got [{}, {}]",
-                    v.name, v.lower, v.upper
-                )));
-            }
-            if v.scale == Scale::Log && v.lower <= 0.0 {
-                return Err(Error::Usage(format!(
-                    "{} is optimised on a log scale, so its lower bound must be positive (got {}); \
-                     raise it or set log_damping = false",
-                    v.name, v.lower
-                )));
-            }
-            if !(v.initial >= v.lower && v.initial <= v.upper) {
-                return Err(Error::Usage(format!(
-                    "start value {} of {} is outside its bounds [{}, {}]",
-                    v.initial, v.name, v.lower, v.upper
-                )));
+            if v.fixed.is_none() {
+                v.check_bounds()?;
             }
         }
         let free = (0..vars.len())
@@ -456,6 +337,153 @@ impl Variables {
                     .map(|v| v.unit.clone()),
             )
             .collect()
+    }
+}
+
+/// The variables in `theta` order (alpha, beta, then damping) with the configured
+/// default bounds and start values, before per-name overrides.
+fn default_variables(
+    model: &StructuralModel,
+    damping: DampingModel,
+    n_modes: usize,
+    config: &VariablesConfig,
+) -> Vec<Variable> {
+    let damping_scale = if config.log_damping {
+        Scale::Log
+    } else {
+        Scale::Linear
+    };
+    let mut vars = Vec::new();
+    let mut push = |name: String, unit: &str, kind, b: [f64; 2], initial: f64, scale| {
+        vars.push(Variable {
+            name,
+            unit: unit.into(),
+            kind,
+            lower: b[0],
+            upper: b[1],
+            initial,
+            scale,
+            fixed: None,
+        })
+    };
+    for (r, p) in model.alpha_parameters().iter().enumerate() {
+        push(
+            p.name.clone(),
+            "1",
+            VariableKind::Alpha(r),
+            config.alpha,
+            0.0,
+            Scale::Linear,
+        );
+    }
+    for (r, p) in model.beta_parameters().iter().enumerate() {
+        push(
+            p.name.clone(),
+            "1",
+            VariableKind::Beta(r),
+            config.beta,
+            0.0,
+            Scale::Linear,
+        );
+    }
+    match damping {
+        DampingModel::Rayleigh => {
+            let c = config;
+            push(
+                "a0".into(),
+                "1/s",
+                VariableKind::A0,
+                c.a0_per_s,
+                c.initial_a0_per_s,
+                damping_scale,
+            );
+            push(
+                "a1".into(),
+                "s",
+                VariableKind::A1,
+                c.a1_s,
+                c.initial_a1_s,
+                damping_scale,
+            );
+        }
+        DampingModel::Caughey => {
+            for i in 0..n_modes {
+                push(
+                    format!("xi{}", i + 1),
+                    "1",
+                    VariableKind::Xi(i),
+                    config.xi,
+                    config.initial_xi,
+                    damping_scale,
+                );
+            }
+        }
+    }
+    vars
+}
+
+/// The per-name bounds, start values and fixed values of `config` applied to `vars`;
+/// an unknown name or an inadmissible fixed value is a usage error.
+fn apply_overrides(vars: &mut [Variable], config: &VariablesConfig) -> Result<()> {
+    let names: Vec<String> = vars.iter().map(|v| v.name.clone()).collect();
+    let find = |name: &str, what: &str| {
+        names.iter().position(|n| n == name).ok_or_else(|| {
+            Error::Usage(format!(
+                "{what}: no variable named '{name}'; the variables are {}",
+                names.join(", ")
+            ))
+        })
+    };
+    for (name, b) in &config.bounds {
+        let i = find(name, "bounds")?;
+        vars[i].lower = b[0];
+        vars[i].upper = b[1];
+    }
+    for (name, &v) in &config.initial {
+        vars[find(name, "initial")?].initial = v;
+    }
+    for (name, &v) in &config.fixed {
+        let i = find(name, "fixed")?;
+        if !v.is_finite()
+            || (matches!(
+                vars[i].kind,
+                VariableKind::A0 | VariableKind::A1 | VariableKind::Xi(_)
+            ) && v < 0.0)
+        {
+            return Err(Error::Usage(format!(
+                "fixed value {v} of {name} is not admissible"
+            )));
+        }
+        vars[i].fixed = Some(v);
+    }
+    Ok(())
+}
+
+impl Variable {
+    /// A free variable's bounds are finite and ordered, positive on a log scale, and
+    /// hold its start value.
+    fn check_bounds(&self) -> Result<()> {
+        let v = self;
+        if !(v.lower.is_finite() && v.upper.is_finite() && v.lower < v.upper) {
+            return Err(Error::Usage(format!(
+                "bounds of {} must be finite with lower < upper, got [{}, {}]",
+                v.name, v.lower, v.upper
+            )));
+        }
+        if v.scale == Scale::Log && v.lower <= 0.0 {
+            return Err(Error::Usage(format!(
+                "{} is optimised on a log scale, so its lower bound must be positive (got {}); \
+                 raise it or set log_damping = false",
+                v.name, v.lower
+            )));
+        }
+        if !(v.initial >= v.lower && v.initial <= v.upper) {
+            return Err(Error::Usage(format!(
+                "start value {} of {} is outside its bounds [{}, {}]",
+                v.initial, v.name, v.lower, v.upper
+            )));
+        }
+        Ok(())
     }
 }
 
