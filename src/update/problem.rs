@@ -94,78 +94,12 @@ impl Problem {
             )));
         }
         let variables = Variables::new(&model, damping, n_modes, variables)?;
-        for b in &data.blocks {
-            for p in &b.pairs {
-                let e_ok = match p.excitation {
-                    crate::frf::Excitation::Dof(e) => e < n_dof,
-                    crate::frf::Excitation::Ground => true,
-                };
-                if p.response >= n_dof || !e_ok {
-                    return Err(Error::Usage(format!(
-                        "FRF pair {p:?} refers to a DOF outside the {n_dof}-DOF model"
-                    )));
-                }
-            }
-            if b.omega_rad_s.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
-                return Err(Error::Usage(
-                    "frequencies must be finite and positive".into(),
-                ));
-            }
-        }
+        check_blocks(&data.blocks, n_dof)?;
         let frf = ModalFrf::new(data.blocks);
         let len = frf.len();
-        if len == 0 {
-            return Err(Error::Usage("no measured FRF points".into()));
-        }
-        if data.magnitude.len() != len {
-            return Err(Error::Usage(format!(
-                "{} measured magnitudes for {len} FRF points (blocks x pairs x frequencies)",
-                data.magnitude.len()
-            )));
-        }
-        if let Some(k) = data
-            .magnitude
-            .iter()
-            .position(|v| !(v.is_finite() && *v >= 0.0))
-        {
-            return Err(Error::Usage(format!(
-                "measured magnitude {k} is {}; magnitudes must be finite and >= 0",
-                data.magnitude[k]
-            )));
-        }
         let log = options.residual == ResidualForm::LogMagnitude;
-        if log {
-            if let Some(k) = data.magnitude.iter().position(|&v| v <= 0.0) {
-                return Err(Error::Usage(format!(
-                    "log-magnitude residuals need positive magnitudes; point {k} is zero"
-                )));
-            }
-        }
-        let weights = match &data.sigma {
-            Some(sigma) => {
-                if sigma.len() != len {
-                    return Err(Error::Usage(format!(
-                        "{} sigmas for {len} FRF points",
-                        sigma.len()
-                    )));
-                }
-                if let Some(k) = sigma.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
-                    return Err(Error::Usage(format!(
-                        "sigma {k} is {}; every sigma must be finite and positive",
-                        sigma[k]
-                    )));
-                }
-                sigma.iter().map(|s| 1.0 / s).collect()
-            }
-            None if log => vec![1.0; len],
-            None => {
-                let rms = (data.magnitude.iter().map(|v| v * v).sum::<f64>() / len as f64).sqrt();
-                if rms == 0.0 {
-                    return Err(Error::Usage("every measured magnitude is zero".into()));
-                }
-                vec![1.0 / rms; len]
-            }
-        };
+        check_magnitudes(&data.magnitude, len, log)?;
+        let weights = residual_weights(&data.magnitude, data.sigma.as_deref(), log)?;
         let target = if log {
             data.magnitude.iter().map(|v| v.ln()).collect()
         } else {
@@ -356,6 +290,88 @@ impl Problem {
     pub fn to_internal(&self, theta: &[f64]) -> Vec<f64> {
         self.variables.to_internal(theta)
     }
+}
+
+/// Every FRF pair lies inside the `n_dof`-DOF model and every frequency is finite and
+/// positive.
+fn check_blocks(blocks: &[FrfBlock], n_dof: usize) -> Result<()> {
+    for b in blocks {
+        for p in &b.pairs {
+            let e_ok = match p.excitation {
+                crate::frf::Excitation::Dof(e) => e < n_dof,
+                crate::frf::Excitation::Ground => true,
+            };
+            if p.response >= n_dof || !e_ok {
+                return Err(Error::Usage(format!(
+                    "FRF pair {p:?} refers to a DOF outside the {n_dof}-DOF model"
+                )));
+            }
+        }
+        if b.omega_rad_s.iter().any(|w| !(w.is_finite() && *w > 0.0)) {
+            return Err(Error::Usage(
+                "frequencies must be finite and positive".into(),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// `len` (> 0) measured magnitudes, finite and >= 0, and positive when `log`.
+fn check_magnitudes(magnitude: &[f64], len: usize, log: bool) -> Result<()> {
+    if len == 0 {
+        return Err(Error::Usage("no measured FRF points".into()));
+    }
+    if magnitude.len() != len {
+        return Err(Error::Usage(format!(
+            "{} measured magnitudes for {len} FRF points (blocks x pairs x frequencies)",
+            magnitude.len()
+        )));
+    }
+    if let Some(k) = magnitude.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+        return Err(Error::Usage(format!(
+            "measured magnitude {k} is {}; magnitudes must be finite and >= 0",
+            magnitude[k]
+        )));
+    }
+    if log {
+        if let Some(k) = magnitude.iter().position(|&v| v <= 0.0) {
+            return Err(Error::Usage(format!(
+                "log-magnitude residuals need positive magnitudes; point {k} is zero"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Residual weights `w_k`: `1 / sigma_k` when sigmas are given, else 1 for
+/// log-magnitude residuals and `1 / RMS(|H^E|)` for magnitude residuals (Eq. 22a).
+fn residual_weights(magnitude: &[f64], sigma: Option<&[f64]>, log: bool) -> Result<Vec<f64>> {
+    let len = magnitude.len();
+    Ok(match sigma {
+        Some(sigma) => {
+            if sigma.len() != len {
+                return Err(Error::Usage(format!(
+                    "{} sigmas for {len} FRF points",
+                    sigma.len()
+                )));
+            }
+            if let Some(k) = sigma.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+                return Err(Error::Usage(format!(
+                    "sigma {k} is {}; every sigma must be finite and positive",
+                    sigma[k]
+                )));
+            }
+            sigma.iter().map(|s| 1.0 / s).collect()
+        }
+        None if log => vec![1.0; len],
+        None => {
+            let rms = (magnitude.iter().map(|v| v * v).sum::<f64>() / len as f64).sqrt();
+            if rms == 0.0 {
+                return Err(Error::Usage("every measured magnitude is zero".into()));
+            }
+            vec![1.0 / rms; len]
+        }
+    })
 }
 
 impl LeastSquaresProblem for Problem {
