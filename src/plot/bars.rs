@@ -3,7 +3,7 @@
 
 use super::axis::{data_range, limits, valid, NiceAxis};
 use super::labels;
-use super::panel::{self, Entry, Occupied, Panel, Swatch};
+use super::panel::{self, Chart, Entry, Occupied, Panel, Swatch};
 use super::render::{put_text, render, text_width, title_area, DResult, Figure};
 use super::style::{self, text, NORMAL};
 use super::{same_len, Scale};
@@ -85,29 +85,7 @@ impl Figure for BarChartSpec {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DResult<(), DB> {
         let body = title_area(root, &self.title, NORMAL)?;
         let scale = self.y_scale;
-        let all = || self.groups.iter().flat_map(|g| g.values.iter().copied());
-        let data = data_range(all(), scale);
-        // Room above the bars for their values.
-        let pad = if self.show_values { 0.09 } else { 0.05 };
-        let y_lim = match scale {
-            Scale::Log => limits(data, scale, pad),
-            Scale::Linear => {
-                let (lo, hi) = data.unwrap_or((0.0, 1.0));
-                let (lo, hi) = limits(Some((lo.min(0.0), hi.max(0.0))), scale, pad);
-                // Bars stand on zero: no padding below (above) all-positive (negative) data.
-                let lo = if data.is_none_or(|d| d.0 >= 0.0) {
-                    0.0
-                } else {
-                    lo
-                };
-                let hi = if data.is_some_and(|d| d.1 <= 0.0) {
-                    0.0
-                } else {
-                    hi
-                };
-                (lo, hi)
-            }
-        };
+        let y_lim = self.y_limits();
         let (_, body_h) = body.dim_in_pixel();
         let y = NiceAxis::new(scale, y_lim, panel::ticks_for(body_h, 70, 8));
         let y_area = panel::y_area(&y, &self.y_label, NORMAL);
@@ -139,51 +117,10 @@ impl Figure for BarChartSpec {
             Scale::Log => y_lim.0,
             Scale::Linear => 0.0,
         };
-        let n_groups = self.groups.len().max(1);
-        let sub = GROUP_WIDTH / n_groups as f64;
-        let mut occ = Occupied::default();
-        let mut entries = Vec::new();
-        let mut tops = Vec::new();
-        for (g, group) in self.groups.iter().enumerate() {
-            let (color, _) = style::series_look(g);
-            let mut rects = Vec::new();
-            for (i, &v) in group.values.iter().enumerate() {
-                if !valid(v, scale) {
-                    continue;
-                }
-                let x0 = i as f64 - GROUP_WIDTH / 2.0 + g as f64 * sub + 0.06 * sub;
-                let x1 = x0 + 0.88 * sub;
-                occ.add_rect(&chart, (x0, base), (x1, v));
-                rects.push(Rectangle::new([(x0, base), (x1, v)], color.filled()));
-                tops.push((0.5 * (x0 + x1), v));
-            }
-            chart.draw_series(rects)?;
-            entries.push(Entry {
-                label: group.label.clone(),
-                swatch: Swatch::Patch(color.to_rgba()),
-            });
-        }
+        let sub = GROUP_WIDTH / self.groups.len().max(1) as f64;
+        let (occ, entries, tops) = self.draw_bars(&mut chart, base, sub)?;
         if self.show_values {
-            let area = chart.plotting_area().strip_coord_spec();
-            let origin = area.get_base_pixel();
-            let font = NORMAL.tick - 2.0;
-            let bar_px = sub * panel::plot_width(&chart) as f64 / n.max(1) as f64;
-            let texts: Vec<String> = tops.iter().map(|t| value_text(t.1)).collect();
-            let fits = texts
-                .iter()
-                .all(|t| text_width(t, font) as f64 <= bar_px + 6.0);
-            if fits {
-                for (t, s) in tops.iter().zip(&texts) {
-                    let (px, py) = chart.backend_coord(t);
-                    let (dy, v) = if t.1 >= base {
-                        (-3, VPos::Bottom)
-                    } else {
-                        (3, VPos::Top)
-                    };
-                    let pos = (px - origin.0, py - origin.1 + dy);
-                    put_text(&area, s, &text(font), pos, (HPos::Center, v))?;
-                }
-            }
+            self.draw_values(&chart, &tops, base, sub)?;
         }
         if matches!(scale, Scale::Linear) && y_lim.0 < 0.0 && y_lim.1 > 0.0 {
             let s = panel::Stroke::solid(style::AXIS_GREY, 1);
@@ -195,6 +132,106 @@ impl Figure for BarChartSpec {
             panel::note(&chart, "no data", NORMAL)?;
         }
         panel::legend(&chart, &entries, &occ, NORMAL)
+    }
+}
+
+/// Bar tops `(x, value)` in data coordinates, in drawing order.
+type Tops = Vec<(f64, f64)>;
+
+impl BarChartSpec {
+    /// Value axis limits: padded for the value texts when `show_values`; on a linear
+    /// axis the bars stand on zero.
+    fn y_limits(&self) -> (f64, f64) {
+        let scale = self.y_scale;
+        let all = || self.groups.iter().flat_map(|g| g.values.iter().copied());
+        let data = data_range(all(), scale);
+        // Room above the bars for their values.
+        let pad = if self.show_values { 0.09 } else { 0.05 };
+        match scale {
+            Scale::Log => limits(data, scale, pad),
+            Scale::Linear => {
+                let (lo, hi) = data.unwrap_or((0.0, 1.0));
+                let (lo, hi) = limits(Some((lo.min(0.0), hi.max(0.0))), scale, pad);
+                // Bars stand on zero: no padding below (above) all-positive (negative) data.
+                let lo = if data.is_none_or(|d| d.0 >= 0.0) {
+                    0.0
+                } else {
+                    lo
+                };
+                let hi = if data.is_some_and(|d| d.1 <= 0.0) {
+                    0.0
+                } else {
+                    hi
+                };
+                (lo, hi)
+            }
+        }
+    }
+
+    /// Every group's bars from `base`, each `sub` wide within its category; returns
+    /// the occupied area, the legend entries and the bar tops.
+    fn draw_bars<DB: DrawingBackend>(
+        &self,
+        chart: &mut Chart<DB>,
+        base: f64,
+        sub: f64,
+    ) -> DResult<(Occupied, Vec<Entry>, Tops), DB> {
+        let mut occ = Occupied::default();
+        let mut entries = Vec::new();
+        let mut tops = Vec::new();
+        for (g, group) in self.groups.iter().enumerate() {
+            let (color, _) = style::series_look(g);
+            let mut rects = Vec::new();
+            for (i, &v) in group.values.iter().enumerate() {
+                if !valid(v, self.y_scale) {
+                    continue;
+                }
+                let x0 = i as f64 - GROUP_WIDTH / 2.0 + g as f64 * sub + 0.06 * sub;
+                let x1 = x0 + 0.88 * sub;
+                occ.add_rect(chart, (x0, base), (x1, v));
+                rects.push(Rectangle::new([(x0, base), (x1, v)], color.filled()));
+                tops.push((0.5 * (x0 + x1), v));
+            }
+            chart.draw_series(rects)?;
+            entries.push(Entry {
+                label: group.label.clone(),
+                swatch: Swatch::Patch(color.to_rgba()),
+            });
+        }
+        Ok((occ, entries, tops))
+    }
+
+    /// The value of each bar above (below, if under `base`) its top, only when every
+    /// text fits the bar width.
+    fn draw_values<DB: DrawingBackend>(
+        &self,
+        chart: &Chart<DB>,
+        tops: &[(f64, f64)],
+        base: f64,
+        sub: f64,
+    ) -> DResult<(), DB> {
+        let n = self.categories.len();
+        let area = chart.plotting_area().strip_coord_spec();
+        let origin = area.get_base_pixel();
+        let font = NORMAL.tick - 2.0;
+        let bar_px = sub * panel::plot_width(chart) as f64 / n.max(1) as f64;
+        let texts: Vec<String> = tops.iter().map(|t| value_text(t.1)).collect();
+        let fits = texts
+            .iter()
+            .all(|t| text_width(t, font) as f64 <= bar_px + 6.0);
+        if fits {
+            for (t, s) in tops.iter().zip(&texts) {
+                let (px, py) = chart.backend_coord(t);
+                let (dy, v) = if t.1 >= base {
+                    (-3, VPos::Bottom)
+                } else {
+                    (3, VPos::Top)
+                };
+                let pos = (px - origin.0, py - origin.1 + dy);
+                put_text(&area, s, &text(font), pos, (HPos::Center, v))?;
+            }
+        }
+        Ok(())
     }
 }
 

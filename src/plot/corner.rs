@@ -114,6 +114,45 @@ impl Figure for CornerSpec {
         } else {
             self.bins
         };
+        let grid = self.layout(&body);
+        let xs: Vec<i32> = (1..n)
+            .map(|j| (grid.left as f64 + j as f64 * grid.cell_w) as i32)
+            .collect();
+        let ys: Vec<i32> = (1..n).map(|i| (i as f64 * grid.cell_h) as i32).collect();
+        let cells = body.split_by_breakpoints(xs, ys);
+        for i in 0..n {
+            for j in 0..=i {
+                self.draw_cell(&cells[i * n + j], &grid, i, j, bins)?;
+            }
+        }
+
+        // Upper right corner: sample count and the reference legend.
+        if n < 2 {
+            return Ok(());
+        }
+        self.draw_corner_note(&cells[n - 1])
+    }
+}
+
+/// Geometry of a corner grid: one axis and axis text per parameter, label areas and
+/// cell sizes in px.
+struct GridLayout {
+    axes: Vec<NiceAxis>,
+    texts: Vec<String>,
+    /// Width of the y label area of the first column.
+    left: u32,
+    /// Height of the x label area of the last row.
+    bottom: u32,
+    cell_w: f64,
+    cell_h: f64,
+    /// Right margin that the last column also holds.
+    extra_right: u32,
+}
+
+impl CornerSpec {
+    /// Axes from each parameter's samples and reference, and the cell sizes of `body`.
+    fn layout<DB: DrawingBackend>(&self, body: &DrawingArea<DB, Shift>) -> GridLayout {
+        let n = self.params.len();
         let (bw, _) = body.dim_in_pixel();
         let ticks = panel::ticks_for(bw / n as u32, 70, 3);
         let axes: Vec<NiceAxis> = self
@@ -136,64 +175,78 @@ impl Figure for CornerSpec {
         let cell_h = (h.saturating_sub(bottom)) as f64 / n as f64;
         // The last column also holds the right margin: widen its chart margin to match.
         let extra_right = (w as f64 - left as f64 - n as f64 * cell_w).max(0.0) as u32;
-        let xs: Vec<i32> = (1..n)
-            .map(|j| (left as f64 + j as f64 * cell_w) as i32)
-            .collect();
-        let ys: Vec<i32> = (1..n).map(|i| (i as f64 * cell_h) as i32).collect();
-        let cells = body.split_by_breakpoints(xs, ys);
+        GridLayout {
+            axes,
+            texts,
+            left,
+            bottom,
+            cell_w,
+            cell_h,
+            extra_right,
+        }
+    }
+
+    /// Cell (row `i`, column `j <= i`): the histogram of parameter `j` on the diagonal,
+    /// the pair density of `(j, i)` below it, with reference lines and a frame.
+    fn draw_cell<DB: DrawingBackend>(
+        &self,
+        cell: &DrawingArea<DB, Shift>,
+        grid: &GridLayout,
+        i: usize,
+        j: usize,
+        bins: usize,
+    ) -> DResult<(), DB> {
+        let n = self.params.len();
+        let (axes, texts) = (&grid.axes, &grid.texts);
         let hist_axis = NiceAxis::new(Scale::Linear, (0.0, 1.08), 2).without_ticks();
         let ref_stroke = Stroke::solid(style::OI_VERMILLION, 2);
+        let last_row = i == n - 1;
+        let x_axis = if last_row {
+            axes[j].clone()
+        } else {
+            axes[j].clone().without_labels()
+        };
+        let diag = i == j;
+        let y_axis = if diag {
+            hist_axis
+        } else if j == 0 {
+            axes[i].clone()
+        } else {
+            axes[i].clone().without_labels()
+        };
+        let mut chart = panel::build(
+            cell,
+            Panel {
+                title: "",
+                x: x_axis,
+                y: y_axis,
+                x_desc: if last_row { &texts[j] } else { "" },
+                y_desc: if j == 0 && !diag { &texts[i] } else { "" },
+                sizes: SMALL,
+                x_area: if last_row { grid.bottom } else { 0 },
+                y_area: if j == 0 { grid.left } else { 0 },
+                margin_right: 4 + if j == n - 1 { grid.extra_right } else { 0 },
+            },
+        )?;
+        let (xr, yr) = (axes[j].lo_hi(), axes[i].lo_hi());
+        if diag {
+            self.histogram(&mut chart, j, xr, bins)?;
+            panel::ref_line(&mut chart, self.params[j].reference, None, ref_stroke)?;
+        } else {
+            self.pair(&mut chart, j, i, xr, yr, bins)?;
+            let (rx, ry) = (self.params[j].reference, self.params[i].reference);
+            panel::ref_line(&mut chart, rx, ry, ref_stroke)?;
+        }
+        panel::frame(&mut chart)
+    }
+
+    /// Sample count and, when any parameter has a reference, its legend entry, in the
+    /// empty upper right cell.
+    fn draw_corner_note<DB: DrawingBackend>(
+        &self,
+        corner_cell: &DrawingArea<DB, Shift>,
+    ) -> DResult<(), DB> {
         let m = self.params[0].values.len();
-
-        for i in 0..n {
-            for j in 0..=i {
-                let cell = &cells[i * n + j];
-                let last_row = i == n - 1;
-                let x_axis = if last_row {
-                    axes[j].clone()
-                } else {
-                    axes[j].clone().without_labels()
-                };
-                let diag = i == j;
-                let y_axis = if diag {
-                    hist_axis.clone()
-                } else if j == 0 {
-                    axes[i].clone()
-                } else {
-                    axes[i].clone().without_labels()
-                };
-                let mut chart = panel::build(
-                    cell,
-                    Panel {
-                        title: "",
-                        x: x_axis,
-                        y: y_axis,
-                        x_desc: if last_row { &texts[j] } else { "" },
-                        y_desc: if j == 0 && !diag { &texts[i] } else { "" },
-                        sizes: SMALL,
-                        x_area: if last_row { bottom } else { 0 },
-                        y_area: if j == 0 { left } else { 0 },
-                        margin_right: 4 + if j == n - 1 { extra_right } else { 0 },
-                    },
-                )?;
-                let (xr, yr) = (axes[j].lo_hi(), axes[i].lo_hi());
-                if diag {
-                    self.histogram(&mut chart, j, xr, bins)?;
-                    panel::ref_line(&mut chart, self.params[j].reference, None, ref_stroke)?;
-                } else {
-                    self.pair(&mut chart, j, i, xr, yr, bins)?;
-                    let (rx, ry) = (self.params[j].reference, self.params[i].reference);
-                    panel::ref_line(&mut chart, rx, ry, ref_stroke)?;
-                }
-                panel::frame(&mut chart)?;
-            }
-        }
-
-        // Upper right corner: sample count and the reference legend.
-        if n < 2 {
-            return Ok(());
-        }
-        let corner_cell = &cells[n - 1];
         let (cw, _) = corner_cell.dim_in_pixel();
         let x = cw as i32 - 10;
         put_text(
@@ -225,9 +278,7 @@ impl Figure for CornerSpec {
         }
         Ok(())
     }
-}
 
-impl CornerSpec {
     fn histogram<DB: DrawingBackend>(
         &self,
         chart: &mut panel::Chart<DB>,

@@ -93,25 +93,47 @@ impl Figure for FrfMagnitudesSpec {
         };
         let y_area =
             panel::y_area(&y, y_desc, NORMAL).max(panel::y_area(&coh, "Coherence", NORMAL));
-        let width = if self.channels.len() <= 4 { 2 } else { 1 };
-        let look = |i: usize| {
-            let (color, dash) = style::series_look(i);
-            Stroke {
-                color: color.to_rgba(),
-                width,
-                dash,
-            }
+        let x_top = if has_coh {
+            x.clone().without_labels()
+        } else {
+            x.clone()
         };
+        self.magnitude_panel(&top, x_top, y, y_desc, y_area, has_coh)?;
+        if let Some(bottom) = bottom {
+            self.coherence_panel(&bottom, x, coh, y_area)?;
+        }
+        Ok(())
+    }
+}
 
+impl FrfMagnitudesSpec {
+    /// Line style of channel `i`: 2 px for up to four channels, 1 px beyond.
+    fn look(&self, i: usize) -> Stroke {
+        let width = if self.channels.len() <= 4 { 2 } else { 1 };
+        let (color, dash) = style::series_look(i);
+        Stroke {
+            color: color.to_rgba(),
+            width,
+            dash,
+        }
+    }
+
+    /// The magnitude panel with the bands shaded and the legend; it carries the
+    /// frequency axis text unless the coherence panel sits underneath (`has_coh`).
+    fn magnitude_panel<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        x: NiceAxis,
+        y: NiceAxis,
+        y_desc: &str,
+        y_area: u32,
+        has_coh: bool,
+    ) -> DResult<(), DB> {
         let mut chart = panel::build(
-            &top,
+            area,
             Panel {
                 title: "",
-                x: if has_coh {
-                    x.clone().without_labels()
-                } else {
-                    x.clone()
-                },
+                x,
                 y,
                 x_desc: if has_coh { "" } else { FREQ_DESC },
                 y_desc,
@@ -129,13 +151,13 @@ impl Figure for FrfMagnitudesSpec {
                 &mut chart,
                 &self.freq_hz,
                 &ch.magnitude,
-                look(i),
+                self.look(i),
                 None,
                 &mut occ,
             )?;
             entries.push(Entry {
                 label: ch.label.clone(),
-                swatch: Swatch::Line(look(i)),
+                swatch: Swatch::Line(self.look(i)),
             });
         }
         if !self.bands.is_empty() {
@@ -148,38 +170,44 @@ impl Figure for FrfMagnitudesSpec {
         if occ.is_empty() {
             panel::note(&chart, "no data", NORMAL)?;
         }
-        panel::legend(&chart, &entries, &occ, NORMAL)?;
+        panel::legend(&chart, &entries, &occ, NORMAL)
+    }
 
-        if let Some(bottom) = bottom {
-            let mut chart = panel::build(
-                &bottom,
-                Panel {
-                    title: "",
-                    x,
-                    y: coh,
-                    x_desc: FREQ_DESC,
-                    y_desc: "Coherence",
-                    sizes: NORMAL,
-                    x_area: panel::x_area(true, FREQ_DESC, NORMAL),
-                    y_area,
-                    margin_right: 26,
-                },
+    /// The coherence panel under the magnitudes, on the same frequency axis.
+    fn coherence_panel<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        x: NiceAxis,
+        coh: NiceAxis,
+        y_area: u32,
+    ) -> DResult<(), DB> {
+        let mut chart = panel::build(
+            area,
+            Panel {
+                title: "",
+                x,
+                y: coh,
+                x_desc: FREQ_DESC,
+                y_desc: "Coherence",
+                sizes: NORMAL,
+                x_area: panel::x_area(true, FREQ_DESC, NORMAL),
+                y_area,
+                margin_right: 26,
+            },
+        )?;
+        panel::shade_bands(&mut chart, &self.bands)?;
+        let mut occ = Occupied::default();
+        for (i, ch) in self.channels.iter().enumerate() {
+            panel::line(
+                &mut chart,
+                &self.freq_hz,
+                &ch.coherence,
+                self.look(i),
+                None,
+                &mut occ,
             )?;
-            panel::shade_bands(&mut chart, &self.bands)?;
-            let mut occ = Occupied::default();
-            for (i, ch) in self.channels.iter().enumerate() {
-                panel::line(
-                    &mut chart,
-                    &self.freq_hz,
-                    &ch.coherence,
-                    look(i),
-                    None,
-                    &mut occ,
-                )?;
-            }
-            panel::frame(&mut chart)?;
         }
-        Ok(())
+        panel::frame(&mut chart)
     }
 }
 
@@ -244,6 +272,42 @@ impl Figure for FrfComparisonSpec {
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DResult<(), DB> {
         let body = title_area(root, &self.title, NORMAL)?;
+        for (p, cell) in self
+            .panels
+            .iter()
+            .zip(panel::grid_cells(&body, self.panels.len()))
+        {
+            p.draw(&cell)?;
+        }
+        Ok(())
+    }
+}
+
+impl ComparisonPanel {
+    /// Axes of the panel in `cell`: frequency over all curves, log magnitude.
+    fn axes<DB: DrawingBackend>(&self, cell: &DrawingArea<DB, Shift>) -> (NiceAxis, NiceAxis) {
+        let curves = [
+            Some(&self.experimental),
+            self.initial.as_ref(),
+            self.updated.as_ref(),
+        ];
+        let xr = curves.iter().flatten().fold(None, |acc, c| {
+            union(acc, data_range(c.freq_hz.iter().copied(), Scale::Linear))
+        });
+        let yr = curves.iter().flatten().fold(None, |acc, c| {
+            union(acc, data_range(c.values.iter().copied(), Scale::Log))
+        });
+        let (cw, ch) = cell.dim_in_pixel();
+        let x_lim = limits(xr, Scale::Linear, 0.0);
+        let x = NiceAxis::new(Scale::Linear, x_lim, panel::ticks_for(cw, 95, 8));
+        let y_lim = limits(yr, Scale::Log, 0.04);
+        let y = NiceAxis::new(Scale::Log, y_lim, panel::ticks_for(ch, 60, 8));
+        (x, y)
+    }
+
+    /// The panel in `cell`: bands, the initial and updated models, the measurement on
+    /// top, and the legend with the FDACs.
+    fn draw<DB: DrawingBackend>(&self, cell: &DrawingArea<DB, Shift>) -> DResult<(), DB> {
         let exp_stroke = Stroke::solid(style::BLACK, 1);
         let init_stroke = Stroke {
             color: style::OI_VERMILLION.to_rgba(),
@@ -251,94 +315,72 @@ impl Figure for FrfComparisonSpec {
             dash: Dash::Dashed,
         };
         let upd_stroke = Stroke::solid(style::OI_BLUE, 2);
-        for (p, cell) in self
-            .panels
-            .iter()
-            .zip(panel::grid_cells(&body, self.panels.len()))
-        {
-            let curves = [
-                Some(&p.experimental),
-                p.initial.as_ref(),
-                p.updated.as_ref(),
-            ];
-            let xr = curves.iter().flatten().fold(None, |acc, c| {
-                union(acc, data_range(c.freq_hz.iter().copied(), Scale::Linear))
-            });
-            let yr = curves.iter().flatten().fold(None, |acc, c| {
-                union(acc, data_range(c.values.iter().copied(), Scale::Log))
-            });
-            let (cw, ch) = cell.dim_in_pixel();
-            let x_lim = limits(xr, Scale::Linear, 0.0);
-            let x = NiceAxis::new(Scale::Linear, x_lim, panel::ticks_for(cw, 95, 8));
-            let y_lim = limits(yr, Scale::Log, 0.04);
-            let y = NiceAxis::new(Scale::Log, y_lim, panel::ticks_for(ch, 60, 8));
-            let y_desc = if p.y_label.is_empty() {
-                "FRF magnitude"
-            } else {
-                &p.y_label
-            };
-            let y_area = panel::y_area(&y, y_desc, NORMAL);
-            let mut chart = panel::build(
-                &cell,
-                Panel {
-                    title: &p.title,
-                    x,
-                    y,
-                    x_desc: FREQ_DESC,
-                    y_desc,
-                    sizes: NORMAL,
-                    x_area: panel::x_area(true, FREQ_DESC, NORMAL),
-                    y_area,
-                    margin_right: 26,
-                },
-            )?;
-            panel::shade_bands(&mut chart, &p.bands)?;
-            let mut occ = Occupied::default();
-            let mut entries = Vec::new();
-            entries.push(Entry {
-                label: "Experimental".into(),
-                swatch: Swatch::Line(exp_stroke),
-            });
-            if let Some(c) = &p.initial {
-                panel::line(
-                    &mut chart,
-                    &c.freq_hz,
-                    &c.values,
-                    init_stroke,
-                    None,
-                    &mut occ,
-                )?;
+        let (x, y) = self.axes(cell);
+        let y_desc = if self.y_label.is_empty() {
+            "FRF magnitude"
+        } else {
+            &self.y_label
+        };
+        let y_area = panel::y_area(&y, y_desc, NORMAL);
+        let mut chart = panel::build(
+            cell,
+            Panel {
+                title: &self.title,
+                x,
+                y,
+                x_desc: FREQ_DESC,
+                y_desc,
+                sizes: NORMAL,
+                x_area: panel::x_area(true, FREQ_DESC, NORMAL),
+                y_area,
+                margin_right: 26,
+            },
+        )?;
+        panel::shade_bands(&mut chart, &self.bands)?;
+        let mut occ = Occupied::default();
+        let mut entries = Vec::new();
+        entries.push(Entry {
+            label: "Experimental".into(),
+            swatch: Swatch::Line(exp_stroke),
+        });
+        let models = [
+            (
+                &self.initial,
+                init_stroke,
+                "Initial model",
+                self.fdac_initial,
+            ),
+            (
+                &self.updated,
+                upd_stroke,
+                "Updated model",
+                self.fdac_updated,
+            ),
+        ];
+        for (curve, stroke, name, fdac) in models {
+            if let Some(c) = curve {
+                panel::line(&mut chart, &c.freq_hz, &c.values, stroke, None, &mut occ)?;
                 entries.push(Entry {
-                    label: with_fdac("Initial model", p.fdac_initial),
-                    swatch: Swatch::Line(init_stroke),
+                    label: with_fdac(name, fdac),
+                    swatch: Swatch::Line(stroke),
                 });
             }
-            if let Some(c) = &p.updated {
-                panel::line(
-                    &mut chart, &c.freq_hz, &c.values, upd_stroke, None, &mut occ,
-                )?;
-                entries.push(Entry {
-                    label: with_fdac("Updated model", p.fdac_updated),
-                    swatch: Swatch::Line(upd_stroke),
-                });
-            }
-            // The measurement goes on top, thin, so the models stay visible under it.
-            let e = &p.experimental;
-            panel::line(
-                &mut chart, &e.freq_hz, &e.values, exp_stroke, None, &mut occ,
-            )?;
-            if !p.bands.is_empty() {
-                entries.push(Entry {
-                    label: BAND_LABEL.into(),
-                    swatch: Swatch::Patch(style::band_shade()),
-                });
-            }
-            panel::frame(&mut chart)?;
-            if occ.is_empty() {
-                panel::note(&chart, "no data", NORMAL)?;
-            }
-            panel::legend(&chart, &entries, &occ, NORMAL)?;
         }
-        Ok(())
+        // The measurement goes on top, thin, so the models stay visible under it.
+        let e = &self.experimental;
+        panel::line(
+            &mut chart, &e.freq_hz, &e.values, exp_stroke, None, &mut occ,
+        )?;
+        if !self.bands.is_empty() {
+            entries.push(Entry {
+                label: BAND_LABEL.into(),
+                swatch: Swatch::Patch(style::band_shade()),
+            });
+        }
+        panel::frame(&mut chart)?;
+        if occ.is_empty() {
+            panel::note(&chart, "no data", NORMAL)?;
+        }
+        panel::legend(&chart, &entries, &occ, NORMAL)
     }
 }

@@ -3,7 +3,7 @@
 
 use super::axis::NiceAxis;
 use super::labels;
-use super::panel::{self, Panel};
+use super::panel::{self, Chart, Panel};
 use super::render::{put_text, render, text_width, title_area, DResult, Figure};
 use super::style::{self, text, text_colored, NORMAL};
 use super::{same_len, Scale};
@@ -120,18 +120,7 @@ impl Figure for HeatmapSpec {
 
         // Colour bar on the right: its axis, then the space it needs.
         let bar_axis = NiceAxis::new(Scale::Linear, (-limit, limit), 6);
-        let bar_labels_px = bar_axis
-            .labels()
-            .iter()
-            .map(|l| text_width(l, NORMAL.tick))
-            .max()
-            .unwrap_or(0);
-        let bar_desc_px = if self.colour_label.is_empty() {
-            0
-        } else {
-            (NORMAL.axis_desc * 1.3) as u32 + 6
-        };
-        let bar_right = 10 + bar_labels_px + 6 + bar_desc_px;
+        let bar_right = self.colour_bar_right_px(&bar_axis);
         let (w, h) = body.dim_in_pixel();
         let (main, bar) = body.split_horizontally(w.saturating_sub(16 + BAR_PX + bar_right + 8));
 
@@ -162,6 +151,38 @@ impl Figure for HeatmapSpec {
                 margin_right: 10,
             },
         )?;
+        self.draw_cells(&mut chart, limit)?;
+        panel::frame(&mut chart)?;
+        if n_rows * n_cols == 0 {
+            panel::note(&chart, "no data", NORMAL)?;
+        }
+        labels::draw_x(&chart, &self.col_labels, layout)?;
+        labels::draw_y(&chart, &self.row_labels, row_font)?;
+        self.draw_colour_bar(&bar, bar_axis, x_area, bar_right, limit)
+    }
+}
+
+impl HeatmapSpec {
+    /// Width in px right of the colour bar: tick labels and the colour label.
+    fn colour_bar_right_px(&self, bar_axis: &NiceAxis) -> u32 {
+        let bar_labels_px = bar_axis
+            .labels()
+            .iter()
+            .map(|l| text_width(l, NORMAL.tick))
+            .max()
+            .unwrap_or(0);
+        let bar_desc_px = if self.colour_label.is_empty() {
+            0
+        } else {
+            (NORMAL.axis_desc * 1.3) as u32 + 6
+        };
+        10 + bar_labels_px + 6 + bar_desc_px
+    }
+
+    /// The coloured cells, white cell borders when cells are at least 10 px, and the
+    /// values written in the cells when `show_values`.
+    fn draw_cells<DB: DrawingBackend>(&self, chart: &mut Chart<DB>, limit: f64) -> DResult<(), DB> {
+        let (n_rows, n_cols) = (self.row_labels.len(), self.col_labels.len());
         let mut cells = Vec::with_capacity(n_rows * n_cols);
         for (r, row) in self.values.iter().enumerate() {
             let y = (n_rows - 1 - r) as f64;
@@ -179,7 +200,7 @@ impl Figure for HeatmapSpec {
             }
         }
         chart.draw_series(cells)?;
-        let cell_w = panel::plot_width(&chart) as f64 / n_cols.max(1) as f64;
+        let cell_w = panel::plot_width(chart) as f64 / n_cols.max(1) as f64;
         let (_, yr) = chart.plotting_area().get_pixel_range();
         let cell_h = (yr.end - yr.start) as f64 / n_rows.max(1) as f64;
         if cell_w >= 10.0 && cell_h >= 10.0 {
@@ -196,40 +217,58 @@ impl Figure for HeatmapSpec {
             chart.draw_series(grid)?;
         }
         if self.show_values {
-            let area = chart.plotting_area().strip_coord_spec();
-            let origin = area.get_base_pixel();
-            let font = (cell_h * 0.5).min(NORMAL.tick - 1.0);
-            for (r, row) in self.values.iter().enumerate() {
-                let y = (n_rows - 1 - r) as f64;
-                for (c, &v) in row.iter().enumerate() {
-                    if !v.is_finite() || font < 7.0 {
-                        continue;
-                    }
-                    let s = cell_text(v, limit);
-                    if text_width(&s, font) as f64 > cell_w - 4.0 {
-                        continue;
-                    }
-                    let (px, py) = chart.backend_coord(&(c as f64, y));
-                    let color = style::text_on(style::diverging(v / limit));
-                    put_text(
-                        &area,
-                        &s,
-                        &text_colored(font, color),
-                        (px - origin.0, py - origin.1),
-                        (HPos::Center, VPos::Center),
-                    )?;
+            self.draw_values(chart, limit, cell_w, cell_h)?;
+        }
+        Ok(())
+    }
+
+    /// Each finite value written in its cell, in a colour readable on the cell's; values
+    /// that do not fit in `cell_w` px, or a font under 7 px, are left out.
+    fn draw_values<DB: DrawingBackend>(
+        &self,
+        chart: &Chart<DB>,
+        limit: f64,
+        cell_w: f64,
+        cell_h: f64,
+    ) -> DResult<(), DB> {
+        let n_rows = self.row_labels.len();
+        let area = chart.plotting_area().strip_coord_spec();
+        let origin = area.get_base_pixel();
+        let font = (cell_h * 0.5).min(NORMAL.tick - 1.0);
+        for (r, row) in self.values.iter().enumerate() {
+            let y = (n_rows - 1 - r) as f64;
+            for (c, &v) in row.iter().enumerate() {
+                if !v.is_finite() || font < 7.0 {
+                    continue;
                 }
+                let s = cell_text(v, limit);
+                if text_width(&s, font) as f64 > cell_w - 4.0 {
+                    continue;
+                }
+                let (px, py) = chart.backend_coord(&(c as f64, y));
+                let color = style::text_on(style::diverging(v / limit));
+                put_text(
+                    &area,
+                    &s,
+                    &text_colored(font, color),
+                    (px - origin.0, py - origin.1),
+                    (HPos::Center, VPos::Center),
+                )?;
             }
         }
-        panel::frame(&mut chart)?;
-        if n_rows * n_cols == 0 {
-            panel::note(&chart, "no data", NORMAL)?;
-        }
-        labels::draw_x(&chart, &self.col_labels, layout)?;
-        labels::draw_y(&chart, &self.row_labels, row_font)?;
+        Ok(())
+    }
 
-        // Colour bar, aligned with the plot's top and bottom.
-        let mut cb = ChartBuilder::on(&bar)
+    /// Colour bar from -limit to +limit in `bar`, aligned with the plot's top and bottom.
+    fn draw_colour_bar<DB: DrawingBackend>(
+        &self,
+        bar: &DrawingArea<DB, Shift>,
+        bar_axis: NiceAxis,
+        x_area: u32,
+        bar_right: u32,
+        limit: f64,
+    ) -> DResult<(), DB> {
+        let mut cb = ChartBuilder::on(bar)
             .margin_top(TOP_MARGIN)
             .margin_bottom(4)
             .margin_left(16)

@@ -92,28 +92,8 @@ impl Figure for TracesSpec {
             panel::ticks_for(bw / cols as u32, 95, 8),
         );
         let y_ticks = panel::ticks_for(bh / rows as u32, 40, 4);
-        let texts: Vec<String> = self
-            .params
-            .iter()
-            .map(|p| {
-                if p.unit.is_empty() {
-                    p.name.clone()
-                } else {
-                    format!("{} ({})", p.name, p.unit)
-                }
-            })
-            .collect();
-        let y_axes: Vec<NiceAxis> = self
-            .params
-            .iter()
-            .map(|p| {
-                let r = p.walkers.iter().fold(None, |acc, w| {
-                    union(acc, data_range(w.iter().copied(), Scale::Linear))
-                });
-                let r = union(r, data_range(p.reference, Scale::Linear));
-                NiceAxis::new(Scale::Linear, limits(r, Scale::Linear, 0.05), y_ticks)
-            })
-            .collect();
+        let texts: Vec<String> = self.params.iter().map(axis_text).collect();
+        let y_axes: Vec<NiceAxis> = self.params.iter().map(|p| y_axis(p, y_ticks)).collect();
         let y_area = (0..n)
             .map(|i| panel::y_area(&y_axes[i], &texts[i], SMALL))
             .max()
@@ -128,6 +108,55 @@ impl Figure for TracesSpec {
             .collect();
         let ys: Vec<i32> = (1..rows).map(|r| (r as f64 * row_h) as i32).collect();
         let cells = body.split_by_breakpoints(xs, ys);
+        for (i, p) in self.params.iter().enumerate() {
+            // Column-major order, so parameters read down the first column first.
+            let (r, c) = (i % rows, i / rows);
+            let last_row = r == rows - 1;
+            let layout = Panel {
+                title: "",
+                x: x.clone(),
+                y: y_axes[i].clone(),
+                x_desc: if last_row { x_desc } else { "" },
+                y_desc: &texts[i],
+                sizes: SMALL,
+                x_area: panel::x_area(true, if last_row { x_desc } else { "" }, SMALL),
+                y_area,
+                margin_right: 14,
+            };
+            self.draw_param(&cells[r * cols + c], layout, p, x_lim.0)?;
+        }
+        Ok(())
+    }
+}
+
+/// Axis text of one parameter: its name, with the unit in parentheses when it has one.
+fn axis_text(p: &TraceParam) -> String {
+    if p.unit.is_empty() {
+        p.name.clone()
+    } else {
+        format!("{} ({})", p.name, p.unit)
+    }
+}
+
+/// Value axis of one parameter over all its walkers and its reference.
+fn y_axis(p: &TraceParam, ticks: usize) -> NiceAxis {
+    let r = p.walkers.iter().fold(None, |acc, w| {
+        union(acc, data_range(w.iter().copied(), Scale::Linear))
+    });
+    let r = union(r, data_range(p.reference, Scale::Linear));
+    NiceAxis::new(Scale::Linear, limits(r, Scale::Linear, 0.05), ticks)
+}
+
+impl TracesSpec {
+    /// One parameter's panel in `cell`: the burn-in shaded from `x_lo` with its edge
+    /// dashed, every walker's trace and the reference line.
+    fn draw_param<DB: DrawingBackend>(
+        &self,
+        cell: &DrawingArea<DB, Shift>,
+        layout: Panel,
+        p: &TraceParam,
+        x_lo: f64,
+    ) -> DResult<(), DB> {
         let walker = Stroke::solid(WALKER_BLUE, 1);
         let burn = Stroke {
             color: BURN_GREY.to_rgba(),
@@ -139,44 +168,25 @@ impl Figure for TracesSpec {
             width: 2,
             dash: Dash::Dashed,
         };
-        for (i, p) in self.params.iter().enumerate() {
-            // Column-major order, so parameters read down the first column first.
-            let (r, c) = (i % rows, i / rows);
-            let cell = &cells[r * cols + c];
-            let last_row = r == rows - 1;
-            let mut chart = panel::build(
-                cell,
-                Panel {
-                    title: "",
-                    x: x.clone(),
-                    y: y_axes[i].clone(),
-                    x_desc: if last_row { x_desc } else { "" },
-                    y_desc: &texts[i],
-                    sizes: SMALL,
-                    x_area: panel::x_area(true, if last_row { x_desc } else { "" }, SMALL),
-                    y_area,
-                    margin_right: 14,
-                },
-            )?;
-            if let Some(b) = self.burn_in.filter(|&b| b > 0) {
-                let (y0, y1) = y_axes[i].lo_hi();
-                chart.draw_series(std::iter::once(Rectangle::new(
-                    [(x_lim.0, y0), (b as f64, y1)],
-                    BURN_GREY.mix(0.12).filled(),
-                )))?;
-                panel::ref_line(&mut chart, Some(b as f64), None, burn)?;
-            }
-            let mut occ = Occupied::default();
-            let buckets = (panel::plot_width(&chart) / 2).max(100);
-            for w in &p.walkers {
-                let steps: Vec<f64> = (0..w.len()).map(|s| s as f64).collect();
-                panel::line(&mut chart, &steps, w, walker, Some(buckets), &mut occ)?;
-            }
-            panel::ref_line(&mut chart, None, p.reference, reference)?;
-            panel::frame(&mut chart)?;
-            if occ.is_empty() {
-                panel::note(&chart, "no data", SMALL)?;
-            }
+        let (y0, y1) = layout.y.lo_hi();
+        let mut chart = panel::build(cell, layout)?;
+        if let Some(b) = self.burn_in.filter(|&b| b > 0) {
+            chart.draw_series(std::iter::once(Rectangle::new(
+                [(x_lo, y0), (b as f64, y1)],
+                BURN_GREY.mix(0.12).filled(),
+            )))?;
+            panel::ref_line(&mut chart, Some(b as f64), None, burn)?;
+        }
+        let mut occ = Occupied::default();
+        let buckets = (panel::plot_width(&chart) / 2).max(100);
+        for w in &p.walkers {
+            let steps: Vec<f64> = (0..w.len()).map(|s| s as f64).collect();
+            panel::line(&mut chart, &steps, w, walker, Some(buckets), &mut occ)?;
+        }
+        panel::ref_line(&mut chart, None, p.reference, reference)?;
+        panel::frame(&mut chart)?;
+        if occ.is_empty() {
+            panel::note(&chart, "no data", SMALL)?;
         }
         Ok(())
     }
