@@ -182,6 +182,23 @@ pub fn quantile_sorted(sorted: &[f64], p: f64) -> f64 {
     }
 }
 
+/// Posterior bands of a quantity on a grid: `(q2.5, q25, q50, q75, q97.5)`, each a
+/// vector over the grid.
+pub type QuantileBands = [Vec<f64>; 5];
+
+/// [`QuantileBands`] of the samples of every grid point (`per_bin[i]`: the draws at
+/// point `i`).
+pub fn quantile_bands(per_bin: Vec<Vec<f64>>) -> QuantileBands {
+    let mut out: QuantileBands = Default::default();
+    for mut v in per_bin {
+        v.sort_by(f64::total_cmp);
+        for (o, q) in out.iter_mut().zip([0.025, 0.25, 0.5, 0.75, 0.975]) {
+            o.push(quantile_sorted(&v, q));
+        }
+    }
+    out
+}
+
 /// Which prior bound (if any) the central 95% interval of `chains` reaches within
 /// [`AT_BOUND_FRACTION`] of the range `(lo, hi)`, as in `frfbayes sample`. Judge it in
 /// the sampled coordinate (e.g. `ln sigma`), where the prior is uniform.

@@ -2,9 +2,11 @@
 
 use std::path::Path;
 
-use super::posterior::{AtBound, ParameterSummary, Sampled};
+use num_complex::Complex64;
+
+use super::posterior::{AtBound, ParameterSummary, QuantileBands, Sampled};
 use crate::error::Result;
-use crate::plot::{traces, TraceParam, TracesSpec};
+use crate::plot::{traces, BandPanel, Curve, Interval, Scale, TraceParam, TracesSpec};
 
 /// A Markdown table.
 pub fn md_table(headers: &[&str], rows: &[Vec<String>]) -> String {
@@ -134,4 +136,34 @@ pub fn write_findings<T: serde::Serialize>(findings: &T, out: &Path) -> Result<(
         source: std::io::Error::other(e),
     })?;
     crate::io::write_atomic(&path, &json)
+}
+
+/// Band-overlay panel of one channel: the model's posterior median and its 50 % and 95 %
+/// bands `q` on `freq_hz`, with the measured `|H|` of `measured` on top (log scale).
+pub fn quantile_band_panel(
+    title: String,
+    freq_hz: &[f64],
+    q: &QuantileBands,
+    measured: &[Complex64],
+) -> BandPanel {
+    BandPanel {
+        title,
+        y_label: "|H| ((m/s²)/N)".into(),
+        y_scale: Scale::Log,
+        freq_hz: freq_hz.to_vec(),
+        median: q[2].clone(),
+        band_50: Some(Interval {
+            lo: q[1].clone(),
+            hi: q[3].clone(),
+        }),
+        band_95: Some(Interval {
+            lo: q[0].clone(),
+            hi: q[4].clone(),
+        }),
+        measured: Some(Curve {
+            freq_hz: freq_hz.to_vec(),
+            values: measured.iter().map(|h| h.norm()).collect(),
+        }),
+        bands: vec![],
+    }
 }

@@ -9,7 +9,7 @@ use super::posterior::{
     observed_blocks, posterior_summary, write_inference_data, write_summary, PosteriorSummary,
     INFERENCE_DATA_FILE,
 };
-use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
+use super::report::{md_table, posterior_table, quantile_band_panel, run_line, sig, trace_figure};
 use super::tower::{AUTHOR_GAINS, DAMPER_MASS_KG, FLOOR_COLUMN, FLOOR_MASS_KG};
 use super::tower_assess::{assess, Findings, FrequencyRatios, FLOOR_OUTLIER_RATIO};
 use super::tower_model::{natural_freq_hz, N};
@@ -19,9 +19,7 @@ use super::tower_residuals::{
 };
 use super::tower_run::{TowerFit, TowerStudy};
 use crate::error::Result;
-use crate::plot::{
-    band_overlay, heatmap, BandOverlaySpec, BandPanel, Curve, HeatmapSpec, Interval, Scale,
-};
+use crate::plot::{band_overlay, heatmap, BandOverlaySpec, HeatmapSpec};
 
 /// `posterior.json`: the full-band fit's parameters (k, xi, s, gains) then the derived
 /// frequencies.
@@ -419,27 +417,12 @@ fn figures(s: &TowerStudy, out: &Path) -> Result<()> {
     let f = &s.full.lik.data.freq_hz;
     let panels = (0..N)
         .map(|c| {
-            let q = &s.bands_abs[c];
-            BandPanel {
-                title: format!("floor {}", c + 1),
-                y_label: "|H| ((m/s²)/N)".into(),
-                y_scale: Scale::Log,
-                freq_hz: f.clone(),
-                median: q[2].clone(),
-                band_50: Some(Interval {
-                    lo: q[1].clone(),
-                    hi: q[3].clone(),
-                }),
-                band_95: Some(Interval {
-                    lo: q[0].clone(),
-                    hi: q[4].clone(),
-                }),
-                measured: Some(Curve {
-                    freq_hz: f.clone(),
-                    values: s.full.lik.data.y[c].iter().map(|h| h.norm()).collect(),
-                }),
-                bands: vec![],
-            }
+            quantile_band_panel(
+                format!("floor {}", c + 1),
+                f,
+                &s.bands_abs[c],
+                &s.full.lik.data.y[c],
+            )
         })
         .collect();
     band_overlay(

@@ -8,8 +8,8 @@
 use std::path::Path;
 
 use super::posterior::{
-    near_bound, quantile_sorted, row_from_chains, sample_to_targets, ParameterSummary, Sampled,
-    Sampling, Targets,
+    near_bound, quantile_bands, quantile_sorted, row_from_chains, sample_to_targets,
+    ParameterSummary, QuantileBands, Sampled, Sampling, Targets,
 };
 use super::tower::{estimate_frf, load, TowerFrf};
 use super::tower_model::{
@@ -65,7 +65,7 @@ pub struct TowerStudy {
     pub residuals: ResidualAnalysis,
     pub residuals_low: ResidualAnalysis,
     /// Model |H| quantiles (2.5, 25, 50, 75, 97.5 %) per floor on the full band grid.
-    pub bands_abs: Vec<[Vec<f64>; 5]>,
+    pub bands_abs: Vec<QuantileBands>,
 }
 
 /// Runs the study on the records in `dir`.
@@ -93,19 +93,7 @@ pub fn run(dir: &Path, seed: u64, sampling: &mut Sampling<'_>) -> Result<TowerSt
             }
         }
     }
-    let bands_abs = samples
-        .into_iter()
-        .map(|per| {
-            let mut out: [Vec<f64>; 5] = Default::default();
-            for mut v in per {
-                v.sort_by(f64::total_cmp);
-                for (o, q) in out.iter_mut().zip([0.025, 0.25, 0.5, 0.75, 0.975]) {
-                    o.push(quantile_sorted(&v, q));
-                }
-            }
-            out
-        })
-        .collect();
+    let bands_abs = samples.into_iter().map(quantile_bands).collect();
     Ok(TowerStudy {
         frf,
         full,

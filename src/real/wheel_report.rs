@@ -8,15 +8,14 @@ use super::posterior::{
     observed_blocks, posterior_summary, write_inference_data, write_summary, ParameterSummary,
     PosteriorSummary, Sampled,
 };
-use super::report::{md_table, posterior_table, run_line, sig, trace_figure};
+use super::report::{md_table, posterior_table, quantile_band_panel, run_line, sig, trace_figure};
 use super::wheel::WheelData;
 use super::wheel_assess::{assess, Findings, Separation};
 use super::wheel_run::{BandResult, WheelStudy, PLOT_CHANNELS, SCATTER_MIN_RESIDUE};
 use crate::error::Result;
 use crate::plot::{
-    band_overlay, bar_chart, corner, frf_magnitudes, BandOverlaySpec, BandPanel, BarChartSpec,
-    BarGroup, ChannelFrf, CornerParam, CornerSpec, Curve, FreqBand, FrfMagnitudesSpec, Interval,
-    Scale,
+    band_overlay, bar_chart, corner, frf_magnitudes, BandOverlaySpec, BarChartSpec, BarGroup,
+    ChannelFrf, CornerParam, CornerSpec, FreqBand, FrfMagnitudesSpec, Scale,
 };
 
 /// Rows of every band with globally numbered names (`f1`, `xi1`, `s_band1`, ...).
@@ -401,27 +400,12 @@ fn band_figure(bi: usize, b: &BandResult, out: &Path) -> Result<()> {
         .iter()
         .enumerate()
         .map(|(i, &c)| {
-            let q = &b.bands_abs[i];
-            BandPanel {
-                title: format!("channel {} ({} deg)", c + 1, 15 * c),
-                y_label: "|H| ((m/s²)/N)".into(),
-                y_scale: Scale::Log,
-                freq_hz: f.clone(),
-                median: q[2].clone(),
-                band_50: Some(Interval {
-                    lo: q[1].clone(),
-                    hi: q[3].clone(),
-                }),
-                band_95: Some(Interval {
-                    lo: q[0].clone(),
-                    hi: q[4].clone(),
-                }),
-                measured: Some(Curve {
-                    freq_hz: f.clone(),
-                    values: b.lik.data.y[c].iter().map(|h| h.norm()).collect(),
-                }),
-                bands: vec![],
-            }
+            quantile_band_panel(
+                format!("channel {} ({} deg)", c + 1, 15 * c),
+                f,
+                &b.bands_abs[i],
+                &b.lik.data.y[c],
+            )
         })
         .collect();
     band_overlay(

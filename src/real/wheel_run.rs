@@ -29,8 +29,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::posterior::{
-    near_bound, quantile_sorted, row_from_chains, sample_to_targets, ParameterSummary, Sampled,
-    Sampling, Targets,
+    near_bound, quantile_bands, quantile_sorted, row_from_chains, sample_to_targets,
+    ParameterSummary, QuantileBands, Sampled, Sampling, Targets,
 };
 use super::wheel::{BandLikelihood, BandSpec, WheelData, N_CHANNELS};
 use crate::error::{Error, Result};
@@ -157,7 +157,7 @@ pub struct BandResult {
     /// Posterior bands of the model `|H|` on the band grid, per channel of
     /// [`PLOT_CHANNELS`]:
     /// `(q2.5, q25, q50, q75, q97.5)`.
-    pub bands_abs: Vec<[Vec<f64>; 5]>,
+    pub bands_abs: Vec<QuantileBands>,
     /// RMS of the whitened residual divided by the posterior-median `s`, per channel
     /// (1 when the coherence-based weights describe the scatter).
     pub rms_z: Vec<f64>,
@@ -393,18 +393,6 @@ fn residue_rows(ref_channel: &[usize], lin_chains: &[Vec<Vec<f64>>]) -> Vec<Para
         None,
     ));
     rows
-}
-
-/// The 2.5, 25, 50, 75 and 97.5 % quantiles of each frequency bin's samples.
-fn quantile_bands(per_bin: Vec<Vec<f64>>) -> [Vec<f64>; 5] {
-    let mut out: [Vec<f64>; 5] = Default::default();
-    for mut v in per_bin {
-        v.sort_by(f64::total_cmp);
-        for (o, q) in out.iter_mut().zip([0.025, 0.25, 0.5, 0.75, 0.975]) {
-            o.push(quantile_sorted(&v, q));
-        }
-    }
-    out
 }
 
 /// RMS of each channel's whitened residual at the posterior median of the sampled
