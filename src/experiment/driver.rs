@@ -233,47 +233,9 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
     };
     let staged = StagedDir::in_claim(claim)?;
     let dir = staged.path().to_path_buf();
-    let paper = PaperTables::bundled()?;
-    let t1 = table_from_runs(TableId::Table1, &runs, cfg, &campaign);
-    let t2 = table_from_runs(TableId::Table2, &runs, cfg, &campaign);
-    if let Some(t) = &t1 {
-        t.write(
-            &dir,
-            "table1",
-            "Table 1. Model updating results from impact hammer tests (ours)",
-        )?;
-    }
-    if let Some(t) = &t2 {
-        t.write(
-            &dir,
-            "table2",
-            "Table 2. Model updating results from ground excitation (ours)",
-        )?;
-    }
-    let tau = runs.iter().find_map(|r| r.window_tau_s);
-    let md = comparison_markdown(
-        t1.as_ref(),
-        t2.as_ref(),
-        &paper.table1,
-        &paper.table2,
-        &runs,
-        tau,
-    );
-    write_atomic(&dir.join("comparison.md"), md.as_bytes())?;
-    let summary =
-        serde_json::to_vec_pretty(&summary_json(&runs)).map_err(|e| Error::Usage(e.to_string()))?;
-    write_atomic(&dir.join("summary.json"), &summary)?;
-    info.time("figures", || -> Result<()> {
-        for (i, f) in cfg.figures.iter().enumerate() {
-            progress("figures", i, cfg.figures.len());
-            comparison_figure(f, &runs, &frfs, &dir.join(figure_name(&f.table, f.damping)))?;
-        }
-        for frf in &frfs {
-            let d = dir.join("frf").join(&frf.test);
-            crate::signal::frf_csv::write_frf_csv(&d.join("frf.csv"), frf)?;
-            estimate_figures(frf, &d)?;
-        }
-        Ok(())
+    write_tables(&dir, cfg, &runs, &campaign)?;
+    info.time("figures", || {
+        write_figures(&dir, cfg, &runs, &frfs, progress)
     })?;
     // The eight problems as solved, for side-by-side solver comparisons
     // (`paper_repro/scipy_multistart.py --problems <out>/problems`).
@@ -284,19 +246,103 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
             r.variant.column()
         )))?;
     }
-    info.time("identifiability", || -> Result<()> {
-        use super::posterior_report as pr;
-        if !posteriors.is_empty() {
-            pr::write_posterior_json(&posteriors, &dir)?;
-            super::posterior_figures::write_posterior_figures(&posteriors, &dir)?;
-        }
-        let md = pr::posterior_markdown(&posteriors);
-        super::identifiability_report::write_identifiability(&runs, &frfs, &dir, &md)?;
-        Ok(())
+    info.time("identifiability", || {
+        write_identifiability(&dir, &runs, &frfs, &posteriors)
     })?;
     info.write(&dir)?;
+    write_html(&dir)?;
+    let out = staged.commit()?;
+    Ok(Outcome {
+        out,
+        campaign,
+        frfs,
+        runs,
+        info,
+    })
+}
+
+/// `table1`, `table2` (ours, when the runs have them), `comparison.md` against the
+/// paper's tables and `summary.json` into `dir`.
+fn write_tables(
+    dir: &Path,
+    cfg: &ExperimentConfig,
+    runs: &[VariantRun],
+    campaign: &Campaign,
+) -> Result<()> {
+    let paper = PaperTables::bundled()?;
+    let t1 = table_from_runs(TableId::Table1, runs, cfg, campaign);
+    let t2 = table_from_runs(TableId::Table2, runs, cfg, campaign);
+    if let Some(t) = &t1 {
+        t.write(
+            dir,
+            "table1",
+            "Table 1. Model updating results from impact hammer tests (ours)",
+        )?;
+    }
+    if let Some(t) = &t2 {
+        t.write(
+            dir,
+            "table2",
+            "Table 2. Model updating results from ground excitation (ours)",
+        )?;
+    }
+    let tau = runs.iter().find_map(|r| r.window_tau_s);
+    let md = comparison_markdown(
+        t1.as_ref(),
+        t2.as_ref(),
+        &paper.table1,
+        &paper.table2,
+        runs,
+        tau,
+    );
+    write_atomic(&dir.join("comparison.md"), md.as_bytes())?;
+    let summary =
+        serde_json::to_vec_pretty(&summary_json(runs)).map_err(|e| Error::Usage(e.to_string()))?;
+    write_atomic(&dir.join("summary.json"), &summary)
+}
+
+/// The configured comparison figures, and per test its `frf/<test>/frf.csv` and
+/// estimation figures, into `dir`.
+fn write_figures(
+    dir: &Path,
+    cfg: &ExperimentConfig,
+    runs: &[VariantRun],
+    frfs: &[TestFrf],
+    progress: Progress,
+) -> Result<()> {
+    for (i, f) in cfg.figures.iter().enumerate() {
+        progress("figures", i, cfg.figures.len());
+        comparison_figure(f, runs, frfs, &dir.join(figure_name(&f.table, f.damping)))?;
+    }
+    for frf in frfs {
+        let d = dir.join("frf").join(&frf.test);
+        crate::signal::frf_csv::write_frf_csv(&d.join("frf.csv"), frf)?;
+        estimate_figures(frf, &d)?;
+    }
+    Ok(())
+}
+
+/// The posterior files and figures (when sampled) and `identifiability.md` into `dir`.
+fn write_identifiability(
+    dir: &Path,
+    runs: &[VariantRun],
+    frfs: &[TestFrf],
+    posteriors: &[super::posterior::VariantPosterior],
+) -> Result<()> {
+    use super::posterior_report as pr;
+    if !posteriors.is_empty() {
+        pr::write_posterior_json(posteriors, dir)?;
+        super::posterior_figures::write_posterior_figures(posteriors, dir)?;
+    }
+    let md = pr::posterior_markdown(posteriors);
+    super::identifiability_report::write_identifiability(runs, frfs, dir, &md)?;
+    Ok(())
+}
+
+/// `report.html` from the Markdown files in `dir`.
+fn write_html(dir: &Path) -> Result<()> {
     crate::report::write_html_report(
-        &dir,
+        dir,
         &crate::report::HtmlReport {
             markdown: &[
                 "table1.md",
@@ -309,14 +355,7 @@ pub fn run_experiment(cfg: &ExperimentConfig, progress: Progress) -> Result<Outc
             title: Some("Paper reproduction: FRF-based model updating of the four-story frame"),
         },
     )?;
-    let out = staged.commit()?;
-    Ok(Outcome {
-        out,
-        campaign,
-        frfs,
-        runs,
-        info,
-    })
+    Ok(())
 }
 
 /// The output folder of an experiment relative to `base` when it is relative.
