@@ -39,98 +39,10 @@ pub fn comparison_figure(
     } else {
         TableId::Table2
     };
-    let test = frfs
-        .iter()
-        .filter(|f| table.includes(f))
-        .find(|f| match (&f.input, spec.excited_floor) {
-            (InputKind::Force { floor, .. }, Some(e)) => *floor == e,
-            (InputKind::Ground { .. }, _) => true,
-            _ => false,
-        })
-        .ok_or_else(|| {
-            Error::Usage(format!(
-                "figure: no {} test with excited floor {:?}",
-                spec.table, spec.excited_floor
-            ))
-        })?;
-    let excitation = match spec.excited_floor {
-        Some(e) if table == TableId::Table1 => Excitation::Dof(e - 1),
-        _ => Excitation::Ground,
-    };
+    let test = figure_test(spec, table, frfs)?;
     let mut panels = Vec::new();
     for kind in [FrfKind::Receptance, FrfKind::Accelerance] {
-        let run = runs
-            .iter()
-            .find(|r| {
-                r.variant.table == table
-                    && r.variant.damping == spec.damping
-                    && r.variant.kind == kind
-            })
-            .ok_or_else(|| {
-                Error::Usage(format!(
-                    "figure: variant {:?} {:?} was not run",
-                    spec.damping, kind
-                ))
-            })?;
-        let response = test
-            .responses
-            .iter()
-            .find(|r| r.kind == kind && r.channel.floor == spec.response_floor)
-            .ok_or_else(|| {
-                Error::Usage(format!(
-                    "figure: test {} has no {kind:?} channel at floor {}",
-                    test.test, spec.response_floor
-                ))
-            })?;
-        let pair = FrfPair {
-            response: spec.response_floor - 1,
-            excitation,
-            kind,
-        };
-        let idx: Vec<usize> = (0..test.freq_hz.len())
-            .filter(|&k| test.freq_hz[k] >= FIG_RANGE_HZ.0 && test.freq_hz[k] <= FIG_RANGE_HZ.1)
-            .collect();
-        let freq_hz: Vec<f64> = idx.iter().map(|&k| test.freq_hz[k]).collect();
-        let omega: Vec<f64> = freq_hz
-            .iter()
-            .map(|f| 2.0 * std::f64::consts::PI * f)
-            .collect();
-        let experimental = Curve {
-            freq_hz: freq_hz.clone(),
-            values: idx.iter().map(|&k| response.h1[k].norm()).collect(),
-        };
-        let initial = model_curve(
-            &run.problem,
-            &run.problem.variables().initial(),
-            pair,
-            &omega,
-        )?;
-        let updated = model_curve(&run.problem, &run.result.best.theta, pair, &omega)?;
-        let label = pair_label(&pair);
-        let fdac = run.fdac.iter().find(|(l, _, _)| *l == label);
-        panels.push(ComparisonPanel {
-            title: format!(
-                "{} {label}",
-                if kind == FrfKind::Receptance {
-                    "receptance"
-                } else {
-                    "accelerance"
-                }
-            ),
-            y_label: y_label(kind, table == TableId::Table2).into(),
-            experimental,
-            initial: Some(Curve {
-                freq_hz: freq_hz.clone(),
-                values: initial,
-            }),
-            updated: Some(Curve {
-                freq_hz,
-                values: updated,
-            }),
-            fdac_initial: fdac.map(|f| f.1),
-            fdac_updated: fdac.map(|f| f.2),
-            bands: bands(test),
-        });
+        panels.push(comparison_panel(spec, table, kind, runs, test)?);
     }
     let damping = match spec.damping {
         DampingModel::Rayleigh => "Rayleigh",
@@ -149,6 +61,118 @@ pub fn comparison_figure(
         },
         stem,
     )
+}
+
+/// The test of `table` that the figure draws: the hammer test at the figure's excited
+/// floor, or the ground-excitation test.
+fn figure_test<'a>(spec: &FigureSpec, table: TableId, frfs: &'a [TestFrf]) -> Result<&'a TestFrf> {
+    frfs.iter()
+        .filter(|f| table.includes(f))
+        .find(|f| match (&f.input, spec.excited_floor) {
+            (InputKind::Force { floor, .. }, Some(e)) => *floor == e,
+            (InputKind::Ground { .. }, _) => true,
+            _ => false,
+        })
+        .ok_or_else(|| {
+            Error::Usage(format!(
+                "figure: no {} test with excited floor {:?}",
+                spec.table, spec.excited_floor
+            ))
+        })
+}
+
+/// The run of the variant (`table`, `damping`, `kind`).
+fn variant_run(
+    runs: &[VariantRun],
+    table: TableId,
+    damping: DampingModel,
+    kind: FrfKind,
+) -> Result<&VariantRun> {
+    runs.iter()
+        .find(|r| {
+            r.variant.table == table && r.variant.damping == damping && r.variant.kind == kind
+        })
+        .ok_or_else(|| {
+            Error::Usage(format!(
+                "figure: variant {:?} {:?} was not run",
+                damping, kind
+            ))
+        })
+}
+
+/// One FRF kind's panel: the measured `|H1|` of `test` over [`FIG_RANGE_HZ`] with the
+/// initial and updated models of the matching run and their FDACs.
+fn comparison_panel(
+    spec: &FigureSpec,
+    table: TableId,
+    kind: FrfKind,
+    runs: &[VariantRun],
+    test: &TestFrf,
+) -> Result<ComparisonPanel> {
+    let excitation = match spec.excited_floor {
+        Some(e) if table == TableId::Table1 => Excitation::Dof(e - 1),
+        _ => Excitation::Ground,
+    };
+    let run = variant_run(runs, table, spec.damping, kind)?;
+    let response = test
+        .responses
+        .iter()
+        .find(|r| r.kind == kind && r.channel.floor == spec.response_floor)
+        .ok_or_else(|| {
+            Error::Usage(format!(
+                "figure: test {} has no {kind:?} channel at floor {}",
+                test.test, spec.response_floor
+            ))
+        })?;
+    let pair = FrfPair {
+        response: spec.response_floor - 1,
+        excitation,
+        kind,
+    };
+    let idx: Vec<usize> = (0..test.freq_hz.len())
+        .filter(|&k| test.freq_hz[k] >= FIG_RANGE_HZ.0 && test.freq_hz[k] <= FIG_RANGE_HZ.1)
+        .collect();
+    let freq_hz: Vec<f64> = idx.iter().map(|&k| test.freq_hz[k]).collect();
+    let omega: Vec<f64> = freq_hz
+        .iter()
+        .map(|f| 2.0 * std::f64::consts::PI * f)
+        .collect();
+    let experimental = Curve {
+        freq_hz: freq_hz.clone(),
+        values: idx.iter().map(|&k| response.h1[k].norm()).collect(),
+    };
+    let initial = model_curve(
+        &run.problem,
+        &run.problem.variables().initial(),
+        pair,
+        &omega,
+    )?;
+    let updated = model_curve(&run.problem, &run.result.best.theta, pair, &omega)?;
+    let label = pair_label(&pair);
+    let fdac = run.fdac.iter().find(|(l, _, _)| *l == label);
+    Ok(ComparisonPanel {
+        title: format!(
+            "{} {label}",
+            if kind == FrfKind::Receptance {
+                "receptance"
+            } else {
+                "accelerance"
+            }
+        ),
+        y_label: y_label(kind, table == TableId::Table2).into(),
+        experimental,
+        initial: Some(Curve {
+            freq_hz: freq_hz.clone(),
+            values: initial,
+        }),
+        updated: Some(Curve {
+            freq_hz,
+            values: updated,
+        }),
+        fdac_initial: fdac.map(|f| f.1),
+        fdac_updated: fdac.map(|f| f.2),
+        bands: bands(test),
+    })
 }
 
 /// Draws one test's FRF estimates (one figure per FRF kind) with bands and coherence.
