@@ -1,10 +1,13 @@
 //! The evidence of every model of a diagnosis, by the screen of
-//! [`crate::infer::screened`]: the nominal model by the generalised stepping-stone, each
-//! hypothesis (which nests it) by the cheapest estimator that is right for the decision:
-//! its gain bound when it cannot reach `ln 150`, Laplace in logit coordinates when it is
-//! clearly below, the generalised stepping-stone otherwise (issue 14, item 3). The
-//! posterior draws that size the effect come from the tempered run, or, without one,
-//! from Laplace's Gaussian in logit coordinates.
+//! [`crate::infer::screened`]: the nominal model by a run (importance sampling from the
+//! generalised stepping-stone's reference where its weights allow, the stepping-stone
+//! otherwise), each hypothesis (which nests it) by the cheapest estimator that is right
+//! for the decision: its gain bound when it cannot reach `ln 150`, Laplace in logit
+//! coordinates when it is clearly below or clearly above, a run otherwise (issue 14,
+//! item 3). The rounds ([`super::round`]) give a run to a winner decided by Laplace and
+//! to passing hypotheses within reach of each other. The posterior draws that size the
+//! effect come from the run, or, without one, from Laplace's Gaussian in logit
+//! coordinates.
 
 use super::diagnose::{DiagnoseOptions, DiagnoseStage, ModelResult};
 use super::effect_summary::effect_summaries;
@@ -15,6 +18,7 @@ use super::verdict::{decisive_ln_bayes_factor, EffectSummary};
 use crate::error::Result;
 use crate::infer::evidence::{EvidenceOptions, EvidenceProgress};
 use crate::infer::nested::gain_bound;
+use crate::infer::screened::IMPORTANCE_DRAWS;
 use crate::infer::screened::{
     choose_estimator, laplace_of, screened_evidence, BaseEvidence, Estimator, Extension,
     LaplaceInU, ScreenOptions, ScreenedEvidence, GSS_REPLICATES,
@@ -63,6 +67,7 @@ pub fn screen_options(opts: &DiagnoseOptions, dim: usize, model_index: u64) -> S
         } else {
             GSS_REPLICATES
         },
+        importance_draws: IMPORTANCE_DRAWS,
         evidence: e,
     }
 }
@@ -83,7 +88,12 @@ pub fn laplace_u(post: &ModelPosterior, z: &[f64]) -> LaplaceOutcome {
 }
 
 /// What an extension's screen needs of the nominal model.
-pub fn extension_of(nominal: &ModelResult, lap0: Option<&LaplaceInU>, map: &MapFit) -> Extension {
+pub fn extension_of(
+    nominal: &ModelResult,
+    lap0: Option<&LaplaceInU>,
+    map: &MapFit,
+    contested: bool,
+) -> Extension {
     Extension {
         base: BaseEvidence {
             ln_z: nominal.ln_z().unwrap_or(f64::NAN),
@@ -91,6 +101,7 @@ pub fn extension_of(nominal: &ModelResult, lap0: Option<&LaplaceInU>, map: &MapF
             max_ln_likelihood: nominal.map.ln_likelihood,
         },
         gain_bound_nats: gain_bound(map.ln_likelihood, nominal.map.ln_likelihood),
+        contested,
     }
 }
 
@@ -148,7 +159,7 @@ pub fn completion(
         let estimator = match extension {
             Some(x) => {
                 let delta = x.delta_laplace(lap.map(|l| l.laplace.ln_z));
-                choose_estimator(x.gain_bound_nats, delta, &screen)
+                choose_estimator(x, delta, &screen)
             }
             None if lap.is_some() => Estimator::GeneralisedSteppingStone,
             None => Estimator::SteppingStone,
@@ -172,7 +183,11 @@ pub fn completion(
         )?;
         evidence.laplace_failure = laplace.as_ref().err().cloned();
         let sampled = evidence.run.as_ref().and_then(|r| r.posterior.as_ref());
+        let weighted = (evidence.estimator == Estimator::ImportanceSampling)
+            .then(|| evidence.importance.as_ref().map(|is| is.draws.clone()))
+            .flatten();
         let draws: Vec<Vec<f64>> = match (sampled, lap) {
+            _ if weighted.is_some() => weighted.unwrap_or_default(),
             (Some(p), _) => p
                 .draws
                 .values

@@ -227,9 +227,13 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
          Raftery's 'very strong'), with a gain bound (max ln L over the nominal model's, which \
          bounds delta ln Z) of ln 150 or more. Estimators: `gain bound` (no run: the bound \
          rules the hypothesis out; its ln Z is Laplace's capped at the bound, sd 0), \
-         `laplace` (at the mode in logit coordinates, far below the threshold; its sd is a \
-         stated allowance of {:.0} nats), `generalised stepping-stone` (tempered ensembles \
-         from a reference at the posterior; sd from {} independent replicates), \
+         `laplace` (at the mode in logit coordinates, far below the threshold, or far above \
+         it where no other passing hypothesis is within reach; its sd is a stated allowance \
+         of {:.0} nats; a winner decided so gets a run, as it becomes the next round's base), \
+         `importance sampling` (from the stepping-stone's reference at the posterior, kept \
+         where its weights' Pareto k < 0.5 and ESS >= n/5; delta-method sd), \
+         `generalised stepping-stone` (tempered ensembles from that reference; sd from {} \
+         independent replicates), \
          `stepping stone` (from the prior, where no mode was found; thermodynamic \
          integration (TI) on its ladder as a check).\n",
         decisive_ln_bayes_factor(),

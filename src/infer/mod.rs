@@ -14,6 +14,7 @@
 
 pub mod evidence;
 pub mod fit;
+pub mod importance;
 pub mod laplace;
 pub mod likelihood;
 pub mod nested;
@@ -33,6 +34,7 @@ pub use evidence::{
     TemperedTarget,
 };
 pub use fit::{fit_multistart, FitOptions, FitResult};
+pub use importance::{importance_evidence, ImportanceEvidence};
 pub use laplace::{laplace, laplace_with_step, LaplaceEvidence, LAPLACE_STEP_FRACTION};
 pub use likelihood::{Block, BlockKind, Chain, Correlation, LinearFit, NoiseScale};
 pub use nested::{
@@ -46,7 +48,7 @@ pub use reference::{
 pub use sample::{sample_to_targets, Sampled, Sampling, Targets};
 pub use screened::{
     choose_estimator, laplace_of, screened_evidence, BaseEvidence, Estimator, Extension,
-    LaplaceInU, ScreenOptions, ScreenedEvidence, GSS_REPLICATES,
+    LaplaceInU, ScreenOptions, ScreenedEvidence, GSS_REPLICATES, IMPORTANCE_DRAWS,
 };
 pub use tempering::TemperingRun;
 pub use unconstrained::{sample_in_unconstrained, LogitMap, Unconstrained};
