@@ -8,7 +8,9 @@
 //! maximum log-likelihood rises by more than `ln C` per added channel, `C` the number of
 //! channels: the log prior odds of one particular channel joining the set when every
 //! subset size is equally likely a priori. A set that covers every channel of one
-//! quantity is reported as that quantity.
+//! quantity is reported as that quantity. A grown set is fitted from the fit of the set
+//! it grew from (its effect parameters are the same ones, acting on one more channel),
+//! not from a fresh Latin hypercube: one start instead of `n_effect_starts + 1`.
 
 use super::data::DiagnosisData;
 use super::fit::{effect_starts, fit_map, MapFit, MapOptions};
@@ -148,8 +150,15 @@ pub fn search(
                 if tried.iter().any(|f| f.location == loc) {
                     continue;
                 }
-                let from = &best.map.z[..nominal_z.len()];
-                let Ok(f) = fit_location(data, hypothesis, &loc, from, opts) else {
+                // One more channel under the same effect parameters: the set's own fit
+                // is the start (a fresh search of the effect's box would only find it
+                // again; see the module docs).
+                let warm = fit_location(data, hypothesis, &loc, &best.map.z, opts);
+                let fresh = || {
+                    let from = &best.map.z[..nominal_z.len()];
+                    fit_location(data, hypothesis, &loc, from, opts)
+                };
+                let Ok(f) = warm.or_else(|_| fresh()) else {
                     continue;
                 };
                 progress(hypothesis.name(), &loc);
