@@ -14,6 +14,7 @@ use std::time::Instant;
 
 use frfbayes::discrepancy::model_evidence::LAPLACE_ALLOWANCE_NATS;
 use frfbayes::discrepancy::verdict::decisive_ln_bayes_factor;
+use frfbayes::infer::importance_evidence;
 use frfbayes::infer::validation::{NestedModel, NestedProblem, ProblemSpec};
 use frfbayes::infer::TemperedTarget;
 use frfbayes::infer::{
@@ -21,7 +22,6 @@ use frfbayes::infer::{
     screened_evidence, stepping_stone, BaseEvidence, BridgeOptions, Estimator, EvidenceOptions,
     Extension, ScreenOptions, GSS_REPLICATES, IMPORTANCE_DRAWS,
 };
-use frfbayes::infer::{importance_evidence, screened::trusted};
 
 /// Seed of the problem data (the same problems for every estimator and tool).
 const PROBLEM_SEED: u64 = 1;
@@ -176,7 +176,7 @@ fn importance_sampling_is_right_where_it_is_kept() {
                     1000 + seed,
                 )
                 .unwrap();
-                if !trusted(&is) {
+                if !is.reliable() {
                     continue;
                 }
                 kept += 1;
