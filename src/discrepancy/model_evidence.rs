@@ -88,12 +88,7 @@ pub fn laplace_u(post: &ModelPosterior, z: &[f64]) -> LaplaceOutcome {
 }
 
 /// What an extension's screen needs of the nominal model.
-pub fn extension_of(
-    nominal: &ModelResult,
-    lap0: Option<&LaplaceInU>,
-    map: &MapFit,
-    contested: bool,
-) -> Extension {
+pub fn extension_of(nominal: &ModelResult, lap0: Option<&LaplaceInU>, map: &MapFit) -> Extension {
     Extension {
         base: BaseEvidence {
             ln_z: nominal.ln_z().unwrap_or(f64::NAN),
@@ -101,7 +96,6 @@ pub fn extension_of(
             max_ln_likelihood: nominal.map.ln_likelihood,
         },
         gain_bound_nats: gain_bound(map.ln_likelihood, nominal.map.ln_likelihood),
-        contested,
     }
 }
 
@@ -159,7 +153,7 @@ pub fn completion(
         let estimator = match extension {
             Some(x) => {
                 let delta = x.delta_laplace(lap.map(|l| l.laplace.ln_z));
-                choose_estimator(x, delta, &screen)
+                choose_estimator(x.gain_bound_nats, delta, &screen)
             }
             None if lap.is_some() => Estimator::GeneralisedSteppingStone,
             None => Estimator::SteppingStone,

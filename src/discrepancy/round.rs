@@ -28,7 +28,7 @@ use super::refine::refit_in_time_domain;
 use super::search::{search, HypothesisSearch, SearchOptions};
 use super::verdict::{decide, held_out_passes, is_decisive, Candidate, Decision};
 use crate::error::Result;
-use crate::infer::screened::{is_contested, laplace_reach, Estimator, Extension};
+use crate::infer::screened::{is_contested, laplace_reach, Estimator};
 use crate::io::stages::{staged, Stages};
 use crate::io::Campaign;
 use std::sync::Arc;
@@ -299,20 +299,14 @@ fn evidence_runs(
             Some((&searches[i].0, b, post, lap))
         })
         .collect();
-    // Contests between hypotheses are settled after they are judged (decide_round):
-    // only passing ones can tie or outrank each other.
-    let extensions: Vec<Extension> = picked
-        .iter()
-        .map(|(_, best, _, _)| {
-            extension_of(&base.result, base.laplace.as_ref().ok(), &best.map, false)
-        })
-        .collect();
     let stage_name = |h: &Arc<dyn Hypothesis>| format!("{}{}", tag(step), h.name());
     let done = crate::dist::farm(
         picked.len(),
         |k| {
             let (h, best, post, lap) = &picked[k];
-            let x = &extensions[k];
+            // Contests between hypotheses are settled after they are judged
+            // (decide_round): only passing ones can tie or outrank each other.
+            let x = extension_of(&base.result, base.laplace.as_ref().ok(), &best.map);
             let index = (64 * step + k + 1) as u64;
             let name = stage_name(h);
             completion(
@@ -320,7 +314,7 @@ fn evidence_runs(
                 post,
                 &best.map,
                 lap,
-                Some(x),
+                Some(&x),
                 ctx.opts,
                 index,
                 ctx.stages,

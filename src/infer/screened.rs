@@ -8,8 +8,9 @@
 //!    the bound and Laplace's `Delta`, and its sd as 0: a bound, not an estimate).
 //! 2. **Laplace in logit coordinates** ([`super::nested::laplace_in_u`]), where its
 //!    `Delta` is below the threshold by more than two allowances
-//!    ([`ScreenOptions::laplace_allowance_nats`]), or above it by as much with no other
-//!    extension within reach ([`is_contested`]): [`Estimator::Laplace`], with the
+//!    ([`ScreenOptions::laplace_allowance_nats`]), or above it by as much (a caller
+//!    ranking extensions then settles contests among those within reach of each
+//!    other, [`is_contested`], by runs): [`Estimator::Laplace`], with the
 //!    allowance as its sd. The allowance is not a computed error but a stated one, set from
 //!    Laplace's measured errors on the validation problems ([`super::validation`]: at
 //!    most 0.45 nats) and on the four-story campaign's seven models (at most 0.3 nats
@@ -96,21 +97,24 @@ pub struct ScreenOptions {
     pub importance_draws: usize,
 }
 
-/// The estimator for extension `x` whose Laplace `Delta ln Z` (in logit coordinates,
-/// against the base's) is `delta_laplace_nats` (`None`: no mode found); module docs.
+/// The estimator for an extension whose gain bound is `gain_bound_nats` and whose
+/// Laplace `Delta ln Z` (in logit coordinates, against the base's) is
+/// `delta_laplace_nats` (`None`: no mode found); module docs. Far above the threshold
+/// it is Laplace whatever other extensions there are: a caller that ranks extensions
+/// settles contests afterwards, among those that pass ([`is_contested`]).
 pub fn choose_estimator(
-    x: &Extension,
+    gain_bound_nats: f64,
     delta_laplace_nats: Option<f64>,
     opts: &ScreenOptions,
 ) -> Estimator {
     let (thr, a) = (opts.threshold_nats, opts.laplace_allowance_nats);
-    if x.gain_bound_nats < thr {
+    if gain_bound_nats < thr {
         return Estimator::GainBound;
     }
     match delta_laplace_nats {
         None => Estimator::SteppingStone,
         Some(d) if d + 2.0 * a < thr => Estimator::Laplace,
-        Some(d) if d - 2.0 * a >= thr && !x.contested => Estimator::Laplace,
+        Some(d) if d - 2.0 * a >= thr => Estimator::Laplace,
         Some(_) => Estimator::GeneralisedSteppingStone,
     }
 }
@@ -226,9 +230,6 @@ pub struct Extension {
     pub base: BaseEvidence,
     /// [`super::nested::gain_bound`] of the extension over the base, nats.
     pub gain_bound_nats: f64,
-    /// Another extension of the base could come within the threshold of this one
-    /// ([`is_contested`]): Laplace then decides only what is clearly below the threshold.
-    pub contested: bool,
 }
 
 impl Extension {
@@ -367,43 +368,17 @@ mod tests {
         }
     }
 
-    fn extension(gain_bound_nats: f64, contested: bool) -> Extension {
-        let base = BaseEvidence {
-            ln_z: 0.0,
-            ln_z_laplace: Some(0.0),
-            max_ln_likelihood: 0.0,
-        };
-        Extension {
-            base,
-            gain_bound_nats,
-            contested,
-        }
-    }
-
     #[test]
-    fn laplace_decides_only_far_from_the_threshold_and_from_rivals() {
+    fn laplace_decides_only_far_from_the_threshold() {
         let o = options();
-        let pick = |g, d, c| choose_estimator(&extension(g, c), d, &o);
-        assert_eq!(pick(4.9, Some(-20.0), false), Estimator::GainBound);
-        assert_eq!(pick(50.0, Some(-5.0), false), Estimator::Laplace);
+        let pick = |g, d| choose_estimator(g, d, &o);
+        assert_eq!(pick(4.9, Some(-20.0)), Estimator::GainBound);
+        assert_eq!(pick(50.0, Some(-5.0)), Estimator::Laplace);
         // Within two allowances of the threshold, on either side: a run.
-        assert_eq!(
-            pick(50.0, Some(-4.9), false),
-            Estimator::GeneralisedSteppingStone
-        );
-        assert_eq!(
-            pick(50.0, Some(15.0), false),
-            Estimator::GeneralisedSteppingStone
-        );
-        // Far above, alone: Laplace; with a rival in reach: a run.
-        assert_eq!(pick(50.0, Some(15.1), false), Estimator::Laplace);
-        assert_eq!(
-            pick(50.0, Some(15.1), true),
-            Estimator::GeneralisedSteppingStone
-        );
-        // Far below stays Laplace whatever the rivals.
-        assert_eq!(pick(50.0, Some(-30.0), true), Estimator::Laplace);
-        assert_eq!(pick(50.0, None, false), Estimator::SteppingStone);
+        assert_eq!(pick(50.0, Some(-4.9)), Estimator::GeneralisedSteppingStone);
+        assert_eq!(pick(50.0, Some(15.0)), Estimator::GeneralisedSteppingStone);
+        assert_eq!(pick(50.0, Some(15.1)), Estimator::Laplace);
+        assert_eq!(pick(50.0, None), Estimator::SteppingStone);
     }
 
     #[test]

@@ -160,17 +160,7 @@ impl FrfMagnitudesSpec {
                 swatch: Swatch::Line(self.look(i)),
             });
         }
-        if !self.bands.is_empty() {
-            entries.push(Entry {
-                label: BAND_LABEL.into(),
-                swatch: Swatch::Patch(style::band_shade()),
-            });
-        }
-        panel::frame(&mut chart)?;
-        if occ.is_empty() {
-            panel::note(&chart, "no data", NORMAL)?;
-        }
-        panel::legend(&chart, &entries, &occ, NORMAL)
+        finish_panel(&mut chart, entries, &occ, !self.bands.is_empty())
     }
 
     /// The coherence panel under the magnitudes, on the same frequency axis.
@@ -371,16 +361,27 @@ impl ComparisonPanel {
         panel::line(
             &mut chart, &e.freq_hz, &e.values, exp_stroke, None, &mut occ,
         )?;
-        if !self.bands.is_empty() {
-            entries.push(Entry {
-                label: BAND_LABEL.into(),
-                swatch: Swatch::Patch(style::band_shade()),
-            });
-        }
-        panel::frame(&mut chart)?;
-        if occ.is_empty() {
-            panel::note(&chart, "no data", NORMAL)?;
-        }
-        panel::legend(&chart, &entries, &occ, NORMAL)
+        finish_panel(&mut chart, entries, &occ, !self.bands.is_empty())
     }
+}
+
+/// Ends an FRF panel: the band swatch in the legend when bands are shaded, the frame,
+/// a "no data" note when nothing was drawn, and the legend where it covers least.
+fn finish_panel<DB: DrawingBackend>(
+    chart: &mut panel::Chart<DB>,
+    mut entries: Vec<Entry>,
+    occ: &Occupied,
+    has_bands: bool,
+) -> DResult<(), DB> {
+    if has_bands {
+        entries.push(Entry {
+            label: BAND_LABEL.into(),
+            swatch: Swatch::Patch(style::band_shade()),
+        });
+    }
+    panel::frame(chart)?;
+    if occ.is_empty() {
+        panel::note(chart, "no data", NORMAL)?;
+    }
+    panel::legend(chart, &entries, occ, NORMAL)
 }
