@@ -130,6 +130,7 @@ fn every_case_matches_its_index_entry_and_the_benchmark_ranges() {
             ground_acceleration_m_per_s2: s * r.ground_acceleration_m_per_s2,
             acceleration_m_per_s2: s * r.acceleration_m_per_s2,
             displacement_m: s * r.displacement_m,
+            ar1_coefficient: 0.0,
         };
         for (a, b) in [
             (m.noise.force_n, expect.force_n),

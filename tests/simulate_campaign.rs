@@ -70,6 +70,7 @@ fn noise() -> NoiseSpec {
         ground_acceleration_m_per_s2: 0.002,
         acceleration_m_per_s2: 0.005,
         displacement_m: 2e-6,
+        ar1_coefficient: 0.0,
     }
 }
 

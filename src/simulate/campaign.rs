@@ -250,6 +250,7 @@ impl Simulator {
                         std,
                         seed,
                         stream: noise_stream(test.name(), &channel.name),
+                        ar1: noise.ar1_coefficient,
                     }));
                 }
                 ChannelPlan {

@@ -156,7 +156,13 @@ impl SamplingSpec {
     }
 }
 
-/// Standard deviation of the Gaussian white sensor noise per quantity, at the output rate.
+/// Standard deviation of the Gaussian sensor noise per quantity, at the output rate.
+/// White by default; `ar1_coefficient = phi > 0` makes every channel's noise a
+/// stationary first-order autoregression at the output rate (red noise),
+/// `n_t = phi n_(t-1) + sqrt(1 - phi^2) sigma e_t`, whose standard deviation is still
+/// `sigma` but whose power spectral density `(1 - phi^2) / (1 - 2 phi cos(2 pi f / fs) + phi^2)`
+/// falls with frequency: the noise of neighbouring frequencies is alike, unlike the
+/// flat spectrum the estimator's error model is usually checked on.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NoiseSpec {
@@ -168,6 +174,14 @@ pub struct NoiseSpec {
     pub acceleration_m_per_s2: f64,
     #[serde(default)]
     pub displacement_m: f64,
+    /// Lag-one autocorrelation `phi` of every channel's noise at the output rate, in
+    /// `[0, 1)`; 0 (the default) is white noise.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub ar1_coefficient: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// One test to simulate.

@@ -52,24 +52,37 @@ impl SensorStage for Decimate {
     }
 }
 
-/// Additive Gaussian white noise of standard deviation `std` (in the channel's unit).
-/// The noise is drawn from `ChaCha8Rng` seeded with `seed` on stream `stream`, so each
-/// channel's noise depends only on the seed and its own stream, whatever the order or
-/// thread in which channels are simulated.
+/// Additive stationary Gaussian noise of standard deviation `std` (in the channel's
+/// unit): white when `ar1 = 0`, otherwise the first-order autoregression
+/// `n_t = ar1 n_(t-1) + sqrt(1 - ar1^2) std e_t` started from its stationary law
+/// (`n_0 = std e_0`), so every sample has sd `std` and lag-k correlation `ar1^k`.
+/// The innovations `e_t` are drawn from `ChaCha8Rng` seeded with `seed` on stream
+/// `stream`, so each channel's noise depends only on the seed and its own stream,
+/// whatever the order or thread in which channels are simulated; white noise is the
+/// same draws as before the coefficient existed.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GaussianNoise {
     pub std: f64,
     pub seed: u64,
     pub stream: u64,
+    /// Lag-one autocorrelation at the signal's rate, in `[0, 1)`.
+    pub ar1: f64,
 }
 
 impl SensorStage for GaussianNoise {
     fn apply(&self, mut signal: Signal) -> Result<Signal> {
         let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
         rng.set_stream(self.stream);
+        let innovation = (1.0 - self.ar1 * self.ar1).sqrt();
+        let mut previous: Option<f64> = None;
         for v in &mut signal.samples {
             let z: f64 = rng.sample(StandardNormal);
-            *v += self.std * z;
+            let n = match previous {
+                Some(p) if self.ar1 != 0.0 => self.ar1 * p + innovation * z,
+                _ => z,
+            };
+            previous = Some(n);
+            *v += self.std * n;
         }
         Ok(signal)
     }
@@ -108,6 +121,7 @@ mod tests {
             std: 0.005,
             seed: 7,
             stream: noise_stream("hammer-floor1", "acc1"),
+            ar1: 0.0,
         };
         let a = noise.apply(zero.clone()).unwrap().samples;
         let b = noise.apply(zero.clone()).unwrap().samples;
@@ -127,6 +141,52 @@ mod tests {
         // Independent streams: sample correlation within 5/sqrt(n).
         let corr = a.iter().zip(&c).map(|(x, y)| x * y).sum::<f64>() / (n as f64 * 0.005 * 0.005);
         assert!(corr.abs() < 5.0 / (n as f64).sqrt(), "{corr}");
+    }
+
+    #[test]
+    fn red_noise_has_its_standard_deviation_and_lag_correlations() {
+        let (n, phi, sd) = (200_000, 0.9, 0.005);
+        let zero = Signal {
+            samples: vec![0.0; n],
+            rate_hz: 500.0,
+        };
+        let noise = GaussianNoise {
+            std: sd,
+            seed: 11,
+            stream: noise_stream("hammer-floor2", "acc3"),
+            ar1: phi,
+        };
+        let a = noise.apply(zero).unwrap().samples;
+        let lag = |k: usize| {
+            a.iter().zip(&a[k..]).map(|(x, y)| x * y).sum::<f64>() / ((n - k) as f64 * sd * sd)
+        };
+        // AR(1) theory (Bartlett): var(s^2 / sigma^2) = 2 (1 + phi^2) / ((1 - phi^2) n),
+        // var(r_1) = (1 - phi^2) / n; 5 sd bounds.
+        let s2 = lag(0);
+        let sd_s2 = (2.0 * (1.0 + phi * phi) / ((1.0 - phi * phi) * n as f64)).sqrt();
+        assert!((s2 - 1.0).abs() < 5.0 * sd_s2, "{s2}");
+        let r1 = lag(1) / s2;
+        assert!(
+            (r1 - phi).abs() < 5.0 * ((1.0 - phi * phi) / n as f64).sqrt(),
+            "{r1}"
+        );
+        // Lag 2: phi^2, with Bartlett's variance for an AR(1),
+        // ((1 + phi^2) (1 + phi^4) / (1 - phi^2) - 4 phi^4) / n.
+        let r2 = lag(2) / s2;
+        let (p2, p4) = (phi * phi, phi.powi(4));
+        let var_r2 = ((1.0 + p2) * (1.0 + p4) / (1.0 - p2) - 4.0 * p4) / n as f64;
+        assert!((r2 - p2).abs() < 5.0 * var_r2.sqrt(), "{r2}");
+        // White noise with ar1 = 0 is uncorrelated at lag one.
+        let white = GaussianNoise { ar1: 0.0, ..noise };
+        let w = white
+            .apply(Signal {
+                samples: vec![0.0; n],
+                rate_hz: 500.0,
+            })
+            .unwrap()
+            .samples;
+        let w1 = w.iter().zip(&w[1..]).map(|(x, y)| x * y).sum::<f64>() / (n as f64 * sd * sd);
+        assert!(w1.abs() < 5.0 / (n as f64).sqrt(), "{w1}");
     }
 
     #[test]

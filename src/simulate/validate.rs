@@ -157,7 +157,8 @@ impl SimModel {
         Ok(())
     }
 
-    /// `[noise]`: every standard deviation finite and non-negative.
+    /// `[noise]`: every standard deviation finite and non-negative, the AR(1)
+    /// coefficient in `[0, 1)`.
     fn check_noise(&self, path: &Path) -> Result<()> {
         let z = &self.noise;
         for (key, v) in [
@@ -175,6 +176,13 @@ impl SimModel {
                     format!("noise.{key} must be finite and >= 0 (got {v})"),
                 );
             }
+        }
+        let phi = z.ar1_coefficient;
+        if !(phi.is_finite() && (0.0..1.0).contains(&phi)) {
+            return bad(
+                path,
+                format!("noise.ar1_coefficient must be in [0, 1) (got {phi}); 0 is white noise"),
+            );
         }
         Ok(())
     }

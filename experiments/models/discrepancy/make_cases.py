@@ -163,8 +163,23 @@ def location_toml(loc):
     return "{ " + ", ".join(items) + " }" if items else "{}"
 
 
-def model_toml(cid, verdict, scale, seed, effects):
+# The true frame of ../four-story-truth.toml; make_nulls.py varies it.
+TRUTH = {
+    "floor_mass_kg": [5.155, 4.953, 4.949, 5.090],
+    "story_stiffness_n_per_m": [1090.0, 1258.0, 1378.0, 2666.0],
+    "xi": [0.017, 0.0115, 0.006, 0.004],
+}
+
+
+def toml_list(values):
+    return "[" + ", ".join(repr(float(v)) for v in values) + "]"
+
+
+def model_toml(cid, verdict, scale, seed, effects, truth=TRUTH, impacts=IMPACTS, ar1=0.0,
+               writer="make_cases.py"):
     noise = "\n".join(f"{k} = {v * scale:g}" for k, v in NOISE.items())
+    if ar1:
+        noise += f"\nar1_coefficient = {ar1:g}                 # red noise: AR(1) at the output rate"
     hammers = "\n".join(
         f"""[[test]]
 name = "hammer-floor{f}"
@@ -174,24 +189,25 @@ duration_s = 120.0
 pulse_duration_s = 0.003
 impacts = [{{ time_s = 2.0003, peak_force_n = {w} }}, {{ time_s = 62.0003, peak_force_n = {s} }}]
 """
-        for f, (w, s) in IMPACTS.items()
+        for f, (w, s) in impacts.items()
     )
+    folder = "" if writer == "make_cases.py" else "nulls/"
     return f"""# Missing-physics benchmark case {cid} (expected verdict: {verdict}); see README.md.
-# Written by make_cases.py: edit that, not this file.
+# Written by {writer}: edit that, not this file.
 #
-#   frfbayes simulate --model experiments/models/discrepancy/{cid}.toml --out <campaign>
+#   frfbayes simulate --model experiments/models/discrepancy/{folder}{cid}.toml --out <campaign>
 
 title = "four-story frame (benchmark case {cid})"
 seed = {seed}
 
 [structure]
 kind = "shear_frame"
-floor_mass_kg = [5.155, 4.953, 4.949, 5.090]
-story_stiffness_n_per_m = [1090.0, 1258.0, 1378.0, 2666.0]
+floor_mass_kg = {toml_list(truth["floor_mass_kg"])}
+story_stiffness_n_per_m = {toml_list(truth["story_stiffness_n_per_m"])}
 
 [damping]
 model = "modal"
-xi = [0.017, 0.0115, 0.006, 0.004]
+xi = {toml_list(truth["xi"])}
 
 [nominal]
 floor_mass_kg = [4.64, 4.64, 4.64, 4.64]
