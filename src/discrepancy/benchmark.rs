@@ -27,6 +27,10 @@ pub struct BenchmarkCase {
     pub size: String,
     pub noise_scale: f64,
     pub seed: u64,
+    /// The true values of the effect's parameters, named and in the units `diagnose`
+    /// reports them (`effect_parameters`); for scoring intervals only.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub truth: BTreeMap<String, f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -45,6 +49,8 @@ struct RawCase {
     size: String,
     noise_scale: f64,
     seed: u64,
+    #[serde(default)]
+    truth: BTreeMap<String, f64>,
 }
 
 /// Reads `cases.toml`: the hypothesis names and the cases (model paths made absolute).
@@ -78,6 +84,7 @@ pub fn read_cases(path: &Path) -> Result<(Vec<String>, Vec<BenchmarkCase>)> {
             size: c.size,
             noise_scale: c.noise_scale,
             seed: c.seed,
+            truth: c.truth,
         });
     }
     Ok((file.hypotheses, cases))
@@ -240,6 +247,7 @@ pub fn benchmark_markdown(outcomes: &[CaseOutcome], hypotheses: &[String], title
             o.seconds
         );
     }
+    s.push_str(&super::effect_coverage::coverage_markdown(outcomes));
     s
 }
 
@@ -260,6 +268,36 @@ mod tests {
             assert!(cases.iter().filter(|c| &c.verdict == h).count() >= 3, "{h}");
         }
         assert!(cases.iter().all(|c| c.model.exists()), "model files exist");
+        for c in cases.iter().filter(|c| c.verdict == "none") {
+            assert!(c.truth.is_empty(), "{}", c.id);
+        }
+        for c in cases.iter().filter(|c| c.verdict != "none") {
+            assert!(!c.truth.is_empty(), "{}: no truth", c.id);
+        }
+    }
+
+    #[test]
+    fn the_null_and_coverage_case_files_read() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/models/discrepancy");
+        let (_, nulls) = read_cases(&dir.join("nulls/cases.toml")).unwrap();
+        assert_eq!(nulls.len(), 30);
+        assert!(nulls
+            .iter()
+            .all(|c| c.verdict == "none" && c.model.exists()));
+        let red = nulls
+            .iter()
+            .filter(|c| {
+                let m = crate::simulate::SimModel::from_path(&c.model).unwrap();
+                m.noise.ar1_coefficient > 0.0
+            })
+            .count();
+        assert_eq!(red, 20, "20 of the 30 nulls have red noise");
+        let (hyps, cov) = read_cases(&dir.join("coverage/cases.toml")).unwrap();
+        assert!(cov.len() >= 30);
+        for c in &cov {
+            assert!(hyps.contains(&c.verdict) && c.model.exists(), "{}", c.id);
+            assert!(!c.truth.is_empty(), "{}: no truth", c.id);
+        }
     }
 
     #[test]

@@ -9,6 +9,7 @@ mod bins;
 pub mod consistency;
 pub mod data;
 pub mod diagnose;
+pub mod effect_coverage;
 pub mod effect_summary;
 pub mod extension;
 pub mod figures;

@@ -13,6 +13,9 @@ The design figures in README.md come from `cargo test --release --test
 discrepancy_cases -- --nocapture`, which also checks every case against the ranges.
 """
 
+import math
+import tomllib
+
 NOISE = {  # the recorded campaign's noise (std at 500 Hz), scaled per case
     "force_n": 0.02,
     "ground_acceleration_m_per_s2": 0.002,
@@ -151,6 +154,40 @@ damping_ratio = 0.7
 IMPACTS = {1: (21.0, 122.0), 2: (19.0, 118.0), 3: (22.0, 125.0), 4: (18.0, 115.0)}
 
 
+def effect_truth(effects):
+    """The true values of the effect parameters `diagnose` reports (diagnosis.json,
+    `effects[i].effect_parameters`, same names and units) for a case's one effect."""
+    table = tomllib.loads(effects) if effects.strip() else {}
+    entries = table.get("effect", []) + table.get("sensor_effect", [])
+    if len(entries) != 1:
+        return {}
+    e = entries[0]
+    two_pi = 2.0 * math.pi
+    if e["kind"] == "base_flexibility":
+        m, k, c = e["mass_kg"], e["stiffness_n_per_m"], e["damping_n_s_per_m"]
+        return {"base_mass": m, "base_frequency": math.sqrt(k / m) / two_pi,
+                "base_damping_ratio": c / (2.0 * math.sqrt(k * m))}
+    if e["kind"] == "dashpot":
+        return {"damper_coefficient": e["coefficient_n_s_per_m"]}
+    if e["kind"] == "oscillator":
+        m, k = e["mass_kg"], e["stiffness_n_per_m"]
+        return {"oscillator_mass": m, "oscillator_frequency": math.sqrt(k / m) / two_pi,
+                "oscillator_damping_ratio": e["damping_ratio"]}
+    if e["kind"] == "stiffness_nonlinearity":
+        return {"k3": e["k3_n_per_m3"]}
+    if e["kind"] == "time_offset":
+        return {"time_offset": e["offset_s"]}
+    if e["kind"] == "low_pass":
+        return {"sensor_frequency": e["natural_frequency_hz"],
+                "sensor_damping_ratio": e["damping_ratio"]}
+    raise ValueError(f"unknown effect kind {e['kind']}")
+
+
+def truth_toml(values):
+    items = ", ".join(f"{k} = {v!r}" for k, v in values.items())
+    return "{ " + items + " }" if items else "{}"
+
+
 def location_toml(loc):
     items = []
     for k, v in loc.items():
@@ -176,7 +213,7 @@ def toml_list(values):
 
 
 def model_toml(cid, verdict, scale, seed, effects, truth=TRUTH, impacts=IMPACTS, ar1=0.0,
-               writer="make_cases.py"):
+               writer="make_cases.py", folder=""):
     noise = "\n".join(f"{k} = {v * scale:g}" for k, v in NOISE.items())
     if ar1:
         noise += f"\nar1_coefficient = {ar1:g}                 # red noise: AR(1) at the output rate"
@@ -191,7 +228,6 @@ impacts = [{{ time_s = 2.0003, peak_force_n = {w} }}, {{ time_s = 62.0003, peak_
 """
         for f, (w, s) in impacts.items()
     )
-    folder = "" if writer == "make_cases.py" else "nulls/"
     return f"""# Missing-physics benchmark case {cid} (expected verdict: {verdict}); see README.md.
 # Written by {writer}: edit that, not this file.
 #
@@ -244,6 +280,7 @@ def main():
         "# Written by make_cases.py; read by the `diagnose` benchmark. Verdicts are the",
         "# hypothesis names (or \"none\"); location is {} for the whole structure, or",
         "# { story = s }, { floor = f }, { channels = [...] }, { quantity = \"...\" }.",
+        "# truth: the true values of the effect parameters diagnose reports (scoring only).",
         "",
         'hypotheses = ["base_flexibility", "nonproportional_damping", "secondary_oscillator",',
         '              "stiffness_nonlinearity", "sensor_timing", "sensor_dynamics"]',
@@ -262,6 +299,9 @@ def main():
             f"noise_scale = {scale:g}".replace("= 1", "= 1.0").replace("= 2", "= 2.0"),
             f"seed = {seed}",
         ]
+        truth = effect_truth(effects)
+        if truth:
+            index.append(f"truth = {truth_toml(truth)}")
     with open("cases.toml", "w") as f:
         f.write("\n".join(index) + "\n")
 

@@ -65,7 +65,7 @@ def main():
         seed = 8000 + i
         truth, scale, impacts, ar1 = draw_case(rng, i)
         text = model_toml(cid, "none", scale, seed, "", truth=truth, impacts=impacts, ar1=ar1,
-                          writer="make_nulls.py")
+                          writer="make_nulls.py", folder="nulls/")
         with open(os.path.join("nulls", f"{cid}.toml"), "w") as f:
             f.write(text)
         colour = "white" if ar1 == 0.0 else f"red noise phi {ar1:g}"
