@@ -25,16 +25,30 @@ fn cases_dir() -> PathBuf {
         .unwrap_or_else(|| PathBuf::from("/tmp/diag-cases"))
 }
 
+/// The model file of case `id`: in the benchmark folder, or its `nulls/` or `coverage/`.
 fn model_path(id: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("experiments/models/discrepancy")
-        .join(format!("{id}.toml"))
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/models/discrepancy");
+    ["", "nulls", "coverage"]
+        .iter()
+        .map(|sub| dir.join(sub).join(format!("{id}.toml")))
+        .find(|p| p.exists())
+        .unwrap_or_else(|| dir.join(format!("{id}.toml")))
+}
+
+/// `FRFBAYES_CHECK_NOISE_FREE=1`: the cases are simulated without sensor noise (cached
+/// as `<id>-noise-free`), so what is left at the truth is the estimator's own error.
+fn noise_free() -> bool {
+    std::env::var("FRFBAYES_CHECK_NOISE_FREE").is_ok_and(|v| v == "1")
 }
 
 /// The campaign of case `id` (cached) and its simulation model.
 fn case(id: &str) -> (Campaign, SimModel) {
-    let model = SimModel::from_path(&model_path(id)).unwrap();
-    let dir = cases_dir().join(id);
+    let mut model = SimModel::from_path(&model_path(id)).unwrap();
+    let mut dir = cases_dir().join(id);
+    if noise_free() {
+        model.noise = Default::default();
+        dir = cases_dir().join(format!("{id}-noise-free"));
+    }
     if !dir.join("campaign.toml").exists() {
         let seed = model.seed.unwrap_or(0);
         let c = Simulator::new(model.clone())
@@ -48,7 +62,8 @@ fn case(id: &str) -> (Campaign, SimModel) {
 
 /// Expected verdict and location of a case (cases.toml).
 fn expected(id: &str) -> (String, Location) {
-    let text = std::fs::read_to_string(model_path("cases")).unwrap();
+    let cases = model_path(id).with_file_name("cases.toml");
+    let text = std::fs::read_to_string(cases).unwrap();
     let v: toml::Value = toml::from_str(&text).unwrap();
     let c = v["case"]
         .as_array()
@@ -333,6 +348,27 @@ fn true_parameters_explain_the_estimated_frfs() {
                         .collect();
                     println!("      per segment: {}", per.join(", "));
                 }
+            }
+        }
+        // The estimates against the model at the truth, per segment: relative error of
+        // the points in resonance bands (median and largest).
+        for (seg, ranges) in data.segments.iter().zip(post.model().layout()) {
+            let mut rel: Vec<f64> = Vec::new();
+            for (ch, r) in seg.channels.iter().zip(ranges) {
+                for i in 0..ch.len() {
+                    if ch.band[i].is_some() {
+                        rel.push(((pred[r.start + i] - ch.h[i]) / ch.h[i]).norm());
+                    }
+                }
+            }
+            rel.sort_by(f64::total_cmp);
+            if let (Some(max), false) = (rel.last(), rel.is_empty()) {
+                println!(
+                    "  {}: in-band |pred / h - 1| median {:.2e}, max {max:.2e} ({} points)",
+                    seg.name,
+                    rel[rel.len() / 2],
+                    rel.len()
+                );
             }
         }
         let mut by_seg: Vec<(String, f64)> = Vec::new();

@@ -102,6 +102,11 @@ pub struct ChannelData {
     /// Bendat & Piersol relative random error `eps` of each point: `std(Re) = std(Im) =
     /// eps |h|`.
     pub rel_err: Vec<f64>,
+    /// The estimator's own systematic error at each point, added to the
+    /// frequency-domain model's prediction (empty: none). Set by
+    /// [`DiagnosisData::with_estimator_bias`] from a replay of the tests
+    /// (see [`super::estimator_bias`]).
+    pub estimator_bias: Vec<Complex64>,
 }
 
 impl ChannelData {
@@ -514,6 +519,7 @@ fn build_segment(
             band: Vec::new(),
             h: Vec::new(),
             rel_err: Vec::new(),
+            estimator_bias: Vec::new(),
         };
         for (i, &k) in sel.iter().enumerate() {
             let g2 = resp.coherence[k];

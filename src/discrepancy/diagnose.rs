@@ -24,6 +24,7 @@ use super::adequacy::{assess, Adequacy};
 use super::consistency::{check_campaign, ConsistencyOptions};
 use super::data::{DataOptions, DiagnosisData};
 pub use super::effect_summary::effect_columns;
+use super::estimator_bias::replay_bias;
 use super::fit::{fit_map, frame_starts, MapFit, MapOptions};
 use super::forward::frame_system;
 use super::heldout::HeldOut;
@@ -66,6 +67,10 @@ pub struct DiagnoseOptions {
     pub evidence: Option<EvidenceOptions>,
     /// Only these hypotheses (all when empty).
     pub only: Vec<String>,
+    /// Add the hammer estimator's own systematic error, measured by replaying the tests
+    /// at the nominal MAP, to every frequency-domain prediction
+    /// ([`super::estimator_bias`]), and refit the nominal model with it.
+    pub estimator_bias: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -79,6 +84,7 @@ impl Default for DiagnoseOptions {
             max_evidence_runs: usize::MAX,
             evidence: None,
             only: Vec::new(),
+            estimator_bias: true,
         }
     }
 }
@@ -264,7 +270,14 @@ pub fn diagnose_resumable(
     let mut timings: Timings = Vec::new();
     let mut watch = Stopwatch::new(t0);
     watch.mark("data", &mut timings);
-    let (nominal, lap0) = nominal_model(&data, opts, stages, &mut watch, &mut timings, progress)?;
+    let (data, nominal, lap0) = nominal_model(
+        campaign,
+        data,
+        opts,
+        stages,
+        (&mut watch, &mut timings),
+        progress,
+    )?;
     let nominal_laplace = lap0.as_ref().ok().map(|l| l.laplace.ln_z);
 
     let hypotheses: Vec<Arc<dyn Hypothesis>> = all_hypotheses()
@@ -323,21 +336,33 @@ pub fn diagnose_resumable(
     })
 }
 
-/// The nominal model's MAP (multistart), Laplace and evidence.
+/// The nominal model's MAP (multistart), Laplace and evidence; with
+/// `opts.estimator_bias`, the data then carry the estimator's bias measured at that MAP
+/// and the nominal model is refitted on them (from that MAP). Returns the data every
+/// later model uses.
 fn nominal_model(
-    data: &Arc<DiagnosisData>,
+    campaign: &Campaign,
+    data: Arc<DiagnosisData>,
     opts: &DiagnoseOptions,
     stages: Option<&Stages>,
-    watch: &mut Stopwatch,
-    timings: &mut Timings,
+    (watch, timings): (&mut Stopwatch, &mut Timings),
     progress: &mut dyn FnMut(DiagnoseStage<'_>),
-) -> Result<(ModelResult, LaplaceOutcome)> {
+) -> Result<(Arc<DiagnosisData>, ModelResult, LaplaceOutcome)> {
     progress(DiagnoseStage::NominalFit);
-    let post0 = ModelPosterior::new(data.clone(), None)?;
-    let map0 = staged(stages, "nominal-map", || {
+    let mut post0 = ModelPosterior::new(data.clone(), None)?;
+    let mut map0 = staged(stages, "nominal-map", || {
         let starts = frame_starts(&post0, opts.n_frame_starts, 0.3, opts.seed)?;
         fit_map(&post0, &starts, &opts.map)
     })?;
+    let mut data = data;
+    if opts.estimator_bias && data.segments.iter().any(|s| !s.is_ground()) {
+        let bias = replay_bias(campaign, &post0, &map0.z)?;
+        data = Arc::new(data.with_estimator_bias(post0.model().layout(), &bias)?);
+        post0 = ModelPosterior::new(data.clone(), None)?;
+        map0 = staged(stages, "nominal-map-debiased", || {
+            fit_map(&post0, std::slice::from_ref(&map0.z), &opts.map)
+        })?;
+    }
     watch.mark("nominal MAP", timings);
     let lap0 = laplace_u(&post0, &map0.z);
     let done = completion(
@@ -345,7 +370,7 @@ fn nominal_model(
     )?;
     let nominal = model_result("nominal", Location::Whole, post0, map0, done);
     watch.mark("nominal evidence", timings);
-    Ok((nominal, lap0))
+    Ok((data, nominal, lap0))
 }
 
 /// The consistency checks with the nominal model's residual map (or why they could not

@@ -135,6 +135,9 @@ pub struct ExtendedModel {
     sensors: Vec<Channel>,
     /// Per segment, per channel: range in the flat output.
     layout: Vec<Vec<Range<usize>>>,
+    /// The estimator's bias added to every prediction (flat; empty: none), from the
+    /// data's [`super::data::ChannelData::estimator_bias`].
+    bias: Vec<Complex64>,
 }
 
 impl ExtendedModel {
@@ -241,6 +244,7 @@ impl ExtendedModel {
             }
             layout.push(ranges);
         }
+        let bias = flat_bias(&data);
         let n_floors = data.n_floors();
         let mut offset = 0;
         for s in &mut slots {
@@ -255,6 +259,7 @@ impl ExtendedModel {
             n_solutions: offset,
             sensors,
             layout,
+            bias,
         })
     }
 
@@ -410,6 +415,9 @@ impl ExtendedModel {
             }
             *o = h;
         }
+        for (o, b) in out.iter_mut().zip(&self.bias) {
+            *o += b;
+        }
         Ok(())
     }
 
@@ -419,6 +427,22 @@ impl ExtendedModel {
         self.predict_into(base, effect, &mut out)?;
         Ok(out)
     }
+}
+
+/// The data's estimator bias in the flat layout (empty when no channel has one).
+fn flat_bias(data: &DiagnosisData) -> Vec<Complex64> {
+    if !data.has_estimator_bias() {
+        return Vec::new();
+    }
+    let zero = Complex64::new(0.0, 0.0);
+    let mut out = Vec::with_capacity(data.n_points());
+    for ch in data.segments.iter().flat_map(|s| &s.channels) {
+        match ch.estimator_bias.len() == ch.len() {
+            true => out.extend_from_slice(&ch.estimator_bias),
+            false => out.extend(std::iter::repeat_n(zero, ch.len())),
+        }
+    }
+    out
 }
 
 /// Solves `A X = B` in place by Gaussian elimination with partial pivoting: `a` is

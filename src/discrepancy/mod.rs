@@ -11,6 +11,7 @@ pub mod data;
 pub mod diagnose;
 pub mod effect_coverage;
 pub mod effect_summary;
+pub mod estimator_bias;
 pub mod extension;
 pub mod figures;
 pub mod fit;

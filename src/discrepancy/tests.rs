@@ -54,6 +54,7 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
                 band: vec![None; n],
                 h: vec![Complex64::new(1.0, 0.5); n],
                 rel_err: vec![0.01; n],
+                estimator_bias: Vec::new(),
             });
         }
     }
