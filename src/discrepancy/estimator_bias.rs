@@ -19,7 +19,8 @@
 //! model's MAP, on hammer segments (the shake-table estimate is already the ideal one
 //! within the replay's own accuracy: there the replay is the worse of the two). It is
 //! then added to every frequency-domain prediction ([`DiagnosisData::with_estimator_bias`]),
-//! of the nominal model and of every hypothesis: first order in the change of the frame
+//! of the nominal model and of every hypothesis, before a sensor hypothesis' filters
+//! (which shape the carried-over ringing as they shape the rest of the response): first order in the change of the frame
 //! between the MAP and the point evaluated. The carried-over ringing's phase turns by
 //! `omega Delta` times a mode frequency's relative change (0.03 rad for 1e-4 at 0.86 Hz
 //! and 60 s), so the correction holds where the data pin the modes (the posteriors'

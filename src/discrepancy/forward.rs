@@ -395,7 +395,8 @@ impl ExtendedModel {
             }
         }
         let one = Complex64::new(1.0, 0.0);
-        for (o, p) in out.iter_mut().zip(&self.points) {
+        let zero = Complex64::new(0.0, 0.0);
+        for (k, (o, p)) in out.iter_mut().zip(&self.points).enumerate() {
             let slot = &self.slots[p.slot as usize];
             let s = slot.s;
             let x = sol[slot.offset + p.rhs as usize * n_floors + p.floor as usize - 1];
@@ -407,6 +408,10 @@ impl ExtendedModel {
             if p.add_one {
                 h += one;
             }
+            // The estimator's bias belongs to the structure's response: a sensor filter
+            // (linear, time-invariant) shapes the carried-over ringing as it shapes the
+            // rest, so the sensor factors apply to both.
+            h += self.bias.get(k).copied().unwrap_or(zero);
             if let Some(i) = p.resp_sensor {
                 h *= factors[i as usize * n_slots + p.slot as usize];
             }
@@ -414,9 +419,6 @@ impl ExtendedModel {
                 h /= factors[i as usize * n_slots + p.slot as usize];
             }
             *o = h;
-        }
-        for (o, b) in out.iter_mut().zip(&self.bias) {
-            *o += b;
         }
         Ok(())
     }
