@@ -27,6 +27,15 @@
 //! frequencies are within about 1e-4 of the nominal MAP's), not across the prior box
 //! (`tests/discrepancy_estimator_bias.rs`).
 //!
+//! **Not the default** (`diagnose --estimator-bias`). On the recorded four-story campaign
+//! it turns the final model (sensor dynamics at the accelerometers, the same verdict and
+//! size) from adequate to not adequate: at the acc3/disp3 place of hammer-floor4 its
+//! chi2 per point rises from 1.00 to 1.57, and every place's by 0.1-0.4. There the
+//! nominal MAP, where the bias is measured, is a frame distorted by the filter the model
+//! leaves out (chi2 per point 2.0), and a ringing whose phase turns by `omega Delta`
+//! times the frequencies' error is measured wrong. Measuring it again at each round's
+//! base model is the next step; not done.
+//!
 //! The replay drives the model with the straight line between the input's samples, whose
 //! spectrum is the samples' times `sinc^2(omega h / 2)` (`h` the sample interval; about
 //! `1 - (omega h)^2 / 12`, 5e-4 at 6 Hz and 500 Hz sampling); the replay's estimates are
