@@ -101,7 +101,7 @@ fn the_replayed_bias_explains_the_lightly_damped_second_impacts() {
     // 1e-4 (0.21 rad for the highest mode, 5.6 Hz, 60 s after impact 1; bound 0.25),
     // and the miss halves with the change (first order). A 0.5 % stiffer frame (0.25 %
     // in frequency) is printed, not held to it.
-    let mut miss_of = |factor: f64| {
+    let miss_of = |factor: f64| {
         let mut moved = truth.clone();
         for k in &mut moved.stiffness_n_per_m {
             *k *= factor;

@@ -188,6 +188,24 @@ def truth_toml(values):
     return "{ " + items + " }" if items else "{}"
 
 
+def case_entry(cid, verdict, loc, size, scale, seed, truth=None):
+    """The `[[case]]` lines of one case in a cases.toml."""
+    lines = [
+        "",
+        "[[case]]",
+        f'id = "{cid}"',
+        f'model = "{cid}.toml"',
+        f'verdict = "{verdict}"',
+        f"location = {location_toml(loc)}",
+        f'size = "{size}"',
+        f"noise_scale = {float(scale)!r}",
+        f"seed = {seed}",
+    ]
+    if truth:
+        lines.append(f"truth = {truth_toml(truth)}")
+    return lines
+
+
 def location_toml(loc):
     items = []
     for k, v in loc.items():
@@ -288,20 +306,7 @@ def main():
     for cid, verdict, loc, scale, seed, effects, size in CASES:
         with open(f"{cid}.toml", "w") as f:
             f.write(model_toml(cid, verdict, scale, seed, effects))
-        index += [
-            "",
-            "[[case]]",
-            f'id = "{cid}"',
-            f'model = "{cid}.toml"',
-            f'verdict = "{verdict}"',
-            f"location = {location_toml(loc)}",
-            f'size = "{size}"',
-            f"noise_scale = {scale:g}".replace("= 1", "= 1.0").replace("= 2", "= 2.0"),
-            f"seed = {seed}",
-        ]
-        truth = effect_truth(effects)
-        if truth:
-            index.append(f"truth = {truth_toml(truth)}")
+        index += case_entry(cid, verdict, loc, size, scale, seed, effect_truth(effects))
     with open("cases.toml", "w") as f:
         f.write("\n".join(index) + "\n")
 

@@ -30,7 +30,7 @@ import math
 import os
 import random
 
-from make_cases import TRUTH, effect_truth, location_toml, model_toml, truth_toml
+from make_cases import TRUTH, case_entry, effect_truth, model_toml
 
 PER_FAMILY = 6
 ACCS = ["acc1", "acc2", "acc3", "acc4"]
@@ -143,18 +143,8 @@ def main():
                               writer="make_coverage.py", folder="coverage/")
             with open(os.path.join("coverage", f"{cid}.toml"), "w") as f:
                 f.write(text)
-            index += [
-                "",
-                "[[case]]",
-                f'id = "{cid}"',
-                f'model = "{cid}.toml"',
-                f'verdict = "{family.__name__}"',
-                f"location = {location_toml(loc)}",
-                f'size = "{size}"',
-                f"noise_scale = {float(scale)!r}",
-                f"seed = {seed}",
-                f"truth = {truth_toml(effect_truth(effects))}",
-            ]
+            index += case_entry(cid, family.__name__, loc, size, scale, seed,
+                                effect_truth(effects))
     with open(os.path.join("coverage", "cases.toml"), "w") as f:
         f.write("\n".join(index) + "\n")
 

@@ -26,7 +26,7 @@ reproducible; the simulation seeds are 8001..8030.
 import os
 import random
 
-from make_cases import TRUTH, location_toml, model_toml
+from make_cases import TRUTH, case_entry, model_toml
 
 N_CASES = 30
 N_WHITE = 10
@@ -72,17 +72,7 @@ def main():
         size = (f"nothing missing; noise x{scale:g}, {colour}; k x"
                 + "/".join(f"{k / k0:.3f}" for k, k0 in zip(truth["story_stiffness_n_per_m"],
                                                               TRUTH["story_stiffness_n_per_m"])))
-        index += [
-            "",
-            "[[case]]",
-            f'id = "{cid}"',
-            f'model = "{cid}.toml"',
-            'verdict = "none"',
-            f"location = {location_toml({})}",
-            f'size = "{size}"',
-            f"noise_scale = {float(scale)!r}",
-            f"seed = {seed}",
-        ]
+        index += case_entry(cid, "none", {}, size, scale, seed)
     with open(os.path.join("nulls", "cases.toml"), "w") as f:
         f.write("\n".join(index) + "\n")
 
