@@ -33,7 +33,8 @@ fn frf_predictor_equals_the_windowed_modal_sum_on_the_four_story_campaign() {
     .unwrap();
     let prepared = prepare(&settings).unwrap();
     let data = prepared.posterior.data().clone();
-    let model = prepared.posterior.model().clone();
+    let model = std::sync::Arc::new(prepared.posterior.model().clone());
+    let solver = prepared.posterior.mode_solver().clone();
     assert!(
         data.window_tau_s.iter().any(Option::is_some),
         "no windowed block"
@@ -54,7 +55,7 @@ fn frf_predictor_equals_the_windowed_modal_sum_on_the_four_story_campaign() {
                 .collect();
             let none = vec![None; blocks.len()];
             for taus in [&data.window_tau_s, &none] {
-                let fp = frf_predictor(&model, &vars, 4, &blocks, taus).unwrap();
+                let fp = frf_predictor(&model, &vars, 4, &blocks, taus, solver.clone()).unwrap();
                 let mut ws = fp.workspace();
                 let mut out = vec![0.0; fp.n_outputs()];
                 for _ in 0..5 {

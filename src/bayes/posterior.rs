@@ -2,7 +2,7 @@
 //! magnitudes.
 
 use super::data::FrfData;
-use super::layer::frf_predictor;
+use super::layer::{frf_predictor, mode_solver};
 use super::prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
 use crate::error::{Error, Result};
 use crate::frf::FrfBlock;
@@ -10,12 +10,14 @@ use crate::infer::likelihood::Transform;
 use crate::infer::{Block, Chain, Correlation, NoiseScale, Posterior};
 use crate::mcmc::LogDensity;
 use crate::model::StructuralModel;
-use crate::predict::{DenseModes, FrfPredictor};
+use crate::predict::choice::Anchor;
+use crate::predict::{FrfPredictor, ModeSolverChoice, ModelModes};
 use crate::update::{DampingModel, ResidualForm, VariableKind, Variables, VariablesConfig};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// Settings of an [`FrfPosterior`] beyond the data and the variables.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -25,8 +27,12 @@ pub struct PosteriorOptions {
     pub prior: PriorKind,
     /// Bounds of the log-uniform prior on the noise scale.
     pub noise_scale_bounds: [f64; 2],
-    /// Modes kept in the modal sums (all when `None`).
+    /// Modes kept in the modal sums (all when `None`; required by the reduced and exact
+    /// solvers).
     pub n_modes: Option<usize>,
+    /// The mode solver ([`ModeSolverChoice::Auto`]: dense for small models, a reduced
+    /// basis anchored at the maximum-likelihood point for large ones).
+    pub mode_solver: ModeSolverChoice,
 }
 
 impl Default for PosteriorOptions {
@@ -35,6 +41,7 @@ impl Default for PosteriorOptions {
             prior: PriorKind::Uniform,
             noise_scale_bounds: DEFAULT_NOISE_SCALE_BOUNDS,
             n_modes: None,
+            mode_solver: ModeSolverChoice::Auto,
         }
     }
 }
@@ -51,8 +58,10 @@ impl Default for PosteriorOptions {
 /// thread keeps its own scratch memory.
 #[derive(Clone)]
 pub struct FrfPosterior {
-    layer: Posterior<FrfPredictor<DenseModes>>,
-    model: StructuralModel,
+    layer: Posterior<FrfPredictor<ModelModes>>,
+    model: Arc<StructuralModel>,
+    /// The mode solver (a reduced basis is kept when the data change: [`Self::with_data`]).
+    solver: ModelModes,
     variables: Variables,
     n_modes: usize,
     data: FrfData,
@@ -71,6 +80,21 @@ impl std::fmt::Debug for FrfPosterior {
             .field("n_points", &self.data.len())
             .field("options", &self.options)
             .finish()
+    }
+}
+
+/// The modes in the modal sums: `options.n_modes`, or every mode for the dense solver.
+fn modes_in_sums(model: &StructuralModel, options: &PosteriorOptions) -> Result<usize> {
+    match (options.n_modes, options.mode_solver.resolve(model)) {
+        (Some(n), _) => Ok(n),
+        (None, ModeSolverChoice::Dense) => Ok(model.n_dof()),
+        (None, choice) => Err(Error::Usage(format!(
+            "the model has {} DOFs and is solved by the {choice:?} mode solver: give the \
+             number of its lowest modes in the modal sums (`--n-modes N`, or \
+             `[posterior] n_modes` in the settings), e.g. every mode up to well above the \
+             highest frequency analysed",
+            model.n_dof()
+        ))),
     }
 }
 
@@ -125,15 +149,33 @@ impl FrfPosterior {
         variables: &VariablesConfig,
         options: PosteriorOptions,
     ) -> Result<Self> {
+        Self::build(Arc::new(model), data, damping, variables, options, None)
+    }
+
+    /// [`Self::new`] on a given mode solver (`None`: the one `options` choose, a reduced
+    /// basis without anchor).
+    fn build(
+        model: Arc<StructuralModel>,
+        data: FrfData,
+        damping: DampingModel,
+        variables: &VariablesConfig,
+        options: PosteriorOptions,
+        solver: Option<ModelModes>,
+    ) -> Result<Self> {
         data.validate()?;
-        let n_modes = options.n_modes.unwrap_or(model.n_dof());
+        let n_modes = modes_in_sums(&model, &options)?;
         let config = VariablesConfig {
             log_damping: true,
             ..variables.clone()
         };
         let vars = Variables::new(&model, damping, n_modes.min(model.n_dof()), &config)?;
         let prior = Prior::new(options.prior, &vars, options.noise_scale_bounds)?;
-        let predictor = frf_predictor(&model, &vars, n_modes, &data.blocks, &data.window_tau_s)?;
+        let solver = match solver {
+            Some(s) => s,
+            None => mode_solver(&model, &vars, n_modes, options.mode_solver, None)?,
+        };
+        let (blocks, tau) = (&data.blocks, &data.window_tau_s);
+        let predictor = frf_predictor(&model, &vars, n_modes, blocks, tau, solver.clone())?;
         let bounds = vars.internal_bounds();
         let theta_bounds: Vec<(f64, f64)> = bounds
             .lower()
@@ -152,6 +194,7 @@ impl FrfPosterior {
         Ok(FrfPosterior {
             layer,
             model,
+            solver,
             variables: vars,
             n_modes,
             ln_jacobian_sum: ln_jacobian.iter().sum(),
@@ -173,13 +216,93 @@ impl FrfPosterior {
 
     /// The same model, variables and options with other data on the same blocks.
     pub fn with_data(&self, data: FrfData) -> Result<Self> {
-        FrfPosterior::new(
+        FrfPosterior::build(
             self.model.clone(),
             data,
             self.variables.damping_model(),
             &self.variables_config(),
             self.options,
+            Some(self.solver.clone()),
         )
+    }
+
+    /// Whether the modes come from a reduced basis ([`Self::with_basis_anchored_at`]).
+    pub fn has_reduced_basis(&self) -> bool {
+        matches!(self.solver, ModelModes::Reduced(_))
+    }
+
+    /// The same posterior with its reduced basis rebuilt to be exact at the sampled
+    /// vector `z` (its structural coordinates) and accurate around it: without `spread`,
+    /// the box's snapshots and `z`'s near ones; with `spread` (per structural coordinate,
+    /// e.g. a few Gauss-Newton sd), snapshots of `z +- spread` only
+    /// ([`crate::predict::choice::reduced_basis`]); `z`'s exact modes kept whole. The
+    /// posterior itself for other solvers.
+    pub fn with_basis_anchored_at(&self, z: &[f64], spread: Option<&[f64]>) -> Result<Self> {
+        if !self.has_reduced_basis() {
+            return Ok(self.clone());
+        }
+        let params = self.predictor().parametrisation();
+        let n = params.len();
+        if z.len() < n || spread.is_some_and(|s| s.len() < n) {
+            return Err(Error::Usage(format!(
+                "an anchor of {} coordinates for {n} structural ones",
+                z.len()
+            )));
+        }
+        let v = |z: &[f64]| {
+            let (mut alpha, mut beta) = (Vec::new(), Vec::new());
+            params.apply(z, &mut alpha, &mut beta);
+            alpha.extend(beta);
+            alpha
+        };
+        let point = v(&z[..n]);
+        // the spread in the model's variables (multipliers are linear coordinates)
+        let steps: Option<Vec<f64>> = spread.map(|s| {
+            let shifted: Vec<f64> = z[..n].iter().zip(s).map(|(a, b)| a + b).collect();
+            v(&shifted)
+                .iter()
+                .zip(&point)
+                .map(|(a, b)| (a - b).abs())
+                .collect()
+        });
+        let anchor = Anchor {
+            point: &point,
+            spread: steps.as_deref(),
+        };
+        let (vars, n_modes) = (&self.variables, self.n_modes);
+        let choice = ModeSolverChoice::Reduced;
+        let solver = mode_solver(&self.model, vars, n_modes, choice, Some(anchor))?;
+        FrfPosterior::build(
+            self.model.clone(),
+            self.data.clone(),
+            self.variables.damping_model(),
+            &self.variables_config(),
+            self.options,
+            Some(solver),
+        )
+    }
+
+    /// The same posterior on another mode solver (a reduced basis without anchor), e.g.
+    /// [`ModeSolverChoice::Exact`] to measure a reduced basis's error against.
+    pub fn with_mode_solver(&self, choice: ModeSolverChoice) -> Result<Self> {
+        let (vars, n) = (&self.variables, self.n_modes);
+        let solver = mode_solver(&self.model, vars, n, choice, None)?;
+        FrfPosterior::build(
+            self.model.clone(),
+            self.data.clone(),
+            self.variables.damping_model(),
+            &self.variables_config(),
+            PosteriorOptions {
+                mode_solver: choice,
+                ..self.options
+            },
+            Some(solver),
+        )
+    }
+
+    /// The mode solver.
+    pub fn mode_solver(&self) -> &ModelModes {
+        &self.solver
     }
 
     fn variables_config(&self) -> VariablesConfig {
@@ -206,12 +329,12 @@ impl FrfPosterior {
     }
     /// The likelihood on the inference layer (its coordinates are this posterior's; its
     /// box prior is uniform, this posterior's is [`Self::prior`]).
-    pub fn layer(&self) -> &Posterior<FrfPredictor<DenseModes>> {
+    pub fn layer(&self) -> &Posterior<FrfPredictor<ModelModes>> {
         &self.layer
     }
     /// The magnitudes `|H^A|` over the data's blocks as a function of the sampled
     /// coordinates without `ln s`.
-    pub fn predictor(&self) -> &FrfPredictor<DenseModes> {
+    pub fn predictor(&self) -> &FrfPredictor<ModelModes> {
         self.layer.predictor()
     }
     /// The same magnitudes over other blocks (e.g. a dense grid for plots), block `b`
@@ -220,13 +343,14 @@ impl FrfPosterior {
         &self,
         blocks: &[FrfBlock],
         window_tau_s: &[Option<f64>],
-    ) -> Result<FrfPredictor<DenseModes>> {
+    ) -> Result<FrfPredictor<ModelModes>> {
         frf_predictor(
             &self.model,
             &self.variables,
             self.n_modes,
             blocks,
             window_tau_s,
+            self.solver.clone(),
         )
     }
     /// The updating variables (layout of `theta`).

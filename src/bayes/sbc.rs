@@ -243,7 +243,7 @@ pub fn small_problem(residual: ResidualForm, prior: PriorKind) -> Result<FrfPost
     let options = PosteriorOptions {
         prior,
         noise_scale_bounds: [0.5, 2.0],
-        n_modes: None,
+        ..PosteriorOptions::default()
     };
     let nominal = FrfPosterior::new(
         model.clone(),

@@ -7,7 +7,7 @@ use super::data::LoadingMagnitude;
 use super::posterior::FrfPosterior;
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
-use crate::predict::modal::DenseWorkspace;
+use crate::predict::choice::ModelModesWorkspace;
 use crate::predict::{FrfWorkspace, Predict};
 use crate::update::lsq::{
     fd_jacobian, multistart, Bounds, FdScheme, LeastSquaresProblem, MultistartOptions,
@@ -104,7 +104,7 @@ struct Residuals<'a> {
 }
 
 struct Scratch {
-    ws: FrfWorkspace<DenseWorkspace>,
+    ws: FrfWorkspace<ModelModesWorkspace>,
 }
 
 impl LeastSquaresProblem for Residuals<'_> {
@@ -167,7 +167,7 @@ pub fn plug_in_start(
     magnitude: LoadingMagnitude,
     options: &MultistartOptions,
 ) -> Result<(FrfPosterior, StartPoint)> {
-    let ms = structural_optimum(&post, options)?;
+    let (post, ms) = anchored_optimum(post, options)?;
     let scaled = post
         .data()
         .correlated
@@ -214,6 +214,52 @@ fn structural_optimum(
         bounds: &bounds,
     };
     multistart(&problem, &bounds, Some(&z0), options)
+}
+
+/// Gauss-Newton standard deviations by which the reduced basis's region around the
+/// maximum-likelihood point extends ([`anchored_optimum`]).
+const BASIS_SPREAD_SD: f64 = 4.0;
+
+/// [`structural_optimum`]; on a reduced basis, then twice: the basis anchored at the
+/// optimum ([`FrfPosterior::with_basis_anchored_at`]: exact there; the first time over
+/// the box, then over `+- BASIS_SPREAD_SD` Gauss-Newton sd around it) and the optimum
+/// polished on it from there (one local solve). The start, its Gauss-Newton axes and
+/// the sampling then use a basis exact at the maximum likelihood and accurate over the
+/// posterior's region. The multistart's record (starts, how many reached the best) is
+/// kept, its best replaced by the polished one.
+fn anchored_optimum(
+    post: FrfPosterior,
+    options: &MultistartOptions,
+) -> Result<(FrfPosterior, MultistartResult)> {
+    let mut ms = structural_optimum(&post, options)?;
+    if !post.has_reduced_basis() {
+        return Ok((post, ms));
+    }
+    let mut post = post.with_basis_anchored_at(&ms.best.x, None)?;
+    let polish = MultistartOptions {
+        n_starts: 1,
+        ..options.clone()
+    };
+    for round in 0..3 {
+        let bounds = structural_bounds(&post)?;
+        let problem = Residuals {
+            post: &post,
+            bounds: &bounds,
+        };
+        ms.best = multistart(&problem, &bounds, Some(&ms.best.x), &polish)?.best;
+        if round == 2 {
+            break;
+        }
+        let sd = start_at(&post, &ms)?.sd;
+        let spread: Vec<f64> = (0..post.n_free())
+            .map(|j| match sd[j].is_finite() {
+                true => BASIS_SPREAD_SD * sd[j],
+                false => bounds.upper()[j] - bounds.lower()[j],
+            })
+            .collect();
+        post = post.with_basis_anchored_at(&ms.best.x, Some(&spread))?;
+    }
+    Ok((post, ms))
 }
 
 /// The start at the structural optimum `ms`: its noise scale (refined on the full

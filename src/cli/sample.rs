@@ -8,6 +8,7 @@ use frfbayes::bayes::{BinCorrelation, PriorKind};
 use frfbayes::frf::FrfKind;
 use frfbayes::io::{OutputClaim, StagedDir};
 use frfbayes::mcmc::{Progress, ProgressFn};
+use frfbayes::predict::ModeSolverChoice;
 use frfbayes::update::{DampingModel, ResidualForm};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::ops::ControlFlow;
@@ -43,6 +44,18 @@ pub enum BinCorrelationArg {
 pub enum ResidualArg {
     Magnitude,
     LogMagnitude,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum ModeSolverArg {
+    /// Dense for models of up to 200 DOFs with mass on every DOF, else reduced.
+    Auto,
+    /// Every mode by the dense solver.
+    Dense,
+    /// The exact lowest modes by static condensation (slow; for checks).
+    Exact,
+    /// A Ritz reduced basis over the prior box, exact at the maximum-likelihood point.
+    Reduced,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -101,6 +114,18 @@ pub struct Args {
     /// Prior family [default: uniform].
     #[arg(long, value_enum)]
     pub prior: Option<PriorArg>,
+    /// Lowest modes in the modal sums [default: all for the dense solver; required for
+    /// large models, e.g. every mode up to well above the highest frequency analysed].
+    #[arg(long)]
+    pub n_modes: Option<usize>,
+    /// Mode solver [default: auto: dense for small models, a reduced basis for large ones
+    /// or ones with massless DOFs].
+    #[arg(long, value_enum)]
+    pub mode_solver: Option<ModeSolverArg>,
+    /// Upper frequency of the FRF estimates, Hz [default: the campaign's Nyquist
+    /// frequency].
+    #[arg(long)]
+    pub freq_max_hz: Option<f64>,
     /// Lognormal prior: coefficient of variation of masses and stiffnesses [default: 0.1].
     #[arg(long)]
     pub prior_cv: Option<f64>,
@@ -180,6 +205,9 @@ impl Args {
             ("--residual", self.residual.is_some()),
             ("--bin-correlation", self.bin_correlation.is_some()),
             ("--prior", self.prior.is_some()),
+            ("--n-modes", self.n_modes.is_some()),
+            ("--mode-solver", self.mode_solver.is_some()),
+            ("--freq-max-hz", self.freq_max_hz.is_some()),
             ("--prior-cv", self.prior_cv.is_some()),
             ("--prior-damping-ln-sd", self.prior_damping_ln_sd.is_some()),
             ("--rel-sigma-floor", self.rel_sigma_floor.is_some()),
@@ -281,6 +309,21 @@ impl Args {
         }
         if let Some(v) = self.rel_sigma_floor {
             s.rel_sigma_floor = v;
+        }
+        if let Some(f) = self.freq_max_hz {
+            anyhow::ensure!(f.is_finite() && f > 0.0, "--freq-max-hz must be positive");
+            s.estimate.freq_max_hz = Some(f);
+        }
+        if let Some(n) = self.n_modes {
+            s.posterior.n_modes = Some(n);
+        }
+        if let Some(m) = self.mode_solver {
+            s.posterior.mode_solver = match m {
+                ModeSolverArg::Auto => ModeSolverChoice::Auto,
+                ModeSolverArg::Dense => ModeSolverChoice::Dense,
+                ModeSolverArg::Exact => ModeSolverChoice::Exact,
+                ModeSolverArg::Reduced => ModeSolverChoice::Reduced,
+            };
         }
         if let Some(v) = self.walkers_per_dim {
             s.walkers_per_dim = v;

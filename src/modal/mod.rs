@@ -113,7 +113,7 @@ impl Modes {
 
     /// Orders the eigenpairs ascending, keeps `n_modes`, fixes each shape's sign (largest
     /// entry positive) and computes the participation factors (Eq. 15) into `self`.
-    /// `shape(r, i)` is entry `r` of eigenvector `i`.
+    /// `shape(r, i)` is entry `r` (of `m.nrows()`) of eigenvector `i`.
     fn assemble(
         &mut self,
         eigenvalues: &[f64],
@@ -123,17 +123,18 @@ impl Modes {
         n_modes: usize,
     ) -> Result<()> {
         const STACK: usize = 8;
-        let n = eigenvalues.len();
+        // shapes have `n` rows (every DOF); a condensed pencil has fewer eigenvalues
+        let (n, n_ev) = (m.nrows(), eigenvalues.len());
         // Ascending order by a stable insertion sort (ties keep their index order).
         let mut order_stack = [0usize; STACK];
         let mut order_heap = Vec::new();
-        let order: &mut [usize] = if n <= STACK {
-            &mut order_stack[..n]
+        let order: &mut [usize] = if n_ev <= STACK {
+            &mut order_stack[..n_ev]
         } else {
-            order_heap.resize(n, 0);
+            order_heap.resize(n_ev, 0);
             &mut order_heap
         };
-        for i in 0..n {
+        for i in 0..n_ev {
             let mut j = i;
             while j > 0 && eigenvalues[order[j - 1]].total_cmp(&eigenvalues[i]).is_gt() {
                 order[j] = order[j - 1];
@@ -189,6 +190,37 @@ impl Modes {
             self.participation.push(self.phi.column(i).dot(&m_iota));
         }
         Ok(())
+    }
+
+    /// The modes of a pencil with massless DOFs (zero rows of `m`): every finite mode by
+    /// static condensation ([`condensed::lowest_modes_condensed`]), in the form of
+    /// [`Self::solve`] (ascending, mass-normalised, largest entry positive,
+    /// participation `phi_i^T M iota`). When `m` has no zero row this is [`Self::solve`].
+    pub fn solve_condensed(
+        k: &DMatrix<f64>,
+        m: &DMatrix<f64>,
+        ground_influence: &DVector<f64>,
+    ) -> Result<Self> {
+        let n_massless = crate::model::condense::massless_dofs(m).len();
+        if n_massless == 0 {
+            return Self::solve(k, m, ground_influence, None);
+        }
+        let full = condensed::lowest_modes_condensed(k, m, k.nrows() - n_massless)?;
+        let mut modes = Modes {
+            omega_rad_s: Vec::new(),
+            phi: DMatrix::zeros(0, 0),
+            participation: Vec::new(),
+        };
+        let n = full.eigenvalues.len();
+        let shapes = &full.shapes;
+        modes.assemble(
+            &full.eigenvalues,
+            |r, i| shapes[(r, i)],
+            m,
+            ground_influence,
+            n,
+        )?;
+        Ok(modes)
     }
 
     /// Number of retained modes.

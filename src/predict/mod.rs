@@ -10,11 +10,13 @@
 //! [`Parametrisation`] maps `theta` onto the model's updating variables `alpha`
 //! (stiffness, paper Eq. 20) and `beta` (mass, Eq. 21), on a linear or a log scale.
 
+pub mod choice;
 pub mod frf;
 pub mod modal;
 pub mod poles;
 pub mod reduced;
 
+pub use choice::{ModeSolverChoice, ModelModes};
 pub use frf::{FrfDamping, FrfOptions, FrfOutput, FrfPredictor, FrfWorkspace};
 pub use modal::{DenseModes, ModalPredictor, ModeSolver, PartialModes};
 pub use poles::PoleResidue;

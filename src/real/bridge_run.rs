@@ -6,7 +6,6 @@ use std::time::Instant;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Uniform};
 
 use super::bridge::{smu_bounds, smu_posterior, BridgeData, Weighting, SMU_PUBLISHED_ALPHA};
 use super::bridge_posterior::{sample_posterior, BridgePosterior};
@@ -14,6 +13,7 @@ use super::posterior::Sampling;
 use crate::error::Result;
 use crate::infer::{fit_multistart, FitOptions, Posterior};
 use crate::modal::PartialOptions;
+use crate::predict::choice::{axis_snapshots, uniform_box_points};
 use crate::predict::modal::PartialModes;
 use crate::predict::reduced::{
     compare_with_full, BasisOptions, CondensedModes, PointError, ReducedModes,
@@ -149,14 +149,7 @@ pub struct BridgeStudy {
 
 /// Uniform points of the SMU box.
 fn box_points(n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
-    let b = smu_bounds();
-    (0..n)
-        .map(|_| {
-            b.iter()
-                .map(|&(lo, hi)| Uniform::new(lo, hi).map_or(lo, |u| u.sample(rng)))
-                .collect()
-        })
-        .collect()
+    uniform_box_points(&smu_bounds(), n, rng)
 }
 
 /// The basis from the nominal model, the published optimum, each alpha at each bound
@@ -166,15 +159,8 @@ pub fn build_basis(
     settings: &BridgeSettings,
 ) -> Result<(ReducedModes, BasisCheck)> {
     let mut rng = ChaCha8Rng::seed_from_u64(settings.seed);
-    let bounds = smu_bounds();
     let mut snaps = vec![vec![0.0; 17], SMU_PUBLISHED_ALPHA.to_vec()];
-    for (j, &(lo, hi)) in bounds.iter().enumerate() {
-        for v in [lo, hi] {
-            let mut a = vec![0.0; 17];
-            a[j] = v;
-            snaps.push(a);
-        }
-    }
+    snaps.extend(axis_snapshots(&[0.0; 17], &smu_bounds()));
     snaps.extend(box_points(settings.n_random_snapshots, &mut rng));
     let pairs: Vec<_> = snaps.iter().map(|a| (a.clone(), Vec::new())).collect();
     let t0 = Instant::now();

@@ -6,13 +6,15 @@
 use super::config::{DampingSpec, StructureSpec};
 use crate::error::{Error, Result};
 use crate::modal::Modes;
+use crate::model::condense::{check_condensable, massless_dofs};
 use crate::model::{caughey_coefficients, caughey_damping_matrix, rayleigh_damping_matrix};
 use nalgebra::{DMatrix, DVector};
 
 /// `M x'' + C x' + K x = f(t) - M iota a_g(t)`, with `x` relative to the ground.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearSystem {
-    /// Mass matrix, kg (symmetric positive definite).
+    /// Mass matrix, kg (symmetric positive definite, or positive semi-definite with
+    /// massless DOFs that can be condensed: [`crate::model::condense`]).
     pub mass_kg: DMatrix<f64>,
     /// Stiffness matrix, N/m (symmetric positive semi-definite).
     pub stiffness_n_per_m: DMatrix<f64>,
@@ -149,18 +151,23 @@ impl LinearSystem {
             return Err(Error::Model(format!("floor mapped to DOF {d} of {n}")));
         }
         if self.mass_kg.clone().cholesky().is_none() {
-            return Err(Error::Model("M is not positive definite".into()));
+            // lumped-mass FE models: massless DOFs, condensed by [`Self::modes`]
+            if massless_dofs(&self.mass_kg).is_empty() {
+                return Err(Error::Model("M is not positive definite".into()));
+            }
+            check_condensable(&self.stiffness_n_per_m, &self.mass_kg)?;
         }
         Ok(())
     }
 
-    /// Undamped modes (ascending) of the system.
+    /// Undamped modes (ascending) of the system: every mode, or with massless DOFs
+    /// (zero rows of `M`, e.g. an FE model's rotations) every finite mode by static
+    /// condensation ([`Modes::solve_condensed`]).
     pub fn modes(&self) -> Result<Modes> {
-        Modes::solve(
+        Modes::solve_condensed(
             &self.stiffness_n_per_m,
             &self.mass_kg,
             &self.ground_influence,
-            None,
         )
     }
 
@@ -277,6 +284,61 @@ mod tests {
         {
             assert!((g - (0.3 + 1e-4 * w * w) / (2.0 * w)).abs() < 1e-12);
         }
+    }
+
+    /// Oracle: a system with massless DOFs (every second DOF of a chain, as an FE
+    /// model's rotations) validates, and its modes are the condensed pencil's: each
+    /// solves `K phi = lambda M phi` on every DOF, `Phi^T M Phi = I`, ascending, the
+    /// participation is `Phi^T M iota`, and the modal basis of the simulator keeps the
+    /// modes below its cutoff with a diagonal `Phi^T C Phi` under Rayleigh damping.
+    #[test]
+    fn massless_dofs_are_condensed() {
+        let model = crate::predict::reduced::test_models::chain_model(6);
+        let (k, m) = (model.stiffness(&model.alpha_zero()), model.mass(&[]));
+        let iota = DVector::from_element(12, 1.0);
+        let c = damping_matrix(
+            &m,
+            &k,
+            &iota,
+            &DampingSpec::Rayleigh {
+                a0_per_s: 0.2,
+                a1_s: 1e-4,
+            },
+        )
+        .unwrap();
+        let s = LinearSystem {
+            mass_kg: m.clone(),
+            stiffness_n_per_m: k.clone(),
+            damping_n_s_per_m: c,
+            floor_dof: (0..12).collect(),
+            ground_influence: iota.clone(),
+            base_dof: None,
+        };
+        s.validate().unwrap();
+        let modes = s.modes().unwrap();
+        assert_eq!(modes.n_modes(), 6);
+        for (j, w) in modes.omega_rad_s.iter().enumerate() {
+            let phi = modes.phi.column(j);
+            let r = &k * phi - &m * phi * (w * w);
+            assert!(r.amax() < 1e-9 * k.amax(), "mode {j}: {}", r.amax());
+            let gamma = phi.dot(&(&m * &iota));
+            assert!((gamma - modes.participation[j]).abs() < 1e-12);
+        }
+        let g = modes.phi.transpose() * &m * &modes.phi;
+        assert!((g - DMatrix::identity(6, 6)).amax() < 1e-12);
+        assert!(modes.omega_rad_s.windows(2).all(|w| w[0] < w[1]));
+        let cutoff_hz = 0.5 * (modes.omega_rad_s[2] + modes.omega_rad_s[3]) / std::f64::consts::TAU;
+        let basis = super::super::ModalBasis::new(&s, cutoff_hz).unwrap();
+        assert_eq!(basis.n_modes(), 3);
+        let cm = &basis.modal_damping;
+        assert!(cm[(0, 1)].abs() < 1e-12 * cm.amax() && cm[(1, 2)].abs() < 1e-12 * cm.amax());
+        let mut singular = s.clone();
+        singular.stiffness_n_per_m[(1, 1)] = 0.0;
+        singular.stiffness_n_per_m[(1, 0)] = 0.0;
+        singular.stiffness_n_per_m[(0, 1)] = 0.0;
+        singular.stiffness_n_per_m[(1, 2)] = 0.0;
+        singular.stiffness_n_per_m[(2, 1)] = 0.0;
+        assert!(singular.validate().is_err());
     }
 
     #[test]
