@@ -47,6 +47,9 @@ struct Case {
     size: String,
     noise_scale: f64,
     seed: u64,
+    /// The true effect parameters (scoring only; absent for `none`).
+    #[serde(default)]
+    truth: std::collections::BTreeMap<String, f64>,
 }
 
 #[derive(Debug, Default, PartialEq, Deserialize)]
@@ -119,6 +122,7 @@ fn every_case_matches_its_index_entry_and_the_benchmark_ranges() {
         let m = load(case);
         // The same frame, beliefs, instruments and layout as the recorded campaign.
         assert_eq!(m.seed, Some(case.seed), "{id}");
+        assert_eq!(case.truth.is_empty(), case.verdict == "none", "{id}: truth");
         assert_eq!(m.structure, reference.structure, "{id}");
         assert_eq!(m.damping, reference.damping, "{id}");
         assert_eq!(m.nominal, reference.nominal, "{id}");
