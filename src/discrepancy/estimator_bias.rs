@@ -48,23 +48,30 @@ use crate::error::{Error, Result};
 use crate::io::Campaign;
 use num_complex::Complex64;
 use std::ops::Range;
-use std::sync::Arc;
 
-/// The replay's prediction minus the frequency-domain one at `z` of the nominal
-/// posterior `post`, on hammer segments (zero on shake-table segments); flat layout.
+/// The replay's prediction minus the frequency-domain one at `z` of `post`, on hammer
+/// segments (zero on shake-table segments); flat layout. `post` is the nominal model or
+/// the nominal model with effects ([`super::extension::WithEffects`]) whose structure
+/// does not depend on the amplitude: both sides are the structure's response alone,
+/// without the bias `post`'s data may already carry and without sensor factors, which
+/// the prediction applies to the bias as to the rest.
 pub fn replay_bias(
     campaign: &Campaign,
     post: &ModelPosterior,
     z: &[f64],
 ) -> Result<Vec<Complex64>> {
-    if post.model().hypothesis().is_some() {
+    let hypothesis = post.model().hypothesis();
+    if hypothesis.is_some_and(|(h, _)| h.amplitude_dependent()) {
         return Err(Error::Usage(
-            "the estimator's bias is measured on the nominal model".into(),
+            "the estimator's bias is measured on a model whose structure does not depend \
+             on the amplitude (a replay of it would contain the linearisation's error too)"
+                .into(),
         ));
     }
-    let frequency_domain = post.predict(z)?;
-    let td = Arc::new(TimeDomainModel::new(campaign, post.data().clone())?);
-    let replay = post.clone().with_time_domain(td)?.predict(z)?;
+    let (base, effect) = (post.base_params(z), post.effect_physical(z)?);
+    let frequency_domain = post.model().predict_structure(&base, &effect)?;
+    let td = TimeDomainModel::new(campaign, post.data().clone())?;
+    let replay = td.predict(&base, hypothesis.map(|(h, l)| (h.as_ref(), l)), &effect)?;
     let mut bias = vec![Complex64::new(0.0, 0.0); replay.len()];
     for (seg, ranges) in post.data().segments.iter().zip(post.model().layout()) {
         if seg.is_ground() {

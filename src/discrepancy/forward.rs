@@ -310,6 +310,27 @@ impl ExtendedModel {
         effect: &[f64],
         out: &mut [Complex64],
     ) -> Result<()> {
+        self.fill(base, effect, out, true)
+    }
+
+    /// The structure's ratios alone (flat layout): the prediction without the data's
+    /// estimator bias and without the hypothesis' sensor factors, which is what a
+    /// time-domain replay of the tests ([`super::time_domain`]) estimates.
+    pub fn predict_structure(&self, base: &BaseParams, effect: &[f64]) -> Result<Vec<Complex64>> {
+        let mut out = vec![Complex64::new(0.0, 0.0); self.points.len()];
+        self.fill(base, effect, &mut out, false)?;
+        Ok(out)
+    }
+
+    /// [`Self::predict_into`], with (`measured`) or without the estimator bias and the
+    /// sensor factors.
+    fn fill(
+        &self,
+        base: &BaseParams,
+        effect: &[f64],
+        out: &mut [Complex64],
+        measured: bool,
+    ) -> Result<()> {
         if out.len() != self.points.len() {
             return Err(Error::Usage(format!(
                 "prediction buffer of {} for {} points",
@@ -384,7 +405,7 @@ impl ExtendedModel {
         // Sensor factors per (sensor, slot), computed once.
         let n_slots = self.slots.len();
         let mut factors = Vec::new();
-        if let Some((hy, l)) = &self.hypothesis {
+        if let Some((hy, l)) = self.hypothesis.as_ref().filter(|_| measured) {
             factors.reserve(self.sensors.len() * n_slots);
             for c in &self.sensors {
                 factors.extend(
@@ -411,12 +432,14 @@ impl ExtendedModel {
             // The estimator's bias belongs to the structure's response: a sensor filter
             // (linear, time-invariant) shapes the carried-over ringing as it shapes the
             // rest, so the sensor factors apply to both.
-            h += self.bias.get(k).copied().unwrap_or(zero);
-            if let Some(i) = p.resp_sensor {
-                h *= factors[i as usize * n_slots + p.slot as usize];
-            }
-            if let Some(i) = p.input_sensor {
-                h /= factors[i as usize * n_slots + p.slot as usize];
+            if measured {
+                h += self.bias.get(k).copied().unwrap_or(zero);
+                if let Some(i) = p.resp_sensor {
+                    h *= factors[i as usize * n_slots + p.slot as usize];
+                }
+                if let Some(i) = p.input_sensor {
+                    h /= factors[i as usize * n_slots + p.slot as usize];
+                }
             }
             *o = h;
         }
