@@ -39,11 +39,12 @@ pub struct Args {
     /// Only these hypotheses (comma separated names); all by default.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
-    /// Correct the hammer estimates' own systematic error (the previous impact's
-    /// ringing, the cut before the next one), measured by replaying the tests at the
-    /// nominal fit (experimental: see README, "False alarms").
+    /// Do not correct the hammer estimates' own systematic error (the previous impact's
+    /// ringing, the cut before the next one), which is otherwise measured by replaying
+    /// the tests at the nominal fit and again at each accepted model's (see README,
+    /// "False alarms").
     #[arg(long)]
-    pub estimator_bias: bool,
+    pub no_estimator_bias: bool,
     /// Continue an interrupted run into the same --out from its last complete stage
     /// (the result is the same as an uninterrupted run's). Without it, an interrupted
     /// run's stages are discarded.
@@ -208,7 +209,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut opts = DiagnoseOptions {
         seed: args.seed,
         only: args.only,
-        estimator_bias: args.estimator_bias,
+        estimator_bias: !args.no_estimator_bias,
         ..DiagnoseOptions::default()
     };
     if args.quick {
@@ -238,9 +239,9 @@ pub struct BenchArgs {
     /// Only these case ids (comma separated); all by default.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
-    /// `diagnose --estimator-bias` for every case.
+    /// `diagnose --no-estimator-bias` for every case.
     #[arg(long)]
-    pub estimator_bias: bool,
+    pub no_estimator_bias: bool,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Continue the case an interrupted run was diagnosing from its last complete stage
@@ -304,7 +305,7 @@ fn diagnose_case(args: &BenchArgs, case: &BenchmarkCase) -> anyhow::Result<CaseR
     let mut opts = DiagnoseOptions {
         seed: args.seed,
         only: args.hypotheses.clone(),
-        estimator_bias: args.estimator_bias,
+        estimator_bias: !args.no_estimator_bias,
         ..DiagnoseOptions::default()
     };
     if args.quick {

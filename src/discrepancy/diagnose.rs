@@ -69,9 +69,8 @@ pub struct DiagnoseOptions {
     pub only: Vec<String>,
     /// Add the hammer estimator's own systematic error, measured by replaying the tests
     /// at the nominal MAP, to every frequency-domain prediction
-    /// ([`super::estimator_bias`]), and refit the nominal model with it. Off by default:
-    /// measured at a nominal MAP that the missing physics distorts, it is wrong where
-    /// it matters (see the module docs).
+    /// ([`super::estimator_bias`]), and refit the nominal model with it; measure it
+    /// again at each accepted model's MAP ([`super::stepwise`]). On by default.
     pub estimator_bias: bool,
 }
 
@@ -86,7 +85,7 @@ impl Default for DiagnoseOptions {
             max_evidence_runs: usize::MAX,
             evidence: None,
             only: Vec::new(),
-            estimator_bias: false,
+            estimator_bias: true,
         }
     }
 }

@@ -409,7 +409,7 @@ fn write_effect_inference_data(d: &Diagnosis, dir: &Path) -> Result<()> {
         .map(|z| f.posterior.physical(z))
         .collect::<Result<Vec<_>>>()?;
     let first = rows.first().map(Vec::as_slice).unwrap_or_default();
-    let names: Vec<String> = first.iter().map(|v| v.name.clone()).collect();
+    let names = distinct_names(first.iter().map(|v| v.name.as_str()));
     let units: Vec<String> = first.iter().map(|v| v.unit.clone()).collect();
     let phys = Draws {
         dim: names.len(),
@@ -425,6 +425,27 @@ fn write_effect_inference_data(d: &Diagnosis, dir: &Path) -> Result<()> {
         .with_attr("hypothesis", &f.name)
         .with_attr("location", &f.location.to_string())
         .write(&dir.join(INFERENCE_DATA_FILE))
+}
+
+/// `names` made distinct for InferenceData's variables: a later name equal to an
+/// earlier one (the cubic spring's `k3` after story 3's, a second effect's `delay`) gets
+/// `effect_` in front, then `_2`, `_3`, ... until it is new.
+fn distinct_names<'a>(names: impl Iterator<Item = &'a str>) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for name in names {
+        let mut candidate = name.to_string();
+        if out.contains(&candidate) {
+            candidate = format!("effect_{name}");
+        }
+        let stem = candidate.clone();
+        let mut n = 2;
+        while out.contains(&candidate) {
+            candidate = format!("{stem}_{n}");
+            n += 1;
+        }
+        out.push(candidate);
+    }
+    out
 }
 
 /// Writes the output files into `dir` (a staging folder).
@@ -470,4 +491,18 @@ pub fn write_diagnosis_into(d: &Diagnosis, title: &str, dir: &Path) -> Result<()
         },
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::distinct_names;
+
+    #[test]
+    fn inference_data_names_are_made_distinct() {
+        let names = ["k1", "k3", "eta", "k3", "delay", "delay", "delay"];
+        assert_eq!(
+            distinct_names(names.into_iter()),
+            ["k1", "k3", "eta", "effect_k3", "delay", "effect_delay", "effect_delay_2"]
+        );
+    }
 }
