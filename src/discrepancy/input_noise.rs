@@ -284,14 +284,25 @@ mod tests {
         for k in 0..3 {
             let ratio = cov(k, k).re / mc[k][k].re;
             eprintln!("{} Hz: basis / Monte Carlo variance {ratio:.3}", freq_hz[k]);
-            assert!((ratio - 1.0).abs() < tol, "{} Hz: basis / MC {ratio}", freq_hz[k]);
+            assert!(
+                (ratio - 1.0).abs() < tol,
+                "{} Hz: basis / MC {ratio}",
+                freq_hz[k]
+            );
         }
         let (c01, m01) = (cov(0, 1), mc[0][1]);
         let rel = (c01 - m01).norm() / (mc[0][0].re * mc[1][1].re).sqrt();
         assert!(rel < tol, "1-3 Hz covariance off by {rel} of the sds");
-        let white: f64 = support.iter().map(|&i| (SIGMA_N * w[i]).powi(2)).sum::<f64>()
+        let white: f64 = support
+            .iter()
+            .map(|&i| (SIGMA_N * w[i]).powi(2))
+            .sum::<f64>()
             / big_f[0].norm_sqr();
         eprintln!("1 Hz: red / white variance {:.1}", mc[0][0].re / white);
-        assert!(mc[0][0].re / white > 5.0, "red / white {}", mc[0][0].re / white);
+        assert!(
+            mc[0][0].re / white > 5.0,
+            "red / white {}",
+            mc[0][0].re / white
+        );
     }
 }

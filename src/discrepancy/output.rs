@@ -502,7 +502,15 @@ mod tests {
         let names = ["k1", "k3", "eta", "k3", "delay", "delay", "delay"];
         assert_eq!(
             distinct_names(names.into_iter()),
-            ["k1", "k3", "eta", "effect_k3", "delay", "effect_delay", "effect_delay_2"]
+            [
+                "k1",
+                "k3",
+                "eta",
+                "effect_k3",
+                "delay",
+                "effect_delay",
+                "effect_delay_2"
+            ]
         );
     }
 }

@@ -5,13 +5,13 @@
 //! ([`super::adequacy`]).
 
 use super::diagnose::{DiagnoseStage, ModelResult};
-use super::location::Location;
-use super::round::{run_round, BaseModel, Round, RoundContext, Stopwatch, Timings};
-use super::verdict::{decisive_ln_bayes_factor, EffectSummary};
 use super::estimator_bias::replay_bias;
 use super::fit::fit_map;
+use super::location::Location;
 use super::model_evidence::{completion, laplace_u, model_result};
 use super::posterior::ModelPosterior;
+use super::round::{run_round, BaseModel, Round, RoundContext, Stopwatch, Timings};
+use super::verdict::{decisive_ln_bayes_factor, EffectSummary};
 use crate::error::Result;
 use crate::io::stages::staged;
 use serde::{Deserialize, Serialize};
@@ -90,7 +90,10 @@ pub fn continue_rounds(
         if step >= MAX_EFFECTS {
             break;
         }
-        let ctx = RoundContext { data: &data, ..*ctx };
+        let ctx = RoundContext {
+            data: &data,
+            ..*ctx
+        };
         let next = run_round(&ctx, &base, step, (watch, timings), progress)?;
         later.push(next);
     }
