@@ -338,6 +338,14 @@ impl ExtendedModel {
                 self.points.len()
             )));
         }
+        let sol = self.solutions(base, effect)?;
+        self.assemble(&sol, effect, out, measured);
+        Ok(())
+    }
+
+    /// The responses at the floors of every slot's right-hand sides (`slot.offset` +
+    /// rhs-major, floors within): one factorisation of the dynamic stiffness per slot.
+    fn solutions(&self, base: &BaseParams, effect: &[f64]) -> Result<Vec<Complex64>> {
         let sys = self.system(base, effect)?;
         let mut variants: Vec<LinearSystem> = vec![sys];
         if let Some((h, loc)) = &self.hypothesis {
@@ -402,6 +410,13 @@ impl ExtendedModel {
                 }
             }
         }
+        Ok(sol)
+    }
+
+    /// The points' ratios from the slots' solutions `sol`: the FRF kind's power of `s`,
+    /// and (`measured`) the estimator's bias and the hypothesis' sensor factors.
+    fn assemble(&self, sol: &[Complex64], effect: &[f64], out: &mut [Complex64], measured: bool) {
+        let n_floors = self.data.n_floors();
         // Sensor factors per (sensor, slot), computed once.
         let n_slots = self.slots.len();
         let mut factors = Vec::new();
@@ -443,7 +458,6 @@ impl ExtendedModel {
             }
             *o = h;
         }
-        Ok(())
     }
 
     /// Predicted ratios (flat layout).
