@@ -505,7 +505,7 @@ fn noise_free_map_recovers_the_truth() {
         let hyp = (verdict != "none").then_some((verdict.as_str(), loc.clone()));
         let mut post = posterior(&data, hyp);
         let z0 = truth_z(&post, &model, 1e-3);
-        let mut map = fit_map(&post, &[z0.clone()], &MapOptions::default()).unwrap();
+        let mut map = fit_map(&post, std::slice::from_ref(&z0), &MapOptions::default()).unwrap();
         println!(
             "{id}: without the estimator's bias, chi2/dof {:.3} at eta {:.2e}",
             map.chi2_per_dof, map.eta

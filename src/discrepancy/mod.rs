@@ -20,6 +20,7 @@ pub mod heldout;
 pub mod hypotheses;
 pub mod hypothesis;
 mod input_noise;
+pub mod judge;
 pub mod locate;
 pub mod location;
 pub mod model_evidence;
@@ -29,6 +30,7 @@ pub mod refine;
 pub mod report;
 pub mod residual_map;
 pub mod round;
+pub mod round_state;
 pub mod search;
 pub mod stepwise;
 #[cfg(test)]

@@ -14,113 +14,24 @@
 //! with the same verdict, effects and second round.
 
 use super::data::DiagnosisData;
-use super::diagnose::{DiagnoseOptions, DiagnoseStage, ModelResult};
-use super::extension::{Effect, WithEffects};
-use super::heldout::held_out;
+use super::diagnose::{DiagnoseStage, ModelResult};
+use super::extension::WithEffects;
 use super::hypothesis::Hypothesis;
+use super::judge::{judge_finalists, rank_by_evidence, rank_with_flags};
 use super::location::Location;
 use super::model_evidence::{
     completion, evidence_key, extension_of, laplace_u, model_result, LaplaceOutcome,
     LAPLACE_ALLOWANCE_NATS,
 };
 use super::posterior::ModelPosterior;
-use super::refine::refit_in_time_domain;
+use super::round_state::tag;
+pub use super::round_state::{BaseModel, Round, RoundContext, Stopwatch, Timings};
 use super::search::{search, HypothesisSearch, SearchOptions};
-use super::verdict::{decide, held_out_passes, is_decisive, Candidate, Decision};
+use super::verdict::{decide, Candidate, Decision};
 use crate::error::Result;
 use crate::infer::screened::{is_contested, laplace_reach, Estimator};
-use crate::io::stages::{staged, Stages};
-use crate::io::Campaign;
+use crate::io::stages::staged;
 use std::sync::Arc;
-use std::time::Instant;
-
-/// The model a round extends.
-#[derive(Debug, Clone)]
-pub struct BaseModel {
-    /// Its fit, evidence and effects.
-    pub result: ModelResult,
-    /// Laplace at its mode in logit coordinates (the screen's reference).
-    pub laplace: LaplaceOutcome,
-    /// Its extension of the nominal model (`None`: the nominal model itself).
-    pub extension: Option<(Arc<dyn Hypothesis>, Location)>,
-    /// The effects it contains, in the order they were accepted.
-    pub effects: Vec<Effect>,
-}
-
-impl BaseModel {
-    /// `result` of a round, accepted: its hypothesis is the one effect added to `self`.
-    pub fn accept(&self, result: &ModelResult, plain: Arc<dyn Hypothesis>) -> BaseModel {
-        let mut effects = self.effects.clone();
-        effects.push(Effect {
-            hypothesis: plain,
-            location: result.location.clone(),
-        });
-        BaseModel {
-            laplace: laplace_u(&result.posterior, &result.map.z),
-            extension: result.posterior.model().hypothesis().cloned(),
-            result: result.clone(),
-            effects,
-        }
-    }
-}
-
-/// What a round found.
-#[derive(Debug, Clone)]
-pub struct Round {
-    /// Names of the effects in the model the round extended, in order (empty: the
-    /// nominal model).
-    pub extends: Vec<String>,
-    /// Log evidence of that model and its sd.
-    pub base_ln_z: f64,
-    pub base_ln_z_sd: f64,
-    /// Every hypothesis' location search.
-    pub searches: Vec<HypothesisSearch>,
-    /// Laplace's log evidence of every hypothesis' best location (`None` where there is
-    /// no mode or its curvature is not positive definite).
-    pub laplace: Vec<(String, Option<f64>)>,
-    /// Hypotheses whose evidence was computed, ranked by log evidence.
-    pub finalists: Vec<ModelResult>,
-    pub decision: Decision,
-}
-
-/// What every round shares.
-pub struct RoundContext<'a> {
-    pub campaign: &'a Campaign,
-    pub data: &'a Arc<DiagnosisData>,
-    pub opts: &'a DiagnoseOptions,
-    pub stages: Option<&'a Stages>,
-    /// The hypotheses, each on its own.
-    pub hypotheses: &'a [Arc<dyn Hypothesis>],
-}
-
-/// Wall times of the stages, s, in order.
-pub type Timings = Vec<(String, f64)>;
-
-/// Records the time since the last mark as `what`.
-pub struct Stopwatch {
-    lap: Instant,
-}
-
-impl Stopwatch {
-    pub fn new(from: Instant) -> Self {
-        Stopwatch { lap: from }
-    }
-
-    pub fn mark(&mut self, what: &str, timings: &mut Timings) {
-        timings.push((what.to_string(), self.lap.elapsed().as_secs_f64()));
-        self.lap = Instant::now();
-    }
-}
-
-/// The stage-key prefix of round `step` (none for the first, so that runs of the
-/// one-round diagnosis resume).
-fn tag(step: usize) -> String {
-    if step == 0 {
-        String::new()
-    } else {
-        format!("step{step}-")
-    }
-}
 
 /// Runs round `step` on `base` (see the module docs).
 pub fn run_round(
@@ -345,99 +256,6 @@ fn evidence_runs(
     Ok(finalists)
 }
 
-fn rank_by_evidence(finalists: &mut [ModelResult]) {
-    finalists.sort_by(|a, b| {
-        b.ln_z()
-            .unwrap_or(f64::NEG_INFINITY)
-            .total_cmp(&a.ln_z().unwrap_or(f64::NEG_INFINITY))
-    });
-}
-
-/// Rule 1 of [`super::verdict`] against the base model.
-fn decisive(base: &BaseModel, f: &ModelResult) -> bool {
-    let base_ln_z = base.result.ln_z().unwrap_or(f64::NEG_INFINITY);
-    let base_sd = base.result.evidence.as_ref().map_or(0.0, |e| e.ln_z_sd);
-    let ev = f.evidence.as_ref();
-    let delta = ev.map_or(f64::NEG_INFINITY, |e| e.ln_z - base_ln_z);
-    let se = ev.map_or(0.0, |e| e.ln_z_sd.hypot(base_sd));
-    let bound = ev.and_then(|e| e.gain_bound_nats).unwrap_or(f64::INFINITY);
-    is_decisive(delta, se, bound)
-}
-
-fn is_amplitude_dependent(hypotheses: &[Arc<dyn Hypothesis>], name: &str) -> bool {
-    hypotheses
-        .iter()
-        .any(|h| h.name() == name && h.amplitude_dependent())
-}
-
-/// What the time-domain replay can add to a linearised fit's log-likelihood at its
-/// error floor: at most its whole misfit term, `chi2 x N` (the replay would have to
-/// fit every point exactly), nats.
-fn replay_gain_limit(f: &ModelResult) -> f64 {
-    f.map.chi2_per_dof * f.map.n_points as f64
-}
-
-/// Refits and held-out checks, in order of evidence, only where they can change the
-/// decision: a finalist must be decisive; an amplitude-dependent one is refitted by
-/// replaying the tests in the time domain and judged on that fit, unless even the
-/// replay's largest gain ([`replay_gain_limit`]) left it a decisive factor below a
-/// finalist that already passed (it could then neither win nor tie, and neither its
-/// refit, about a minute, nor its held-out replay is run); a plausible one is checked
-/// on held-out segments. Returns, per finalist (ranked again by evidence, as a refit
-/// moves it), whether it was passed over for that reason.
-fn judge_finalists(
-    ctx: &RoundContext<'_>,
-    base: &BaseModel,
-    hypotheses: &[Arc<dyn Hypothesis>],
-    finalists: &mut Vec<ModelResult>,
-    (watch, timings): (&mut Stopwatch, &mut Timings),
-    progress: &mut dyn FnMut(DiagnoseStage<'_>),
-) -> Result<Vec<bool>> {
-    let threshold = super::verdict::decisive_ln_bayes_factor();
-    let mut best_passing = f64::NEG_INFINITY;
-    let mut judged: Vec<(ModelResult, bool)> = Vec::with_capacity(finalists.len());
-    for mut f in finalists.drain(..) {
-        if !decisive(base, &f) {
-            judged.push((f, false));
-            continue;
-        }
-        if is_amplitude_dependent(hypotheses, &f.name) {
-            let sd = f.evidence.as_ref().map_or(0.0, |e| e.ln_z_sd);
-            let reach = f.ln_z().unwrap_or(f64::NEG_INFINITY) + 2.0 * sd + replay_gain_limit(&f);
-            if best_passing - reach >= threshold {
-                judged.push((f, true));
-                continue;
-            }
-            refit(ctx, &mut f, (watch, timings), progress);
-        }
-        if f.plausible {
-            check_held_out(ctx, base, hypotheses, &mut f, (watch, timings), progress)?;
-            if f.held_out.as_ref().is_some_and(held_out_passes) {
-                let sd = f.evidence.as_ref().map_or(0.0, |e| e.ln_z_sd);
-                let lo = f.ln_z().unwrap_or(f64::NEG_INFINITY) - 2.0 * sd;
-                best_passing = best_passing.max(lo);
-            }
-        }
-        judged.push((f, false));
-    }
-    Ok(rank_with_flags(finalists, judged))
-}
-
-/// Ranks `judged` (finalists with a flag each) by log evidence into `finalists`;
-/// returns the flags in the new order.
-fn rank_with_flags(
-    finalists: &mut Vec<ModelResult>,
-    mut judged: Vec<(ModelResult, bool)>,
-) -> Vec<bool> {
-    judged.sort_by(|a, b| {
-        let z = |m: &ModelResult| m.ln_z().unwrap_or(f64::NEG_INFINITY);
-        z(&b.0).total_cmp(&z(&a.0))
-    });
-    let (sorted, flags): (Vec<ModelResult>, Vec<bool>) = judged.into_iter().unzip();
-    *finalists = sorted;
-    flags
-}
-
 /// [`decide`] on the finalists against the base model, then again after runs where
 /// Laplace's value would decide more than it can ([`needing_runs`]). Returns the base's
 /// `ln Z`, its sd and the decision.
@@ -552,74 +370,6 @@ fn run_evidence(
     f.effect = done.effect;
     f.plausible = done.plausible;
     f.implausible_because = done.why;
-    Ok(())
-}
-
-/// The time-domain refit of an amplitude-dependent finalist (a replay that fails, a
-/// softening spring losing its stiffness, say, leaves only the linearisation, which
-/// cannot size this effect: not plausible).
-fn refit(
-    ctx: &RoundContext<'_>,
-    f: &mut ModelResult,
-    (watch, timings): (&mut Stopwatch, &mut Timings),
-    progress: &mut dyn FnMut(DiagnoseStage<'_>),
-) {
-    progress(DiagnoseStage::TimeDomain {
-        hypothesis: &f.name,
-    });
-    match refit_in_time_domain(ctx.campaign, f, ctx.opts) {
-        Ok(r) => f.time_domain = Some(r),
-        Err(e) => {
-            f.plausible = false;
-            f.implausible_because = format!("its time-domain refit failed ({e})");
-        }
-    }
-    watch.mark(&format!("time-domain refit {}", f.name), timings);
-}
-
-/// The held-out check of a finalist against the base model (replaying the tests when
-/// it was refitted in the time domain).
-fn check_held_out(
-    ctx: &RoundContext<'_>,
-    base: &BaseModel,
-    hypotheses: &[Arc<dyn Hypothesis>],
-    f: &mut ModelResult,
-    (watch, timings): (&mut Stopwatch, &mut Timings),
-    progress: &mut dyn FnMut(DiagnoseStage<'_>),
-) -> Result<()> {
-    let h = hypotheses
-        .iter()
-        .find(|h| h.name() == f.name)
-        .expect("finalists come from the hypotheses");
-    let name = f.name.clone();
-    let mut cb = |done: usize, of: usize| {
-        progress(DiagnoseStage::HeldOut {
-            hypothesis: &name,
-            done,
-            of,
-        })
-    };
-    let replay = f.time_domain.is_some().then_some(ctx.campaign);
-    let checked = held_out(
-        ctx.data,
-        &base.extension,
-        &base.result.map.z,
-        h,
-        &f.location,
-        &f.map.z,
-        &ctx.opts.map,
-        replay,
-        &mut cb,
-    );
-    match checked {
-        Ok(ho) => f.held_out = Some(ho),
-        Err(e) if replay.is_some() => {
-            f.plausible = false;
-            f.implausible_because = format!("its time-domain held-out check failed ({e})");
-        }
-        Err(e) => return Err(e),
-    }
-    watch.mark(&format!("held-out {name}"), timings);
     Ok(())
 }
 
