@@ -42,11 +42,17 @@ fn noise_free() -> bool {
     std::env::var("FRFBAYES_CHECK_NOISE_FREE").is_ok_and(|v| v == "1")
 }
 
-/// The campaign of case `id` (cached) and its simulation model.
+/// The campaign of case `id` (cached) and its simulation model; without sensor noise
+/// under `FRFBAYES_CHECK_NOISE_FREE=1`.
 fn case(id: &str) -> (Campaign, SimModel) {
+    case_with(id, noise_free())
+}
+
+/// [`case`], noise-free when `quiet` (cached as `<id>-noise-free`).
+fn case_with(id: &str, quiet: bool) -> (Campaign, SimModel) {
     let mut model = SimModel::from_path(&model_path(id)).unwrap();
     let mut dir = cases_dir().join(id);
-    if noise_free() {
+    if quiet {
         model.noise = Default::default();
         dir = cases_dir().join(format!("{id}-noise-free"));
     }
@@ -497,8 +503,7 @@ fn noise_free_map_recovers_the_truth() {
     };
     let mut worst = 0.0f64;
     for id in ids {
-        let (campaign, mut model) = case_noise_free(id);
-        model.noise = Default::default();
+        let (campaign, model) = case_with(id, true);
         let data =
             Arc::new(DiagnosisData::from_campaign(&campaign, &DataOptions::default()).unwrap());
         let (verdict, loc) = expected(id);
@@ -562,20 +567,4 @@ fn print_errors(post: &ModelPosterior, z0: &[f64], z: &[f64]) {
         .map(|(t, f)| format!("{} {:+.2} %", t.name, 100.0 * (f.value / t.value - 1.0)))
         .collect();
     println!("  {}", line.join(", "));
-}
-
-/// [`case`] without sensor noise, whatever `FRFBAYES_CHECK_NOISE_FREE` says.
-fn case_noise_free(id: &str) -> (Campaign, SimModel) {
-    let mut model = SimModel::from_path(&model_path(id)).unwrap();
-    model.noise = Default::default();
-    let dir = cases_dir().join(format!("{id}-noise-free"));
-    if !dir.join("campaign.toml").exists() {
-        let seed = model.seed.unwrap_or(0);
-        let c = Simulator::new(model.clone())
-            .unwrap()
-            .run(seed, &|_| {})
-            .unwrap();
-        write_campaign(&c, &dir).unwrap();
-    }
-    (read_campaign(&dir).unwrap(), model)
 }
