@@ -45,6 +45,10 @@ pub struct Args {
     /// "False alarms").
     #[arg(long)]
     pub no_estimator_bias: bool,
+    /// Scale the relative errors by the fitted model's |H| instead of the measured |h|
+    /// (experimental: see README, "Effect intervals").
+    #[arg(long)]
+    pub model_error_scale: bool,
     /// Continue an interrupted run into the same --out from its last complete stage
     /// (the result is the same as an uninterrupted run's). Without it, an interrupted
     /// run's stages are discarded.
@@ -210,6 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         seed: args.seed,
         only: args.only,
         estimator_bias: !args.no_estimator_bias,
+        model_error_scale: args.model_error_scale,
         ..DiagnoseOptions::default()
     };
     if args.quick {
@@ -242,6 +247,10 @@ pub struct BenchArgs {
     /// `diagnose --no-estimator-bias` for every case.
     #[arg(long)]
     pub no_estimator_bias: bool,
+    /// Scale the relative errors by the fitted model's |H| instead of the measured |h|
+    /// (experimental: see README, "Effect intervals").
+    #[arg(long)]
+    pub model_error_scale: bool,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Continue the case an interrupted run was diagnosing from its last complete stage
@@ -306,6 +315,7 @@ fn diagnose_case(args: &BenchArgs, case: &BenchmarkCase) -> anyhow::Result<CaseR
         seed: args.seed,
         only: args.hypotheses.clone(),
         estimator_bias: !args.no_estimator_bias,
+        model_error_scale: args.model_error_scale,
         ..DiagnoseOptions::default()
     };
     if args.quick {

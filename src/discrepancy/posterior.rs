@@ -200,13 +200,17 @@ impl ModelPosterior {
         let model = ExtendedModel::new(data.clone(), hypothesis)?;
         let mut h = Vec::with_capacity(model.len());
         let mut eps2 = Vec::with_capacity(model.len());
+        let mut abs2 = Vec::with_capacity(model.len());
         for seg in &data.segments {
             for ch in &seg.channels {
                 h.extend_from_slice(&ch.h);
                 eps2.extend(ch.rel_err.iter().map(|e| e * e));
+                match ch.error_scale.len() == ch.len() {
+                    true => abs2.extend(ch.error_scale.iter().map(|a| a * a)),
+                    false => abs2.extend(ch.h.iter().map(|v| v.norm_sqr())),
+                }
             }
         }
-        let abs2 = h.iter().map(|v| v.norm_sqr()).collect();
         let mut gains = Vec::new();
         for (seg, ranges) in data.segments.iter().zip(model.layout()) {
             let Some(basis) = &seg.input_gain else {
@@ -454,7 +458,9 @@ impl ModelPosterior {
             for (j, &k) in gs.freq_of.iter().enumerate() {
                 let i = gs.start + j;
                 let inv_d = 1.0 / (2.0 * (self.eps2[i] + eta2) * self.abs2[i]);
-                w[k as usize] += self.abs2[i] * inv_d;
+                // The gain error acts on the measured ratio (`V = diag(h) U`), whatever
+                // scales the noise (`abs2`): `|h|^2`, not `abs2`, keeps `q <= e^* D^-1 e`.
+                w[k as usize] += self.h[i].norm_sqr() * inv_d;
                 bk[k as usize] += self.h[i].conj() * (self.h[i] - pred[i]) * inv_d;
             }
             let (g, q, ld) = gain_solve(gs, &w, &bk);

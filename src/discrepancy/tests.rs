@@ -55,6 +55,7 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
                 h: vec![Complex64::new(1.0, 0.5); n],
                 rel_err: vec![0.01; n],
                 estimator_bias: Vec::new(),
+                error_scale: Vec::new(),
             });
         }
     }
@@ -595,7 +596,13 @@ fn posterior_prior_is_normalised_and_likelihood_is_the_gaussian() {
 #[test]
 fn correlated_gain_likelihood_is_the_dense_gaussian() {
     // One hammer segment on 6 frequencies with a random rank-2 gain basis: ln L and the
-    // whitened residuals against the dense complex covariance D + V V^*.
+    // whitened residuals against the dense complex covariance D + V V^* (V = diag(h) U),
+    // with D scaled by the measured |h| and by a model's |H| (`with_error_scale`).
+    gain_likelihood_against_dense(false);
+    gain_likelihood_against_dense(true);
+}
+
+fn gain_likelihood_against_dense(scaled: bool) {
     let mut data = (*synthetic()).clone();
     let freq: Vec<f64> = (1..=6).map(|i| 0.7 * i as f64).collect();
     let mut seg = segment(
@@ -617,6 +624,12 @@ fn correlated_gain_likelihood_is_the_dense_gaussian() {
             *h = c() * 0.01;
             *e = 0.02 + 0.1 * c().re.abs();
         }
+        if scaled {
+            ch.error_scale =
+                ch.h.iter()
+                    .map(|h| h.norm() * (0.5 + c().re.abs()))
+                    .collect();
+        }
     }
     data.segments = vec![seg.clone()];
     let post = ModelPosterior::new(Arc::new(data), None).unwrap();
@@ -630,7 +643,8 @@ fn correlated_gain_likelihood_is_the_dense_gaussian() {
     let mut i = 0;
     for ch in &seg.channels {
         for (p, &k) in ch.freq_index.iter().enumerate() {
-            let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * ch.h[p].norm_sqr();
+            let scale = ch.error_scale.get(p).copied().unwrap_or(ch.h[p].norm());
+            let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * scale * scale;
             sigma[(i, i)] = Complex64::new(d, 0.0);
             for m in 0..rank {
                 v[(i, m)] = ch.h[p] * u[k * rank + m];
@@ -762,4 +776,59 @@ fn a_second_oscillator_has_its_own_names_and_locations() {
     unique.dedup();
     assert_eq!(unique.len(), names.len(), "{names:?}");
     assert!(names[3].ends_with("_2"), "{names:?}");
+}
+
+#[test]
+fn errors_scaled_by_the_model_remove_the_magnitude_bias_of_measured_weights() {
+    // Data = the model at `base()` times (1 + eps n), n complex standard normal, eps
+    // = 20 %. Scaling the errors by the measured |h| weights each point by
+    // 1 / |1 + eps n|^2: the best overall magnitude `a` is then 1 / (1 + eps^2) =
+    // 0.962, not 1 (E[1 / (1 + eps n)] = 1, E[1 / |1 + eps n|^2] ~ 1 + eps^2).
+    // Scaled by the model's |H| it is 1. sd of `a`: eps / sqrt(2 N) = 0.0029 (N =
+    // 2400 points); tolerance 4 sd.
+    use rand_distr::StandardNormal;
+    let eps = 0.2;
+    let clean = synthetic();
+    let truth = ExtendedModel::new(clean.clone(), None)
+        .unwrap()
+        .predict(&base(), &[])
+        .unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut data = (*clean).clone();
+    let mut it = truth.iter();
+    for seg in &mut data.segments {
+        for ch in &mut seg.channels {
+            ch.rel_err = vec![eps; ch.len()];
+            for h in &mut ch.h {
+                let n = Complex64::new(rng.sample(StandardNormal), rng.sample(StandardNormal));
+                *h = it.next().unwrap() * (1.0 + eps * n / 2f64.sqrt());
+            }
+        }
+    }
+    let measured = ModelPosterior::new(Arc::new(data.clone()), None).unwrap();
+    let layout = measured.model().layout().to_vec();
+    let scaled = ModelPosterior::new(
+        Arc::new(data.with_error_scale(&layout, &truth).unwrap()),
+        None,
+    )
+    .unwrap();
+    let best_scale = |post: &ModelPosterior| -> f64 {
+        (0..=400)
+            .map(|i| 0.9 + 0.0005 * i as f64)
+            .max_by(|&a, &b| {
+                let at = |s: f64| {
+                    let p: Vec<Complex64> = truth.iter().map(|v| v * s).collect();
+                    post.ln_likelihood_of(&p, 1e-6)
+                };
+                at(a).total_cmp(&at(b))
+            })
+            .unwrap()
+    };
+    let sd = eps / (2.0 * truth.len() as f64).sqrt();
+    let (a_measured, a_scaled) = (best_scale(&measured), best_scale(&scaled));
+    assert!(
+        (a_measured - 1.0 / (1.0 + eps * eps)).abs() < 4.0 * sd,
+        "{a_measured}"
+    );
+    assert!((a_scaled - 1.0).abs() < 4.0 * sd, "{a_scaled}");
 }
