@@ -44,7 +44,7 @@
 //! `1 - (omega h)^2 / 12`, 5e-4 at 6 Hz and 500 Hz sampling); the replay's estimates are
 //! divided by it, so that what is left is the estimator's error, not the replay's.
 
-use super::data::DiagnosisData;
+use super::data::{ChannelData, DiagnosisData};
 use super::posterior::ModelPosterior;
 use super::time_domain::TimeDomainModel;
 use crate::error::{Error, Result};
@@ -114,19 +114,9 @@ impl DiagnosisData {
         layout: &[Vec<Range<usize>>],
         bias: &[Complex64],
     ) -> Result<DiagnosisData> {
-        let mut out = self.clone();
-        if layout.len() != out.segments.len() {
-            return Err(Error::Usage("bias layout of other data".into()));
-        }
-        for (seg, ranges) in out.segments.iter_mut().zip(layout) {
-            for (ch, r) in seg.channels.iter_mut().zip(ranges) {
-                if r.len() != ch.len() || r.end > bias.len() {
-                    return Err(Error::Usage("bias layout of other data".into()));
-                }
-                ch.estimator_bias = bias[r.clone()].to_vec();
-            }
-        }
-        Ok(out)
+        self.with_per_point(layout, bias, "bias", |ch, values| {
+            ch.estimator_bias = values.to_vec()
+        })
     }
 
     /// The same data with the errors scaled by `|pred|` (flat layout `layout`; a fitted
@@ -145,16 +135,31 @@ impl DiagnosisData {
         layout: &[Vec<Range<usize>>],
         pred: &[Complex64],
     ) -> Result<DiagnosisData> {
+        self.with_per_point(layout, pred, "error-scale", |ch, values| {
+            ch.error_scale = values.iter().map(|v| v.norm()).collect()
+        })
+    }
+
+    /// The same data with `set` called on every channel with its points of `flat`
+    /// (layout `layout`); an error naming `what` when the layout is another data's.
+    fn with_per_point(
+        &self,
+        layout: &[Vec<Range<usize>>],
+        flat: &[Complex64],
+        what: &str,
+        set: impl Fn(&mut ChannelData, &[Complex64]),
+    ) -> Result<DiagnosisData> {
+        let other = || Error::Usage(format!("{what} layout of other data"));
         let mut out = self.clone();
         if layout.len() != out.segments.len() {
-            return Err(Error::Usage("error-scale layout of other data".into()));
+            return Err(other());
         }
         for (seg, ranges) in out.segments.iter_mut().zip(layout) {
             for (ch, r) in seg.channels.iter_mut().zip(ranges) {
-                if r.len() != ch.len() || r.end > pred.len() {
-                    return Err(Error::Usage("error-scale layout of other data".into()));
+                if r.len() != ch.len() || r.end > flat.len() {
+                    return Err(other());
                 }
-                ch.error_scale = pred[r.clone()].iter().map(|v| v.norm()).collect();
+                set(ch, &flat[r.clone()]);
             }
         }
         Ok(out)
