@@ -137,6 +137,11 @@ fn check_held_out(
     (watch, timings): (&mut Stopwatch, &mut Timings),
     progress: &mut dyn FnMut(DiagnoseStage<'_>),
 ) -> Result<()> {
+    if ctx.data.segments.len() < 2 {
+        // Nothing to hold out: the check cannot pass, and the hypothesis is not named.
+        f.held_out = None;
+        return Ok(());
+    }
     let h = hypotheses
         .iter()
         .find(|h| h.name() == f.name)
