@@ -24,7 +24,9 @@
 //! `results/recovery`), `FRFBAYES_STUDY_LABEL` (file name prefix, default `run`),
 //! `FRFBAYES_STUDY_LOADINGS` (the shared force noise's loadings scaled by `model`
 //! magnitudes at the maximum-likelihood start, the default of `frfbayes sample`, or
-//! `measured` ones, the former default; the profile oracle also takes `truth`). Writes
+//! `measured` ones, the former default; the profile oracle also takes `truth`),
+//! `FRFBAYES_STUDY_N_MODES`, `FRFBAYES_STUDY_FREQ_MAX_HZ` and `FRFBAYES_STUDY_MODE_SOLVER=exact`
+//! (as `sample`'s `--n-modes`, `--freq-max-hz`, `--mode-solver`; the bridge needs them). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.
 
 use frfbayes::bayes::recovery::{joint_error, JointError};
@@ -396,13 +398,17 @@ fn truth_coords(post: &frfbayes::bayes::FrfPosterior, model: &SimModel, t: &[f64
     let mut z: Vec<f64> = post
         .names()
         .iter()
-        .map(|n| {
-            let i: usize = n[1..].parse().unwrap_or(0);
-            match &n[..1] {
-                "k" => t[i - 1],
-                "m" => t[n_alpha + i - 1],
+        .enumerate()
+        .map(|(j, n)| {
+            // k<i>, m<i>: shear-frame style names; others (a manifest's group names,
+            // e.g. the bridge's Frame, Conc1, ...) by position, alphas then betas
+            let i: Option<usize> = n[1..].parse().ok();
+            match (&n[..1], i) {
+                ("k", Some(i)) => t[i - 1],
+                ("m", Some(i)) => t[n_alpha + i - 1],
                 _ if n == "ln_a0" => a0_per_s.ln(),
                 _ if n == "ln_a1" => a1_s.ln(),
+                _ if j < t.len() => t[j],
                 _ => 0.0,
             }
         })
@@ -529,14 +535,24 @@ fn scale_profile(
 
 /// The settings of the studies: `frfbayes sample`'s, accelerance, Rayleigh, hammer tests.
 fn study_settings(model_file: &str) -> SampleSettings {
-    SampleSettings::new(
+    let mut s = SampleSettings::new(
         model_file.into(),
         DampingModel::Rayleigh,
         FrfKind::Accelerance,
         TestSelection::Hammer,
         1,
     )
-    .unwrap()
+    .unwrap();
+    s.posterior.n_modes = std::env::var("FRFBAYES_STUDY_N_MODES")
+        .ok()
+        .map(|v| v.parse().expect("FRFBAYES_STUDY_N_MODES: a count"));
+    s.estimate.freq_max_hz = std::env::var("FRFBAYES_STUDY_FREQ_MAX_HZ")
+        .ok()
+        .map(|v| v.parse().expect("FRFBAYES_STUDY_FREQ_MAX_HZ: Hz"));
+    if std::env::var("FRFBAYES_STUDY_MODE_SOLVER").as_deref() == Ok("exact") {
+        s.posterior.mode_solver = frfbayes::predict::ModeSolverChoice::Exact;
+    }
+    s
 }
 
 /// Oracle on the likelihood, without sampling: over noise draws, the maximum of the
@@ -669,14 +685,14 @@ fn residuals_at_the_truth() {
         let h = post.magnitudes(&truth_coords(&post, &model, &t)).unwrap();
         let d = post.data();
         let mut at = 0;
-        for b in &d.blocks {
+        for (at_block, b) in d.blocks.iter().enumerate() {
             let nw = b.omega_rad_s.len();
             let dw = b
                 .omega_rad_s
                 .windows(2)
                 .map(|w| w[1] - w[0])
                 .fold(f64::INFINITY, f64::min);
-            for _ in &b.pairs {
+            for pair_no in 0..b.pairs.len() {
                 // contiguous runs of bins
                 let mut s = 0;
                 while s < nw {
@@ -693,6 +709,19 @@ fn residuals_at_the_truth() {
                             .windows(2)
                             .position(|w| w[0] <= ratio && ratio < w[1])
                             .unwrap();
+                        if std::env::var("FRFBAYES_STUDY_WORST").is_ok()
+                            && (d.magnitude[k] / h[k] - 1.0).abs() > 0.3
+                        {
+                            println!(
+                                "draw {i} block {} response {} at {:.3} Hz: y/h {:.3}, |H| {:.3e}, sigma/y {:.2e}",
+                                d.tests.get(at_block).cloned().unwrap_or_default(),
+                                b.pairs.get(pair_no).map(|p| p.response + 1).unwrap_or(0),
+                                b.omega_rad_s[q] / std::f64::consts::TAU,
+                                d.magnitude[k] / h[k],
+                                h[k],
+                                d.sigma[k] / d.magnitude[k]
+                            );
+                        }
                         let gg = &mut g[gi];
                         gg[0] += 1.0;
                         gg[1] += dk;

@@ -46,7 +46,9 @@ pub struct Args {
     #[arg(long)]
     pub no_estimator_bias: bool,
     /// Scale the relative errors by the fitted model's |H| instead of the measured |h|
-    /// (experimental: see README, "Effect intervals").
+    /// (experimental and measured not to work: the nominal model's |H| is wrong where
+    /// the effect is, so its errors are wrong there; see README, "Why the structural
+    /// sizes are biased").
     #[arg(long)]
     pub model_error_scale: bool,
     /// Continue an interrupted run into the same --out from its last complete stage
@@ -248,7 +250,9 @@ pub struct BenchArgs {
     #[arg(long)]
     pub no_estimator_bias: bool,
     /// Scale the relative errors by the fitted model's |H| instead of the measured |h|
-    /// (experimental: see README, "Effect intervals").
+    /// (experimental and measured not to work: the nominal model's |H| is wrong where
+    /// the effect is, so its errors are wrong there; see README, "Why the structural
+    /// sizes are biased").
     #[arg(long)]
     pub model_error_scale: bool,
     #[arg(long, default_value_t = 1)]

@@ -74,8 +74,10 @@ pub struct DiagnoseOptions {
     pub estimator_bias: bool,
     /// Scale the relative errors by the fitted model's `|H|` (at the nominal MAP, then
     /// at each accepted model's) instead of the measured `|h|`, whose noise biases the
-    /// fitted magnitudes low ([`DiagnosisData::with_error_scale`]). Off by default: not
-    /// yet run on the benchmark.
+    /// fitted magnitudes low ([`DiagnosisData::with_error_scale`]). Off by default:
+    /// measured not to work on the benchmark (secondary_oscillator-1 and -3 came out
+    /// `unexplained`, nominal chi2 per point 419 and 7,032), because the nominal model's
+    /// `|H|` is wrong where the effect is, and the errors it scales are then wrong there.
     pub model_error_scale: bool,
 }
 

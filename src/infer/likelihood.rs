@@ -637,6 +637,17 @@ impl Block {
         }
     }
 
+    /// Whitens this block's residuals `r` (already divided by `sigma`, its own chain
+    /// applied: [`Self::residuals`]) against its shared noise at `sigma`
+    /// ([`SharedFactors::whiten`]), so that `|r|^2 / 2` is the block's `-ln L` up to a
+    /// constant; a no-op for blocks without shared noise. Linear, so it applies to the
+    /// columns of a residual Jacobian as well.
+    pub fn whiten_shared(&self, r: &mut [f64], sigma: f64) {
+        if let BlockKind::SharedNoise { factors, .. } = &self.kind {
+            factors.whiten(r, sigma * sigma);
+        }
+    }
+
     /// [`Self::ln_likelihood`] spread over the residuals into `out` (one term each,
     /// summing to `ln L_b`): for [`BlockKind::Values`] and [`BlockKind::SharedNoise`]
     /// each value's own Gaussian term `ln w_i - ln(2 pi)/2 - ln sigma - r_i^2 / (2

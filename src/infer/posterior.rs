@@ -333,7 +333,8 @@ impl<P: Predict> Posterior<P> {
     }
 
     /// The least-squares view at fixed noise scales `sigma` (one per sampled scale):
-    /// residuals `r / sigma_b` over the model coordinates, so that its cost is
+    /// residuals `r / sigma_b` over the model coordinates, a shared-noise block's
+    /// whitened by its Woodbury factors ([`Block::whiten_shared`]), so that its cost is
     /// `-ln L + const` and its minimiser in the prior box is the MAP estimate.
     pub fn least_squares(&self, sigma: &[f64]) -> Result<LeastSquares<'_, P>> {
         let n_scales = self.prior.dim() - self.n_model();
@@ -421,9 +422,11 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
     fn residuals(&self, x: &[f64], ws: &mut Self::Workspace, r: &mut [f64]) -> Result<()> {
         self.post.fill_residuals(x, ws)?;
         for (b, w) in self.inv_sigma.iter().enumerate() {
-            for i in self.post.residual_range(b) {
+            let range = self.post.residual_range(b);
+            for i in range.clone() {
                 r[i] = ws.res[i] * w;
             }
+            self.post.blocks[b].whiten_shared(&mut r[range], 1.0 / w);
         }
         Ok(())
     }
@@ -434,9 +437,14 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
         let p = &self.post.predictor;
         ws.dpred.resize_mut(p.n_outputs(), p.n_params(), 0.0);
         if p.jacobian(x, &mut ws.ws, &mut ws.pred, &mut ws.dpred)? {
+            let n_rows = jac.nrows();
             for (b, block) in self.post.blocks.iter().enumerate() {
                 let row0 = self.post.offsets[b];
                 block.residual_jacobian(&ws.pred, &ws.dpred, self.inv_sigma[b], row0, jac);
+                let rows = self.post.residual_range(b);
+                for column in jac.as_mut_slice().chunks_exact_mut(n_rows) {
+                    block.whiten_shared(&mut column[rows.clone()], 1.0 / self.inv_sigma[b]);
+                }
             }
             return Ok(());
         }

@@ -319,3 +319,122 @@ fn map_fit_on_the_posterior_layer_recovers_the_truth() {
         assert!((x - t).abs() < 1e-6, "{:?} vs {truth:?}", fit.best.x);
     }
 }
+
+/// [`Linear`] with its analytic Jacobian `A` (the least squares' analytic path).
+#[derive(Clone)]
+struct LinearWithJacobian(Linear);
+
+impl Predict for LinearWithJacobian {
+    type Workspace = ();
+    fn n_params(&self) -> usize {
+        self.0.n_params()
+    }
+    fn n_outputs(&self) -> usize {
+        self.0.n_outputs()
+    }
+    fn param_names(&self) -> Vec<String> {
+        self.0.param_names()
+    }
+    fn workspace(&self) {}
+    fn predict(&self, theta: &[f64], ws: &mut (), out: &mut [f64]) -> crate::Result<()> {
+        self.0.predict(theta, ws, out)
+    }
+    fn jacobian(
+        &self,
+        theta: &[f64],
+        ws: &mut (),
+        out: &mut [f64],
+        jac: &mut DMatrix<f64>,
+    ) -> crate::Result<bool> {
+        self.0.predict(theta, ws, out)?;
+        jac.copy_from(&self.0.a);
+        Ok(true)
+    }
+}
+
+/// Oracle: with noise shared by a block's values (and its bins correlated along a
+/// chain), the least-squares view's minimiser is the generalised least-squares solution
+/// `(A^T C^-1 A)^-1 A^T C^-1 y` of the dense covariance `C = sigma^2 D^(1/2) R D^(1/2) +
+/// L L^T`, and its cost differences are the log-likelihood's, with the finite-difference
+/// Jacobian and the analytic one alike.
+#[test]
+fn least_squares_with_shared_noise_is_generalised_least_squares() {
+    use crate::update::lsq::LeastSquaresProblem;
+    let (n, sigma) = (8, 0.7);
+    let a = DMatrix::from_fn(n, 3, |i, j| {
+        ((i + 1) as f64 * 0.7 + j as f64 * 1.3).sin() + 0.1 * j as f64
+    });
+    let y: Vec<f64> = (0..n).map(|i| 1.0 + 0.3 * (i as f64 * 2.1).cos()).collect();
+    let loadings: Vec<f64> = (0..n * 2)
+        .map(|i| 0.12 * ((i as f64 * 0.9).sin() + 0.5))
+        .collect();
+    let rho: Vec<f64> = (0..n).map(|k| if k == 0 { 0.0 } else { 0.4 }).collect();
+    let correlation = likelihood::Correlation {
+        shared: Some((&loadings, 2)),
+        chain: &rho,
+    };
+    let scale = NoiseScale::Sampled(0);
+    let block = Block::correlated_values(
+        "all",
+        0..n,
+        &y,
+        &SD,
+        Transform::Identity,
+        correlation,
+        scale,
+    )
+    .unwrap();
+    let corr = |i: usize, j: usize| 0.4f64.powi((i as i32 - j as i32).abs());
+    let cov = DMatrix::from_fn(n, n, |i, j| {
+        sigma * sigma * SD[i] * SD[j] * corr(i, j)
+            + (0..2)
+                .map(|c| loadings[i * 2 + c] * loadings[j * 2 + c])
+                .sum::<f64>()
+    });
+    let c_inv = cov.cholesky().unwrap().inverse();
+    let precision = a.transpose() * &c_inv * &a;
+    let gls = precision
+        .cholesky()
+        .unwrap()
+        .solve(&(a.transpose() * &c_inv * DVector::from_column_slice(&y)));
+    let bounds = [(-20.0, 20.0); 3];
+    let scales = [("ln s".to_string(), (-3.0, 3.0))];
+    let linear = Linear { a: a.clone() };
+    let plain = Posterior::new(linear.clone(), &bounds, &scales, vec![block.clone()]).unwrap();
+    let analytic =
+        Posterior::new(LinearWithJacobian(linear), &bounds, &scales, vec![block]).unwrap();
+    let options = FitOptions {
+        n_starts: 3,
+        ..Default::default()
+    };
+    let fits = [
+        fit_multistart(&plain, &[sigma], None, &options).unwrap(),
+        fit_multistart(&analytic, &[sigma], None, &options).unwrap(),
+    ];
+    for fit in &fits {
+        for i in 0..3 {
+            assert!(
+                (fit.best.x[i] - gls[i]).abs() < 1e-7 * gls.amax(),
+                "{:?} against {gls}",
+                fit.best.x
+            );
+        }
+    }
+    let ls = plain.least_squares(&[sigma]).unwrap();
+    let (x1, x2) = ([0.3, -0.2, 0.5], [0.1, 0.4, -0.3]);
+    let cost = |x: &[f64]| {
+        let mut r = vec![0.0; n];
+        ls.residuals(x, &mut ls.workspace(), &mut r).unwrap();
+        0.5 * r.iter().map(|v| v * v).sum::<f64>()
+    };
+    let ln_l = |x: &[f64]| {
+        let mut z = x.to_vec();
+        z.push(sigma.ln());
+        plain.ln_likelihood(&z).unwrap()
+    };
+    let (d_cost, d_ln_l) = (cost(&x1) - cost(&x2), ln_l(&x1) - ln_l(&x2));
+    assert!(
+        (d_cost + d_ln_l).abs() < 1e-10 * d_ln_l.abs(),
+        "{d_cost} against {d_ln_l}"
+    );
+}
