@@ -11,7 +11,12 @@
 //! nice -n 10 cargo test --release --test bayes_noise_replicates -- --ignored --nocapture
 //! ```
 //!
-//! Writes `results/coverage/noise_replicates.md` (or `FRFBAYES_COVERAGE_OUT`).
+//! Writes `results/coverage/noise_replicates.md` (or `FRFBAYES_COVERAGE_OUT`). Other models:
+//! `FRFBAYES_REPLICATES_MODEL` (a model file), `FRFBAYES_REPLICATES_FRF=accelerance`,
+//! `FRFBAYES_REPLICATES_FREQ_MAX_HZ`, `FRFBAYES_REPLICATES_LABEL` (the file name),
+//! `FRFBAYES_REPLICATES_SELECT=noisy` (the bins a noisy campaign's estimate selects, not
+//! the noise-free one's: those reach where the noisy estimator never would); the
+//! bridge: `experiments/models/bridge-hammer.toml`, accelerance, 15.5 Hz.
 
 use frfbayes::bayes::run::{SampleSettings, TestSelection};
 use frfbayes::bayes::{FrfData, InputNoiseModel};
@@ -44,6 +49,30 @@ fn noisy(clean: &Campaign, noise: &NoiseSpec, seed: u64) -> Campaign {
         }
     }
     c
+}
+
+/// Restricts every estimate's selected bins to those where no estimate has a response of
+/// kind `kind` with zero coherence (no finite error), so all have the same points.
+fn keep_common_bins(reference: &mut [TestFrf], replicates: &mut [Vec<TestFrf>], kind: FrfKind) {
+    for t in 0..reference.len() {
+        let finite = |f: &TestFrf, i: usize| {
+            let nw = f.selected.len();
+            let rel = f.selected_rel_std();
+            let block = f.frf_block().unwrap();
+            (0..block.pairs.len())
+                .filter(|&j| block.pairs[j].kind == kind)
+                .all(|j| rel[j * nw + i].is_finite())
+        };
+        let keep: Vec<bool> = (0..reference[t].selected.len())
+            .map(|i| finite(&reference[t], i) && replicates.iter().all(|r| finite(&r[t], i)))
+            .collect();
+        let cut = |f: &mut TestFrf| {
+            let kept = f.selected.iter().zip(&keep).filter(|(_, k)| **k);
+            f.selected = kept.map(|(b, _)| *b).collect();
+        };
+        cut(&mut reference[t]);
+        replicates.iter_mut().for_each(|r| cut(&mut r[t]));
+    }
 }
 
 /// Predicted covariance of the relative errors of one test's points under `data`'s model.
@@ -84,24 +113,51 @@ fn force_noise_is_shared_by_the_points_of_a_test() {
         std::env::var("FRFBAYES_COVERAGE_OUT")
             .unwrap_or_else(|_| root.join("results/coverage").display().to_string()),
     );
-    let mut model =
-        SimModel::from_path(&root.join("experiments/models/four-story-truth.toml")).unwrap();
+    let model_file = std::env::var("FRFBAYES_REPLICATES_MODEL")
+        .unwrap_or_else(|_| "experiments/models/four-story-truth.toml".into());
+    let mut model = SimModel::from_path(&root.join(&model_file)).unwrap();
     model.tests.retain(|t| matches!(t, TestSpec::Hammer { .. }));
     let noise = std::mem::take(&mut model.noise);
     let clean = Simulator::new(model).unwrap().run(0, &|_| {}).unwrap();
-    let settings = SampleSettings::new(
+    let kind = match std::env::var("FRFBAYES_REPLICATES_FRF").as_deref() {
+        Ok("accelerance") => FrfKind::Accelerance,
+        _ => FrfKind::Receptance,
+    };
+    let mut settings = SampleSettings::new(
         "<simulated>".into(),
         DampingModel::Caughey,
-        FrfKind::Receptance,
+        kind,
         TestSelection::Hammer,
         1,
     )
     .unwrap();
+    settings.estimate.freq_max_hz = std::env::var("FRFBAYES_REPLICATES_FREQ_MAX_HZ")
+        .ok()
+        .map(|v| v.parse().expect("FRFBAYES_REPLICATES_FREQ_MAX_HZ: Hz"));
     let opts = settings.estimate.options();
-    let reference = estimate_campaign(&clean, &opts).unwrap();
+    let mut reference = estimate_campaign(&clean, &opts).unwrap();
+    if std::env::var("FRFBAYES_REPLICATES_SELECT").as_deref() == Ok("noisy") {
+        // the bins a noisy campaign's own estimate selects (seed 999, not a replicate)
+        let noisy0 = estimate_campaign(&noisy(&clean, &noise, 999), &opts).unwrap();
+        for (f, f1) in reference.iter_mut().zip(&noisy0) {
+            f.selected = f1.selected.clone();
+        }
+    }
+    // every replicate at the reference's selected bins, then all at the bins that none
+    // of them drops (zero coherence: `FrfData::n_dropped_bins`)
+    let mut replicates: Vec<Vec<TestFrf>> = (0..REPLICATES)
+        .map(|rep| {
+            let mut frfs = estimate_campaign(&noisy(&clean, &noise, 1000 + rep), &opts).unwrap();
+            for (f, f0) in frfs.iter_mut().zip(&reference) {
+                f.selected = f0.selected.clone();
+            }
+            frfs
+        })
+        .collect();
+    keep_common_bins(&mut reference, &mut replicates, kind);
     let build = |frfs: &[TestFrf], m: InputNoiseModel| {
         let refs: Vec<&TestFrf> = frfs.iter().collect();
-        FrfData::with_input_noise(&refs, FrfKind::Receptance, settings.residual, 1e-3, m).unwrap()
+        FrfData::with_input_noise(&refs, kind, settings.residual, 1e-3, m).unwrap()
     };
     let y0 = build(&reference, InputNoiseModel::PerPoint).magnitude;
     // point ranges of the tests (the blocks of the long vector)
@@ -119,13 +175,9 @@ fn force_noise_is_shared_by_the_points_of_a_test() {
     let mut emp: Vec<DMatrix<f64>> = ranges.iter().map(zeros).collect();
     let mut pred_pp: Vec<DMatrix<f64>> = ranges.iter().map(zeros).collect();
     let mut pred_sh: Vec<DMatrix<f64>> = ranges.iter().map(zeros).collect();
-    for rep in 0..REPLICATES {
-        let mut frfs = estimate_campaign(&noisy(&clean, &noise, 1000 + rep), &opts).unwrap();
-        for (f, f0) in frfs.iter_mut().zip(&reference) {
-            f.selected = f0.selected.clone();
-        }
-        let pp = build(&frfs, InputNoiseModel::PerPoint);
-        let sh = build(&frfs, InputNoiseModel::Shared);
+    for frfs in &replicates {
+        let pp = build(frfs, InputNoiseModel::PerPoint);
+        let sh = build(frfs, InputNoiseModel::Shared);
         let eps: Vec<f64> = pp
             .magnitude
             .iter()
@@ -142,8 +194,8 @@ fn force_noise_is_shared_by_the_points_of_a_test() {
     let r = REPLICATES as f64;
     let mut md = format!(
         "## Noise replicates at the true model\n\n{REPLICATES} noise replicates of the \
-         simulated hammer campaign (`four-story-truth.toml`, hammer tests, the noise of the \
-         recorded campaign), receptance, the bins the noise-free estimate selects. \
+         simulated hammer campaign (`{model_file}`, hammer tests, the model file's \
+         noise), {kind:?}, the bins the noise-free estimate selects. \
          `eps = |H1| / |H1_clean| - 1`; the noise-free estimate's own error is below \
          1e-5. Per test: the mean variance of a point, the variance of the test's mean \
          error (what a common gain of mass and stiffness sees), the mean correlation \
@@ -204,7 +256,8 @@ fn force_noise_is_shared_by_the_points_of_a_test() {
     );
     println!("{md}");
     std::fs::create_dir_all(&out).unwrap();
-    write_atomic(&out.join("noise_replicates.md"), md.as_bytes()).unwrap();
+    let label = std::env::var("FRFBAYES_REPLICATES_LABEL").unwrap_or("noise_replicates".into());
+    write_atomic(&out.join(format!("{label}.md")), md.as_bytes()).unwrap();
     // the shared model must predict the test-mean variance within 3 sampling sd
     // (2 / sqrt(R n_tests) relative in log); the per-point model is what is measured
     let tol = 3.0 * (2.0 / (r * n_tests as f64)).sqrt();
