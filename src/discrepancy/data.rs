@@ -69,6 +69,24 @@ pub struct DataOptions {
     pub min_coherence: f64,
     /// Peaks searched beyond the nominal number of modes (extra modes; default 2).
     pub extra_peaks: usize,
+    /// Compare the models with `h (1 + v)`, `v = min(2 eps^2, MAX_WEIGHT_BIAS)`, instead
+    /// of the measured `h` ([`weight_bias`]; default false).
+    pub weight_bias_correction: bool,
+}
+
+/// Largest relative correction of [`weight_bias`] (its expansion holds for small `eps`).
+pub const MAX_WEIGHT_BIAS: f64 = 0.1;
+
+/// The relative bias `v` of a fit whose errors are scaled by the measured `|h|`, for one
+/// point of relative error `eps` (`std(Re) = std(Im) = eps |H|`, so `h = H (1 + x)` with
+/// `E|x|^2 = 2 eps^2`). The weight `1 / |h|^2` follows the point's own noise: with
+/// `E[x] = E[x^2] = 0`, `E[(h - H) / |h|^2] = E[x / |1 + x|^2] / conj(H) = -E|x|^2 /
+/// conj(H)` to second order, while `E[h / |h|^2] = E[1 / conj(1 + x)] / conj(H) = 1 /
+/// conj(H)`. So comparing a model with `h (1 + v)`, `v = E|x|^2 = 2 eps^2`, removes the
+/// bias to that order (what is left is about `2 v^2`); `v` is capped at
+/// [`MAX_WEIGHT_BIAS`], where the expansion stops holding (and such points weigh little).
+pub fn weight_bias(eps: f64) -> f64 {
+    (2.0 * eps * eps).min(MAX_WEIGHT_BIAS)
 }
 
 impl Default for DataOptions {
@@ -82,6 +100,7 @@ impl Default for DataOptions {
             freq_range_rel: (0.25, 4.0),
             min_coherence: 0.5,
             extra_peaks: 2,
+            weight_bias_correction: false,
         }
     }
 }

@@ -30,7 +30,7 @@
 //! ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`: 1 when the noise model is
 //! right.
 
-use super::data::DiagnosisData;
+use super::data::{weight_bias, DiagnosisData};
 use super::forward::{BaseParams, ExtendedModel};
 use super::hypothesis::{EffectParam, Hypothesis};
 use super::location::Location;
@@ -201,9 +201,17 @@ impl ModelPosterior {
         let mut h = Vec::with_capacity(model.len());
         let mut eps2 = Vec::with_capacity(model.len());
         let mut abs2 = Vec::with_capacity(model.len());
+        let correct = data.options.weight_bias_correction;
         for seg in &data.segments {
             for ch in &seg.channels {
-                h.extend_from_slice(&ch.h);
+                match correct {
+                    true => h.extend(
+                        ch.h.iter()
+                            .zip(&ch.rel_err)
+                            .map(|(h, e)| h * (1.0 + weight_bias(*e))),
+                    ),
+                    false => h.extend_from_slice(&ch.h),
+                }
                 eps2.extend(ch.rel_err.iter().map(|e| e * e));
                 match ch.error_scale.len() == ch.len() {
                     true => abs2.extend(ch.error_scale.iter().map(|a| a * a)),
@@ -302,7 +310,8 @@ impl ModelPosterior {
         self.h.len()
     }
 
-    /// Measured ratios, flat layout.
+    /// Measured ratios as the likelihood compares them (flat layout): times `1 + v`
+    /// with the weight-bias correction ([`super::data::weight_bias`]).
     pub fn measured(&self) -> &[Complex64] {
         &self.h
     }

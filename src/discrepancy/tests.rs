@@ -832,3 +832,53 @@ fn errors_scaled_by_the_model_remove_the_magnitude_bias_of_measured_weights() {
     );
     assert!((a_scaled - 1.0).abs() < 4.0 * sd, "{a_scaled}");
 }
+
+#[test]
+fn the_weight_bias_correction_removes_the_magnitude_bias_of_measured_weights() {
+    // Data = the model at `base()` times (1 + x), x complex with std(Re) = std(Im) =
+    // eps = 10 %, the likelihood's own convention (E|x|^2 = 2 eps^2). With errors scaled
+    // by the measured |h| the best overall magnitude is about 1 / (1 + 2 eps^2) = 0.980;
+    // comparing with h (1 + 2 eps^2) ([`super::data::weight_bias`]) it is 1 to
+    // second order (left: about 2 (2 eps^2)^2 = 0.0008). sd of the scale: eps / sqrt(N)
+    // = 0.002 (N = 2400 points); tolerance 4 sd.
+    use rand_distr::StandardNormal;
+    let eps = 0.1;
+    let clean = synthetic();
+    let truth = ExtendedModel::new(clean.clone(), None)
+        .unwrap()
+        .predict(&base(), &[])
+        .unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let mut data = (*clean).clone();
+    let mut it = truth.iter();
+    for seg in &mut data.segments {
+        for ch in &mut seg.channels {
+            ch.rel_err = vec![eps; ch.len()];
+            for h in &mut ch.h {
+                let n = Complex64::new(rng.sample(StandardNormal), rng.sample(StandardNormal));
+                *h = it.next().unwrap() * (1.0 + eps * n);
+            }
+        }
+    }
+    let measured = ModelPosterior::new(Arc::new(data.clone()), None).unwrap();
+    data.options.weight_bias_correction = true;
+    let corrected = ModelPosterior::new(Arc::new(data), None).unwrap();
+    let best_scale = |post: &ModelPosterior| -> f64 {
+        (0..=400)
+            .map(|i| 0.9 + 0.0005 * i as f64)
+            .max_by(|&a, &b| {
+                let at = |s: f64| {
+                    let p: Vec<Complex64> = truth.iter().map(|v| v * s).collect();
+                    post.ln_likelihood_of(&p, 1e-6)
+                };
+                at(a).total_cmp(&at(b))
+            })
+            .unwrap()
+    };
+    let sd = eps / (truth.len() as f64).sqrt();
+    let (a_measured, a_corrected) = (best_scale(&measured), best_scale(&corrected));
+    let expected = 1.0 / (1.0 + 2.0 * eps * eps);
+    println!("best scale: measured {a_measured} (expected {expected:.4}), corrected {a_corrected}, sd {sd:.4}");
+    assert!((a_measured - expected).abs() < 4.0 * sd, "{a_measured}");
+    assert!((a_corrected - 1.0).abs() < 4.0 * sd, "{a_corrected}");
+}
