@@ -57,6 +57,10 @@ pub struct Args {
     /// see README, "Why the structural sizes are biased")
     #[arg(long)]
     pub weight_bias_correction: bool,
+    /// The input-gain error multiplies the model's H (exact) instead of the measured h
+    /// (a plug-in; experimental)
+    #[arg(long)]
+    pub gain_on_model: bool,
     /// Continue an interrupted run into the same --out from its last complete stage
     /// (the result is the same as an uninterrupted run's). Without it, an interrupted
     /// run's stages are discarded.
@@ -225,6 +229,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         model_error_scale: args.model_error_scale,
         data: DataOptions {
             weight_bias_correction: args.weight_bias_correction,
+            gain_on_model: args.gain_on_model,
             ..DataOptions::default()
         },
         ..DiagnoseOptions::default()
@@ -270,6 +275,10 @@ pub struct BenchArgs {
     /// see README, "Why the structural sizes are biased")
     #[arg(long)]
     pub weight_bias_correction: bool,
+    /// The input-gain error multiplies the model's H (exact) instead of the measured h
+    /// (a plug-in; experimental)
+    #[arg(long)]
+    pub gain_on_model: bool,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Continue the case an interrupted run was diagnosing from its last complete stage
@@ -337,6 +346,7 @@ fn diagnose_case(args: &BenchArgs, case: &BenchmarkCase) -> anyhow::Result<CaseR
         model_error_scale: args.model_error_scale,
         data: DataOptions {
             weight_bias_correction: args.weight_bias_correction,
+            gain_on_model: args.gain_on_model,
             ..DataOptions::default()
         },
         ..DiagnoseOptions::default()

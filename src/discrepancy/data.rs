@@ -72,6 +72,10 @@ pub struct DataOptions {
     /// Compare the models with `h (1 + v)`, `v = min(2 eps^2, MAX_WEIGHT_BIAS)`, instead
     /// of the measured `h` ([`weight_bias`]; default false).
     pub weight_bias_correction: bool,
+    /// The input-gain error acts on the model's `H` (`V = diag(H(theta)) U`, exact for
+    /// `h = H (1 + delta) + noise`) instead of the measured `h` (a plug-in whose noise
+    /// is correlated with the residual it weighs; default false).
+    pub gain_on_model: bool,
 }
 
 /// Largest relative correction of [`weight_bias`] (its expansion holds for small `eps`).
@@ -101,6 +105,7 @@ impl Default for DataOptions {
             min_coherence: 0.5,
             extra_peaks: 2,
             weight_bias_correction: false,
+            gain_on_model: false,
         }
     }
 }

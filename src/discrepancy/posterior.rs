@@ -74,6 +74,8 @@ pub struct ModelPosterior {
     n_floors: usize,
     /// Segments with a correlated input-noise gain error.
     gains: Vec<GainSegment>,
+    /// The gain error multiplies the prediction, not the measured ratio.
+    gain_on_model: bool,
     /// Extra whitened residuals (2 per gain coefficient).
     n_gain_residuals: usize,
     /// When set, predictions replay the tests in the time domain instead of using
@@ -202,6 +204,7 @@ impl ModelPosterior {
         let mut eps2 = Vec::with_capacity(model.len());
         let mut abs2 = Vec::with_capacity(model.len());
         let correct = data.options.weight_bias_correction;
+        let gain_on_model = data.options.gain_on_model;
         for seg in &data.segments {
             for ch in &seg.channels {
                 match correct {
@@ -243,6 +246,7 @@ impl ModelPosterior {
         }
         let n_gain_residuals = gains.iter().map(|g| 2 * g.rank).sum();
         Ok(ModelPosterior {
+            gain_on_model,
             gains,
             n_gain_residuals,
             time_domain: None,
@@ -467,10 +471,12 @@ impl ModelPosterior {
             for (j, &k) in gs.freq_of.iter().enumerate() {
                 let i = gs.start + j;
                 let inv_d = 1.0 / (2.0 * (self.eps2[i] + eta2) * self.abs2[i]);
-                // The gain error acts on the measured ratio (`V = diag(h) U`), whatever
-                // scales the noise (`abs2`): `|h|^2`, not `abs2`, keeps `q <= e^* D^-1 e`.
-                w[k as usize] += self.h[i].norm_sqr() * inv_d;
-                bk[k as usize] += self.h[i].conj() * (self.h[i] - pred[i]) * inv_d;
+                // The gain error acts on the measured ratio (`V = diag(h) U`) or the
+                // model's (`gain_on_model`), whatever scales the noise (`abs2`); `w` and
+                // `bk` take the same `V`, which keeps `q <= e^* D^-1 e`.
+                let v = self.gain_carrier(pred, i);
+                w[k as usize] += v.norm_sqr() * inv_d;
+                bk[k as usize] += v.conj() * (self.h[i] - pred[i]) * inv_d;
             }
             let (g, q, ld) = gain_solve(gs, &w, &bk);
             quad -= q;
@@ -534,6 +540,15 @@ impl ModelPosterior {
         (0.5 * (a + b)).exp()
     }
 
+    /// The ratio the input-gain error of point `i` multiplies: the measured `h_i`, or
+    /// the prediction's with [`super::data::DataOptions::gain_on_model`].
+    fn gain_carrier(&self, pred: &[Complex64], i: usize) -> Complex64 {
+        match self.gain_on_model {
+            true => pred[i],
+            false => self.h[i],
+        }
+    }
+
     /// Number of whitened residuals: `2 N` plus 2 per correlated gain coefficient.
     pub fn n_whitened_residuals(&self) -> usize {
         2 * self.h.len() + self.n_gain_residuals
@@ -561,7 +576,7 @@ impl ModelPosterior {
                 let i = gs.start + j;
                 let uk = &gs.u[k as usize * gs.rank..(k as usize + 1) * gs.rank];
                 let ug: Complex64 = uk.iter().zip(g).map(|(a, b)| a * b).sum();
-                corr[i] = self.h[i] * ug;
+                corr[i] = self.gain_carrier(pred, i) * ug;
             }
         }
         for (i, p) in pred.iter().enumerate() {

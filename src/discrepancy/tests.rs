@@ -598,11 +598,13 @@ fn correlated_gain_likelihood_is_the_dense_gaussian() {
     // One hammer segment on 6 frequencies with a random rank-2 gain basis: ln L and the
     // whitened residuals against the dense complex covariance D + V V^* (V = diag(h) U),
     // with D scaled by the measured |h| and by a model's |H| (`with_error_scale`).
-    gain_likelihood_against_dense(false);
-    gain_likelihood_against_dense(true);
+    // Also with the gain on the model's H (`gain_on_model`: V = diag(H) U).
+    for (scaled, on_model) in [(false, false), (true, false), (false, true), (true, true)] {
+        gain_likelihood_against_dense(scaled, on_model);
+    }
 }
 
-fn gain_likelihood_against_dense(scaled: bool) {
+fn gain_likelihood_against_dense(scaled: bool, on_model: bool) {
     let mut data = (*synthetic()).clone();
     let freq: Vec<f64> = (1..=6).map(|i| 0.7 * i as f64).collect();
     let mut seg = segment(
@@ -632,6 +634,7 @@ fn gain_likelihood_against_dense(scaled: bool) {
         }
     }
     data.segments = vec![seg.clone()];
+    data.options.gain_on_model = on_model;
     let post = ModelPosterior::new(Arc::new(data), None).unwrap();
     let z = post.z_of(&base(), 0.01, &[]);
     let pred = post.predict(&z).unwrap();
@@ -646,8 +649,9 @@ fn gain_likelihood_against_dense(scaled: bool) {
             let scale = ch.error_scale.get(p).copied().unwrap_or(ch.h[p].norm());
             let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * scale * scale;
             sigma[(i, i)] = Complex64::new(d, 0.0);
+            let carrier = if on_model { pred[i] } else { ch.h[p] };
             for m in 0..rank {
-                v[(i, m)] = ch.h[p] * u[k * rank + m];
+                v[(i, m)] = carrier * u[k * rank + m];
             }
             i += 1;
         }
