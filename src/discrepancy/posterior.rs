@@ -21,7 +21,10 @@
 //! Single-impact hammer segments add the input channel's correlated relative error
 //! ([`super::data::InputGainBasis`]): `h = H (1 + delta) + noise`, `delta ~ CN(0, U U^*)`
 //! over the segment's frequencies, shared by its channels. With `H` replaced by the
-//! measured `h` (plug-in, so the covariance does not depend on the parameters), the
+//! measured `h` (plug-in, so the covariance does not depend on the parameters; or kept,
+//! `V_i = H_i(theta) U_k(i)`, with [`super::data::DataOptions::gain_on_model`]: the
+//! plug-in's noise is correlated with the residual it weighs, which biases effect sizes,
+//! see the README), the
 //! residual `e = h - H` of a segment has the complex covariance `Sigma = D + V V^*`,
 //! `D = diag(2 sigma_i^2)`, `V_i = h_i U_k(i)` (rank `r`, a few), and by Woodbury
 //! `e^* Sigma^-1 e = e^* D^-1 e - b^* G^-1 b`, `ln det Sigma = ln det D + ln det G`
