@@ -1,7 +1,9 @@
 //! Where the walkers start: the maximum-likelihood point of the posterior's own model
 //! (multistart trust-region least squares, [`crate::update::lsq`], on the standardised
-//! residuals `(y_k - |H^A_k|) / sigma_k`, windows included), plus a ball of about the
-//! Gauss-Newton posterior width, truncated to the prior box.
+//! residuals `(y_k - |H^A_k|) / sigma_k`, windows included; on general models whose data
+//! have shared force noise or correlated bins, then polished on the likelihood that is
+//! sampled, [`plug_in_start`]), plus a ball of about the Gauss-Newton posterior width,
+//! truncated to the prior box.
 
 use super::data::LoadingMagnitude;
 use super::posterior::FrfPosterior;
