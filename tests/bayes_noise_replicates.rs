@@ -54,18 +54,24 @@ fn noisy(clean: &Campaign, noise: &NoiseSpec, seed: u64) -> Campaign {
 /// Restricts every estimate's selected bins to those where no estimate has a response of
 /// kind `kind` with zero coherence (no finite error), so all have the same points.
 fn keep_common_bins(reference: &mut [TestFrf], replicates: &mut [Vec<TestFrf>], kind: FrfKind) {
-    for t in 0..reference.len() {
-        let finite = |f: &TestFrf, i: usize| {
-            let nw = f.selected.len();
-            let rel = f.selected_rel_std();
-            let block = f.frf_block().unwrap();
-            (0..block.pairs.len())
-                .filter(|&j| block.pairs[j].kind == kind)
-                .all(|j| rel[j * nw + i].is_finite())
-        };
-        let keep: Vec<bool> = (0..reference[t].selected.len())
-            .map(|i| finite(&reference[t], i) && replicates.iter().all(|r| finite(&r[t], i)))
+    // per selected bin of `f`: every response of kind `kind` has a finite error there
+    let finite = |f: &TestFrf| -> Vec<bool> {
+        let (nw, rel) = (f.selected.len(), f.selected_rel_std());
+        let block = f.frf_block().unwrap();
+        let used: Vec<usize> = (0..block.pairs.len())
+            .filter(|&j| block.pairs[j].kind == kind)
             .collect();
+        (0..nw)
+            .map(|i| used.iter().all(|&j| rel[j * nw + i].is_finite()))
+            .collect()
+    };
+    for t in 0..reference.len() {
+        let mut keep = finite(&reference[t]);
+        for r in replicates.iter() {
+            keep.iter_mut()
+                .zip(finite(&r[t]))
+                .for_each(|(k, f)| *k &= f);
+        }
         let cut = |f: &mut TestFrf| {
             let kept = f.selected.iter().zip(&keep).filter(|(_, k)| **k);
             f.selected = kept.map(|(b, _)| *b).collect();

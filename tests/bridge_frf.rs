@@ -203,9 +203,11 @@ fn true_z(model: &SimModel) -> Vec<f64> {
     z
 }
 
-/// The truth (sampled coordinates) and the campaign simulated from the model file.
-fn simulated_campaign() -> (Vec<f64>, frfbayes::io::Campaign) {
-    let model = sim_model();
+/// The truth (sampled coordinates) and the campaign simulated from the model file,
+/// `edit`ed first.
+fn simulated_campaign(edit: impl FnOnce(&mut SimModel)) -> (Vec<f64>, frfbayes::io::Campaign) {
+    let mut model = sim_model();
+    edit(&mut model);
     let truth = true_z(&model);
     let sim = Simulator::new(model).unwrap();
     let campaign = sim.run(sim.model().seed.unwrap(), &|_| {}).unwrap();
@@ -243,7 +245,7 @@ fn bridge_frf_recovers_the_truth() {
         return;
     }
     let t0 = Instant::now();
-    let (truth, campaign) = simulated_campaign();
+    let (truth, campaign) = simulated_campaign(|_| {});
     let walkers: usize = std::env::var("FRFBAYES_BRIDGE_WALKERS_PER_DIM")
         .ok()
         .and_then(|v| v.parse().ok())
@@ -305,15 +307,14 @@ fn bridge_frf_start_is_the_sampled_likelihood_maximum() {
         return;
     }
     let t0 = Instant::now();
-    let mut model = sim_model();
-    match std::env::var("FRFBAYES_BRIDGE_NOISE").as_deref() {
-        Ok("responses_only") => model.noise.force_n = 0.0,
-        Ok("force_only") => model.noise.acceleration_m_per_s2 = 0.0,
-        _ => {}
-    }
-    let truth = true_z(&model);
-    let sim = Simulator::new(model).unwrap();
-    let campaign = sim.run(sim.model().seed.unwrap(), &|_| {}).unwrap();
+    let (truth, campaign) =
+        simulated_campaign(
+            |model| match std::env::var("FRFBAYES_BRIDGE_NOISE").as_deref() {
+                Ok("responses_only") => model.noise.force_n = 0.0,
+                Ok("force_only") => model.noise.acceleration_m_per_s2 = 0.0,
+                _ => {}
+            },
+        );
     let mut s = window_settings(4);
     if std::env::var("FRFBAYES_BRIDGE_BINS").as_deref() == Ok("independent") {
         s.bin_correlation = BinCorrelation::Independent;

@@ -210,13 +210,17 @@ pub fn plug_in_start(
 /// model (no nominal values). The shear frames keep their per-point start, and so
 /// their draws, bit for bit, as with [`refine_noise_scale`].
 fn samples_another_likelihood(post: &FrfPosterior) -> bool {
-    let model = post.model();
-    let general = (model.alpha_parameters().iter())
-        .chain(model.beta_parameters())
-        .all(|p| p.nominal.is_none());
     let data = post.data();
     let correlated = !data.correlated.is_empty() || data.bin_correlation.iter().any(|r| *r != 0.0);
-    general && correlated
+    is_general(post) && correlated
+}
+
+/// Whether the model is a general one: no updating variable has a nominal value.
+fn is_general(post: &FrfPosterior) -> bool {
+    let model = post.model();
+    (model.alpha_parameters().iter())
+        .chain(model.beta_parameters())
+        .all(|p| p.nominal.is_none())
 }
 
 /// Rounds of [`sampled_optimum`].
@@ -376,12 +380,9 @@ fn start_at(
             let s2 = (2.0 * ms.best.cost / n as f64).max(f64::MIN_POSITIVE);
             let (s_lo, s_hi) = (prior.lower()[n_free], prior.upper()[n_free]);
             z.push((0.5 * s2.ln()).clamp(s_lo, s_hi));
-            let model = post.model();
-            let general = (model.alpha_parameters().iter())
-                .chain(model.beta_parameters())
-                .all(|p| p.nominal.is_none());
-            let refined =
-                general && !post.data().correlated.is_empty() && refine_noise_scale(post, &mut z)?;
+            let refined = is_general(post)
+                && !post.data().correlated.is_empty()
+                && refine_noise_scale(post, &mut z)?;
             problem.jacobian(&ms.best.x, &mut ws, &mut jac)?;
             // the structural widths at the start's noise scale
             let s_ball = if refined { z[n_free].exp() } else { s2.sqrt() };

@@ -27,6 +27,41 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Arguments of `frfbayes diagnose`.
+/// The noise model of a diagnosis: `diagnose`'s and `diagnose-benchmark`'s flags.
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct NoiseModelArgs {
+    /// Do not correct the hammer estimates' own systematic error (the previous impact's
+    /// ringing, the cut before the next one), which is otherwise measured by replaying
+    /// the tests at the nominal fit and again at each accepted model's (see README,
+    /// "False alarms").
+    #[arg(long)]
+    pub no_estimator_bias: bool,
+    /// Compare the models with the measured ratios times 1 + 2 eps^2 (capped at 1.1), which
+    /// removes to second order the bias of errors scaled by the measured |h| (experimental:
+    /// see README, "Why the structural sizes are biased").
+    #[arg(long)]
+    pub weight_bias_correction: bool,
+    /// The input-gain error multiplies the model's H (exact) instead of the measured h
+    /// (a plug-in; experimental: see README, "Why the structural sizes are biased").
+    #[arg(long)]
+    pub gain_on_model: bool,
+}
+
+impl NoiseModelArgs {
+    /// Default diagnosis options with these flags applied.
+    fn options(self) -> DiagnoseOptions {
+        DiagnoseOptions {
+            estimator_bias: !self.no_estimator_bias,
+            data: DataOptions {
+                weight_bias_correction: self.weight_bias_correction,
+                gain_on_model: self.gain_on_model,
+                ..DataOptions::default()
+            },
+            ..DiagnoseOptions::default()
+        }
+    }
+}
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Campaign folder (the recording format of ../shared/spec), or bundled:four-story.
@@ -40,27 +75,8 @@ pub struct Args {
     /// Only these hypotheses (comma separated names); all by default.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
-    /// Do not correct the hammer estimates' own systematic error (the previous impact's
-    /// ringing, the cut before the next one), which is otherwise measured by replaying
-    /// the tests at the nominal fit and again at each accepted model's (see README,
-    /// "False alarms").
-    #[arg(long)]
-    pub no_estimator_bias: bool,
-    /// Scale the relative errors by the fitted model's |H| instead of the measured |h|
-    /// (experimental and measured not to work: the nominal model's |H| is wrong where
-    /// the effect is, so its errors are wrong there; see README, "Why the structural
-    /// sizes are biased").
-    #[arg(long)]
-    pub model_error_scale: bool,
-    /// Compare the models with the measured ratios times 1 + 2 eps^2 (capped at 1.1), which
-    /// removes to second order the bias of errors scaled by the measured |h| (experimental:
-    /// see README, "Why the structural sizes are biased")
-    #[arg(long)]
-    pub weight_bias_correction: bool,
-    /// The input-gain error multiplies the model's H (exact) instead of the measured h
-    /// (a plug-in; experimental)
-    #[arg(long)]
-    pub gain_on_model: bool,
+    #[command(flatten)]
+    pub noise: NoiseModelArgs,
     /// Continue an interrupted run into the same --out from its last complete stage
     /// (the result is the same as an uninterrupted run's). Without it, an interrupted
     /// run's stages are discarded.
@@ -225,14 +241,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut opts = DiagnoseOptions {
         seed: args.seed,
         only: args.only,
-        estimator_bias: !args.no_estimator_bias,
-        model_error_scale: args.model_error_scale,
-        data: DataOptions {
-            weight_bias_correction: args.weight_bias_correction,
-            gain_on_model: args.gain_on_model,
-            ..DataOptions::default()
-        },
-        ..DiagnoseOptions::default()
+        ..args.noise.options()
     };
     if args.quick {
         opts = quick_options(opts);
@@ -261,24 +270,9 @@ pub struct BenchArgs {
     /// Only these case ids (comma separated); all by default.
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
-    /// `diagnose --no-estimator-bias` for every case.
-    #[arg(long)]
-    pub no_estimator_bias: bool,
-    /// Scale the relative errors by the fitted model's |H| instead of the measured |h|
-    /// (experimental and measured not to work: the nominal model's |H| is wrong where
-    /// the effect is, so its errors are wrong there; see README, "Why the structural
-    /// sizes are biased").
-    #[arg(long)]
-    pub model_error_scale: bool,
-    /// Compare the models with the measured ratios times 1 + 2 eps^2 (capped at 1.1), which
-    /// removes to second order the bias of errors scaled by the measured |h| (experimental:
-    /// see README, "Why the structural sizes are biased")
-    #[arg(long)]
-    pub weight_bias_correction: bool,
-    /// The input-gain error multiplies the model's H (exact) instead of the measured h
-    /// (a plug-in; experimental)
-    #[arg(long)]
-    pub gain_on_model: bool,
+    /// The noise model of every diagnosis (as `diagnose`'s flags).
+    #[command(flatten)]
+    pub noise: NoiseModelArgs,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Continue the case an interrupted run was diagnosing from its last complete stage
@@ -342,14 +336,7 @@ fn diagnose_case(args: &BenchArgs, case: &BenchmarkCase) -> anyhow::Result<CaseR
     let mut opts = DiagnoseOptions {
         seed: args.seed,
         only: args.hypotheses.clone(),
-        estimator_bias: !args.no_estimator_bias,
-        model_error_scale: args.model_error_scale,
-        data: DataOptions {
-            weight_bias_correction: args.weight_bias_correction,
-            gain_on_model: args.gain_on_model,
-            ..DataOptions::default()
-        },
-        ..DiagnoseOptions::default()
+        ..args.noise.options()
     };
     if args.quick {
         opts = quick_options(opts);

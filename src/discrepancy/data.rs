@@ -131,10 +131,6 @@ pub struct ChannelData {
     /// [`DiagnosisData::with_estimator_bias`] from a replay of the tests
     /// (see [`super::estimator_bias`]).
     pub estimator_bias: Vec<Complex64>,
-    /// The magnitude the relative errors scale (`sd = sqrt(eps^2 + eta^2) x scale`) at
-    /// each point; empty: the measured `|h|`. Set by [`DiagnosisData::with_error_scale`]
-    /// to a fitted model's `|H|` (see there).
-    pub error_scale: Vec<f64>,
 }
 
 impl ChannelData {
@@ -548,7 +544,6 @@ fn build_segment(
             h: Vec::new(),
             rel_err: Vec::new(),
             estimator_bias: Vec::new(),
-            error_scale: Vec::new(),
         };
         for (i, &k) in sel.iter().enumerate() {
             let g2 = resp.coherence[k];

@@ -72,13 +72,6 @@ pub struct DiagnoseOptions {
     /// ([`super::estimator_bias`]), and refit the nominal model with it; measure it
     /// again at each accepted model's MAP ([`super::stepwise`]). On by default.
     pub estimator_bias: bool,
-    /// Scale the relative errors by the fitted model's `|H|` (at the nominal MAP, then
-    /// at each accepted model's) instead of the measured `|h|`, whose noise biases the
-    /// fitted magnitudes low ([`DiagnosisData::with_error_scale`]). Off by default:
-    /// measured not to work on the benchmark (secondary_oscillator-1 and -3 came out
-    /// `unexplained`, nominal chi2 per point 419 and 7,032), because the nominal model's
-    /// `|H|` is wrong where the effect is, and the errors it scales are then wrong there.
-    pub model_error_scale: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -93,7 +86,6 @@ impl Default for DiagnoseOptions {
             evidence: None,
             only: Vec::new(),
             estimator_bias: true,
-            model_error_scale: false,
         }
     }
 }
@@ -364,23 +356,11 @@ fn nominal_model(
         fit_map(&post0, &starts, &opts.map)
     })?;
     let mut data = data;
-    let debias = opts.estimator_bias && data.segments.iter().any(|s| !s.is_ground());
-    if debias || opts.model_error_scale {
-        let layout = post0.model().layout();
-        let mut next = (*data).clone();
-        if debias {
-            next = next.with_estimator_bias(layout, &replay_bias(campaign, &post0, &map0.z)?)?;
-        }
-        if opts.model_error_scale {
-            next = next.with_error_scale(layout, &post0.predict(&map0.z)?)?;
-        }
-        data = Arc::new(next);
+    if opts.estimator_bias && data.segments.iter().any(|s| !s.is_ground()) {
+        let bias = replay_bias(campaign, &post0, &map0.z)?;
+        data = Arc::new(data.with_estimator_bias(post0.model().layout(), &bias)?);
         post0 = ModelPosterior::new(data.clone(), None)?;
-        let key = match opts.model_error_scale {
-            false => "nominal-map-debiased",
-            true => "nominal-map-rescaled",
-        };
-        map0 = staged(stages, key, || {
+        map0 = staged(stages, "nominal-map-debiased", || {
             fit_map(&post0, std::slice::from_ref(&map0.z), &opts.map)
         })?;
     }

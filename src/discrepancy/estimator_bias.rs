@@ -44,7 +44,7 @@
 //! `1 - (omega h)^2 / 12`, 5e-4 at 6 Hz and 500 Hz sampling); the replay's estimates are
 //! divided by it, so that what is left is the estimator's error, not the replay's.
 
-use super::data::{ChannelData, DiagnosisData};
+use super::data::DiagnosisData;
 use super::posterior::ModelPosterior;
 use super::time_domain::TimeDomainModel;
 use crate::error::{Error, Result};
@@ -114,52 +114,16 @@ impl DiagnosisData {
         layout: &[Vec<Range<usize>>],
         bias: &[Complex64],
     ) -> Result<DiagnosisData> {
-        self.with_per_point(layout, bias, "bias", |ch, values| {
-            ch.estimator_bias = values.to_vec()
-        })
-    }
-
-    /// The same data with the errors scaled by `|pred|` (flat layout `layout`; a fitted
-    /// model's prediction) instead of the measured `|h|`.
-    ///
-    /// With `sd_i = eps_i |h_i|`, the weights depend on the noise they weigh: a point
-    /// whose noise made `|h|` larger is trusted less, one made smaller more, and the
-    /// fitted magnitudes come out low by about the mean `eps^2` (for `h = H (1 + eps n)`,
-    /// `n` circular: `E[1 / |1 + eps n|^2] = 1 + eps^2`), every mass and stiffness high
-    /// by as much, at the same frequencies. On the benchmark the oscillator masses were
-    /// 0.1-1 % high with posterior sds of 0.04-0.15 %; noise-free (weights free of noise)
-    /// the MAP from the truth has them within 0.05 %. Scaled by a fitted model's `|H|`,
-    /// the weights are fixed numbers near the truth's.
-    pub fn with_error_scale(
-        &self,
-        layout: &[Vec<Range<usize>>],
-        pred: &[Complex64],
-    ) -> Result<DiagnosisData> {
-        self.with_per_point(layout, pred, "error-scale", |ch, values| {
-            ch.error_scale = values.iter().map(|v| v.norm()).collect()
-        })
-    }
-
-    /// The same data with `set` called on every channel with its points of `flat`
-    /// (layout `layout`); an error naming `what` when the layout is another data's.
-    fn with_per_point(
-        &self,
-        layout: &[Vec<Range<usize>>],
-        flat: &[Complex64],
-        what: &str,
-        set: impl Fn(&mut ChannelData, &[Complex64]),
-    ) -> Result<DiagnosisData> {
-        let other = || Error::Usage(format!("{what} layout of other data"));
         let mut out = self.clone();
         if layout.len() != out.segments.len() {
-            return Err(other());
+            return Err(Error::Usage("bias layout of other data".into()));
         }
         for (seg, ranges) in out.segments.iter_mut().zip(layout) {
             for (ch, r) in seg.channels.iter_mut().zip(ranges) {
-                if r.len() != ch.len() || r.end > flat.len() {
-                    return Err(other());
+                if r.len() != ch.len() || r.end > bias.len() {
+                    return Err(Error::Usage("bias layout of other data".into()));
                 }
-                set(ch, &flat[r.clone()]);
+                ch.estimator_bias = bias[r.clone()].to_vec();
             }
         }
         Ok(out)

@@ -77,8 +77,6 @@ pub struct ModelPosterior {
     n_floors: usize,
     /// Segments with a correlated input-noise gain error.
     gains: Vec<GainSegment>,
-    /// The gain error multiplies the prediction, not the measured ratio.
-    gain_on_model: bool,
     /// Extra whitened residuals (2 per gain coefficient).
     n_gain_residuals: usize,
     /// When set, predictions replay the tests in the time domain instead of using
@@ -207,7 +205,6 @@ impl ModelPosterior {
         let mut eps2 = Vec::with_capacity(model.len());
         let mut abs2 = Vec::with_capacity(model.len());
         let correct = data.options.weight_bias_correction;
-        let gain_on_model = data.options.gain_on_model;
         for seg in &data.segments {
             for ch in &seg.channels {
                 match correct {
@@ -219,10 +216,7 @@ impl ModelPosterior {
                     false => h.extend_from_slice(&ch.h),
                 }
                 eps2.extend(ch.rel_err.iter().map(|e| e * e));
-                match ch.error_scale.len() == ch.len() {
-                    true => abs2.extend(ch.error_scale.iter().map(|a| a * a)),
-                    false => abs2.extend(ch.h.iter().map(|v| v.norm_sqr())),
-                }
+                abs2.extend(ch.h.iter().map(|v| v.norm_sqr()));
             }
         }
         let mut gains = Vec::new();
@@ -249,7 +243,6 @@ impl ModelPosterior {
         }
         let n_gain_residuals = gains.iter().map(|g| 2 * g.rank).sum();
         Ok(ModelPosterior {
-            gain_on_model,
             gains,
             n_gain_residuals,
             time_domain: None,
@@ -461,6 +454,7 @@ impl ModelPosterior {
         mut gains: Option<&mut Vec<Vec<Complex64>>>,
     ) -> (f64, f64) {
         let eta2 = eta * eta;
+        let carrier = self.gain_carrier(pred);
         let mut quad = 0.0;
         let mut ln_det = 0.0;
         for (((p, h), e2), a2) in pred.iter().zip(&self.h).zip(&self.eps2).zip(&self.abs2) {
@@ -474,12 +468,10 @@ impl ModelPosterior {
             for (j, &k) in gs.freq_of.iter().enumerate() {
                 let i = gs.start + j;
                 let inv_d = 1.0 / (2.0 * (self.eps2[i] + eta2) * self.abs2[i]);
-                // The gain error acts on the measured ratio (`V = diag(h) U`) or the
-                // model's (`gain_on_model`), whatever scales the noise (`abs2`); `w` and
-                // `bk` take the same `V`, which keeps `q <= e^* D^-1 e`.
-                let v = self.gain_carrier(pred, i);
-                w[k as usize] += v.norm_sqr() * inv_d;
-                bk[k as usize] += v.conj() * (self.h[i] - pred[i]) * inv_d;
+                // `w` and `bk` take the same `V` (`diag(carrier) U`), which keeps
+                // `q <= e^* D^-1 e`.
+                w[k as usize] += carrier[i].norm_sqr() * inv_d;
+                bk[k as usize] += carrier[i].conj() * (self.h[i] - pred[i]) * inv_d;
             }
             let (g, q, ld) = gain_solve(gs, &w, &bk);
             quad -= q;
@@ -543,12 +535,12 @@ impl ModelPosterior {
         (0.5 * (a + b)).exp()
     }
 
-    /// The ratio the input-gain error of point `i` multiplies: the measured `h_i`, or
-    /// the prediction's with [`super::data::DataOptions::gain_on_model`].
-    fn gain_carrier(&self, pred: &[Complex64], i: usize) -> Complex64 {
-        match self.gain_on_model {
-            true => pred[i],
-            false => self.h[i],
+    /// The ratios the input-gain error multiplies (flat layout): the measured `h`, or the
+    /// prediction with [`super::data::DataOptions::gain_on_model`].
+    fn gain_carrier<'a>(&'a self, pred: &'a [Complex64]) -> &'a [Complex64] {
+        match self.data().options.gain_on_model {
+            true => pred,
+            false => &self.h,
         }
     }
 
@@ -573,13 +565,14 @@ impl ModelPosterior {
         let eta2 = eta * eta;
         let mut gains = Vec::with_capacity(self.gains.len());
         self.quadratic_and_ln_det(pred, eta, Some(&mut gains));
+        let carrier = self.gain_carrier(pred);
         let mut corr = vec![Complex64::new(0.0, 0.0); pred.len()];
         for (gs, g) in self.gains.iter().zip(&gains) {
             for (j, &k) in gs.freq_of.iter().enumerate() {
                 let i = gs.start + j;
                 let uk = &gs.u[k as usize * gs.rank..(k as usize + 1) * gs.rank];
                 let ug: Complex64 = uk.iter().zip(g).map(|(a, b)| a * b).sum();
-                corr[i] = self.gain_carrier(pred, i) * ug;
+                corr[i] = carrier[i] * ug;
             }
         }
         for (i, p) in pred.iter().enumerate() {

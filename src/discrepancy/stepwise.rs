@@ -82,7 +82,7 @@ pub fn continue_rounds(
             .expect("finalists come from the hypotheses");
         base = base.accept(won, plain);
         let step = base.effects.len();
-        if refreshes_data(ctx, &base) {
+        if remeasures_bias(ctx, &base) {
             base = with_bias_remeasured(ctx, base, step, progress)?;
             data = base.result.posterior.data().clone();
             watch.mark(&format!("step{step}-estimator bias"), timings);
@@ -117,12 +117,6 @@ fn remeasures_bias(ctx: &RoundContext<'_>, base: &BaseModel) -> bool {
             .is_some_and(|(h, _)| h.amplitude_dependent())
 }
 
-/// Whether `base`'s data are refreshed at its MAP: the estimator's bias
-/// ([`remeasures_bias`]) or the errors' scale (`model_error_scale`).
-fn refreshes_data(ctx: &RoundContext<'_>, base: &BaseModel) -> bool {
-    remeasures_bias(ctx, base) || ctx.opts.model_error_scale
-}
-
 /// `base` on the data with the estimator's bias measured again at its MAP, refitted from
 /// there, with its Laplace and evidence on those data, which the next round uses.
 ///
@@ -137,15 +131,11 @@ fn with_bias_remeasured(
     progress: &mut dyn FnMut(DiagnoseStage<'_>),
 ) -> Result<BaseModel> {
     let old = &base.result;
-    let layout = old.posterior.model().layout();
-    let mut data = (**old.posterior.data()).clone();
-    if remeasures_bias(ctx, &base) {
-        let bias = replay_bias(ctx.campaign, &old.posterior, &old.map.z)?;
-        data = data.with_estimator_bias(layout, &bias)?;
-    }
-    if ctx.opts.model_error_scale {
-        data = data.with_error_scale(layout, &old.posterior.predict(&old.map.z)?)?;
-    }
+    let bias = replay_bias(ctx.campaign, &old.posterior, &old.map.z)?;
+    let data = old
+        .posterior
+        .data()
+        .with_estimator_bias(old.posterior.model().layout(), &bias)?;
     let post = ModelPosterior::new(Arc::new(data), base.extension.clone())?;
     let map = staged(ctx.stages, &format!("step{step}-base-map-debiased"), || {
         fit_map(&post, std::slice::from_ref(&old.map.z), &ctx.opts.map)

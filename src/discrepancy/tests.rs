@@ -55,7 +55,6 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
                 h: vec![Complex64::new(1.0, 0.5); n],
                 rel_err: vec![0.01; n],
                 estimator_bias: Vec::new(),
-                error_scale: Vec::new(),
             });
         }
     }
@@ -596,15 +595,13 @@ fn posterior_prior_is_normalised_and_likelihood_is_the_gaussian() {
 #[test]
 fn correlated_gain_likelihood_is_the_dense_gaussian() {
     // One hammer segment on 6 frequencies with a random rank-2 gain basis: ln L and the
-    // whitened residuals against the dense complex covariance D + V V^* (V = diag(h) U),
-    // with D scaled by the measured |h| and by a model's |H| (`with_error_scale`).
-    // Also with the gain on the model's H (`gain_on_model`: V = diag(H) U).
-    for (scaled, on_model) in [(false, false), (true, false), (false, true), (true, true)] {
-        gain_likelihood_against_dense(scaled, on_model);
-    }
+    // whitened residuals against the dense complex covariance D + V V^*, V = diag(h) U,
+    // and with the gain on the model's H (`gain_on_model`: V = diag(H) U).
+    gain_likelihood_against_dense(false);
+    gain_likelihood_against_dense(true);
 }
 
-fn gain_likelihood_against_dense(scaled: bool, on_model: bool) {
+fn gain_likelihood_against_dense(on_model: bool) {
     let mut data = (*synthetic()).clone();
     let freq: Vec<f64> = (1..=6).map(|i| 0.7 * i as f64).collect();
     let mut seg = segment(
@@ -626,12 +623,6 @@ fn gain_likelihood_against_dense(scaled: bool, on_model: bool) {
             *h = c() * 0.01;
             *e = 0.02 + 0.1 * c().re.abs();
         }
-        if scaled {
-            ch.error_scale =
-                ch.h.iter()
-                    .map(|h| h.norm() * (0.5 + c().re.abs()))
-                    .collect();
-        }
     }
     data.segments = vec![seg.clone()];
     data.options.gain_on_model = on_model;
@@ -646,8 +637,7 @@ fn gain_likelihood_against_dense(scaled: bool, on_model: bool) {
     let mut i = 0;
     for ch in &seg.channels {
         for (p, &k) in ch.freq_index.iter().enumerate() {
-            let scale = ch.error_scale.get(p).copied().unwrap_or(ch.h[p].norm());
-            let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * scale * scale;
+            let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * ch.h[p].norm_sqr();
             sigma[(i, i)] = Complex64::new(d, 0.0);
             let carrier = if on_model { pred[i] } else { ch.h[p] };
             for m in 0..rank {
@@ -782,9 +772,10 @@ fn a_second_oscillator_has_its_own_names_and_locations() {
     assert!(names[3].ends_with("_2"), "{names:?}");
 }
 
-/// The synthetic data at `base()` times `1 + component_sd n`, `n` complex standard normal
-/// (each component `N(0, 1)`), with every point's `rel_err` set to `eps`; and the truth.
-fn noisy_synthetic(eps: f64, component_sd: f64, seed: u64) -> (Vec<Complex64>, DiagnosisData) {
+/// The synthetic data at `base()` times `1 + eps n`, `n` complex standard normal (each
+/// component `N(0, 1)`: the likelihood's convention for `rel_err = eps`), with every
+/// point's `rel_err` set to `eps`; and the truth.
+fn noisy_synthetic(eps: f64, seed: u64) -> (Vec<Complex64>, DiagnosisData) {
     use rand_distr::StandardNormal;
     let clean = synthetic();
     let truth = ExtendedModel::new(clean.clone(), None)
@@ -799,7 +790,7 @@ fn noisy_synthetic(eps: f64, component_sd: f64, seed: u64) -> (Vec<Complex64>, D
             ch.rel_err = vec![eps; ch.len()];
             for h in &mut ch.h {
                 let n = Complex64::new(rng.sample(StandardNormal), rng.sample(StandardNormal));
-                *h = it.next().unwrap() * (1.0 + component_sd * n);
+                *h = it.next().unwrap() * (1.0 + eps * n);
             }
         }
     }
@@ -822,33 +813,6 @@ fn best_overall_scale(post: &ModelPosterior, truth: &[Complex64]) -> f64 {
 }
 
 #[test]
-fn errors_scaled_by_the_model_remove_the_magnitude_bias_of_measured_weights() {
-    // Data = the model at `base()` times (1 + eps n), n complex standard normal, eps
-    // = 20 %. Scaling the errors by the measured |h| weights each point by
-    // 1 / |1 + eps n|^2: the best overall magnitude `a` is then 1 / (1 + eps^2) =
-    // 0.962, not 1 (E[1 / (1 + eps n)] = 1, E[1 / |1 + eps n|^2] ~ 1 + eps^2).
-    // Scaled by the model's |H| it is 1. sd of `a`: eps / sqrt(2 N) = 0.0029 (N =
-    // 2400 points); tolerance 4 sd.
-    let eps = 0.2;
-    let (truth, data) = noisy_synthetic(eps, eps / 2f64.sqrt(), 5);
-    let measured = ModelPosterior::new(Arc::new(data.clone()), None).unwrap();
-    let layout = measured.model().layout().to_vec();
-    let scaled = ModelPosterior::new(
-        Arc::new(data.with_error_scale(&layout, &truth).unwrap()),
-        None,
-    )
-    .unwrap();
-    let sd = eps / (2.0 * truth.len() as f64).sqrt();
-    let a_measured = best_overall_scale(&measured, &truth);
-    let a_scaled = best_overall_scale(&scaled, &truth);
-    assert!(
-        (a_measured - 1.0 / (1.0 + eps * eps)).abs() < 4.0 * sd,
-        "{a_measured}"
-    );
-    assert!((a_scaled - 1.0).abs() < 4.0 * sd, "{a_scaled}");
-}
-
-#[test]
 fn the_weight_bias_correction_removes_the_magnitude_bias_of_measured_weights() {
     // Data = the model at `base()` times (1 + x), x complex with std(Re) = std(Im) =
     // eps = 10 %, the likelihood's own convention (E|x|^2 = 2 eps^2). With errors scaled
@@ -857,7 +821,7 @@ fn the_weight_bias_correction_removes_the_magnitude_bias_of_measured_weights() {
     // second order (left: about 2 (2 eps^2)^2 = 0.0008). sd of the scale: eps / sqrt(N)
     // = 0.002 (N = 2400 points); tolerance 4 sd. Measured: 0.979 and 0.9985.
     let eps = 0.1;
-    let (truth, mut data) = noisy_synthetic(eps, eps, 6);
+    let (truth, mut data) = noisy_synthetic(eps, 6);
     let measured = ModelPosterior::new(Arc::new(data.clone()), None).unwrap();
     data.options.weight_bias_correction = true;
     let corrected = ModelPosterior::new(Arc::new(data), None).unwrap();
