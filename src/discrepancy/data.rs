@@ -222,7 +222,6 @@ impl DiagnosisData {
         );
 
         // Hammer blocks: a common length over all impacts of all hammer tests.
-        let pre = est.hammer.pretrigger_s;
         let mut plans: Vec<(usize, Vec<(usize, usize)>)> = Vec::new(); // test, (start, end)
         for (ti, t) in campaign.tests.iter().enumerate() {
             if let TestKind::Hammer { .. } = t.kind {
@@ -239,7 +238,7 @@ impl DiagnosisData {
                         "no impact found in the force channel",
                     ));
                 }
-                let p = (pre * t.sample_rate_hz).round() as usize;
+                let p = est.hammer.pretrigger_samples(t.sample_rate_hz);
                 let starts: Vec<usize> = impacts
                     .iter()
                     .map(|i| i.trigger.saturating_sub(p))
