@@ -2,16 +2,14 @@
 //! manifest: simulate -> write -> read -> estimate H1, against the analytic FRF of the
 //! true model at the sensor DOFs (`docs/recording-format.md`, `frfbayes::simulate::general`).
 
-use frfbayes::frf::{modal_frf, FrfPair};
+mod truth_frf;
+
 use frfbayes::io::{read_campaign, write_campaign, Campaign, TestKind};
 use frfbayes::modal::Modes;
-use frfbayes::signal::{
-    estimate_campaign, windowed_modal_frf, EstimateOptions, InputKind, TestFrf,
-};
+use frfbayes::signal::{estimate_campaign, EstimateOptions, TestFrf};
 use frfbayes::simulate::{SimModel, Simulator};
-use num_complex::Complex64;
-use std::f64::consts::PI;
 use std::path::Path;
+use truth_frf::{analytic, true_modes};
 
 /// A 6-DOF model that is not a shear frame: springs between non-adjacent DOFs and to the
 /// ground at DOFs 1 and 4, a mass coupling between DOFs 1 and 2, a non-uniform ground
@@ -81,16 +79,6 @@ fn write_model(dir: &Path) {
     std::fs::write(dir.join("sim.toml"), SIM).unwrap();
 }
 
-/// The analytic FRF an estimate stands for (hammer: at `s = j omega + 1/tau` when an
-/// exponential window was applied, its exact effect).
-fn analytic(est: &TestFrf, modes: &Modes, c: &[f64], pair: &FrfPair, f_hz: f64) -> Complex64 {
-    let w = 2.0 * PI * f_hz;
-    match (&est.input, est.exp_window_tau_s) {
-        (InputKind::Force { .. }, Some(tau)) => windowed_modal_frf(modes, c, pair, w, tau),
-        _ => modal_frf(modes, c, pair, w),
-    }
-}
-
 fn assert_same_campaign(a: &Campaign, b: &Campaign) {
     assert_eq!(a.nominal, b.nominal);
     assert_eq!(a.tests.len(), b.tests.len());
@@ -135,13 +123,7 @@ fn noise_free_general_campaign_h1_matches_the_analytic_frf() {
     assert_eq!(truth["sensor_dofs"], serde_json::json!([1, 3, 6]));
     assert_eq!(truth["modal_basis"]["n_modes"], 6);
 
-    let modes = sim.system().modes().unwrap();
-    let c: Vec<f64> = modes
-        .omega_rad_s
-        .iter()
-        .zip(sim.system().modal_damping_ratios().unwrap())
-        .map(|(w, x)| 2.0 * x * w)
-        .collect();
+    let (modes, c) = true_modes(&sim);
     assert!(modes.freq_hz()[5] < 25.0, "{:?}", modes.freq_hz());
     let opts = EstimateOptions {
         freq_max_hz: Some(30.0),
@@ -206,33 +188,18 @@ fn general_simulation_model_errors_name_the_key() {
     }
 }
 
-/// A hammer test of the six-DOF model recorded at 50 Hz (anti-alias pass band to 20 Hz):
-/// the filter spreads each 10 ms impact over about 32 samples (0.64 s) either side, and
-/// only the force channel is noisy.
-const SIM_LOW_RATE: &str = r#"
-title = "six-DOF general model, 50 Hz, force noise"
-seed = 11
-[structure]
-kind = "general"
-manifest = "model/model.toml"
-alpha = [0.1, -0.05]
-acceleration_dofs = [1, 3, 6]
-[damping]
-model = "modal"
-xi = [0.02, 0.015, 0.012, 0.01, 0.01, 0.01]
-[sampling]
-output_rate_hz = 50.0
-oversampling = 40
-[noise]
-force_n = 0.05
-[[test]]
-name = "hammer-dof2"
-kind = "hammer"
-excited_dof = 2
-duration_s = 120.0
-pulse_duration_s = 0.01
-impacts = [{ time_s = 2.0003, peak_force_n = 50.0 }, { time_s = 62.0003, peak_force_n = 45.0 }]
-"#;
+/// [`SIM`]'s hammer test recorded at 50 Hz (anti-alias pass band to 20 Hz, oversampling
+/// 40) with 10 ms impacts and noise on the force channel only: the filter spreads each
+/// impact over about 32 samples (0.64 s) either side.
+fn low_rate_sim() -> String {
+    let hammer_only = &SIM[..SIM.find("[[test]]\nname = \"shake\"").unwrap()];
+    hammer_only
+        .replace(
+            "output_rate_hz = 200.0\noversampling = 10",
+            "output_rate_hz = 50.0\noversampling = 40\n[noise]\nforce_n = 0.05",
+        )
+        .replace("pulse_duration_s = 0.003", "pulse_duration_s = 0.01")
+}
 
 /// Worst `|ln |H1 / H|| / sd` over 0.05-18 Hz of a hammer estimate whose only noise is
 /// the force channel's (`sd`: the force noise's predicted relative error,
@@ -264,7 +231,7 @@ fn worst_force_noise_error(e: &TestFrf, modes: &Modes, c: &[f64]) -> (f64, f64) 
 
 /// Oracle for the filter's ringing: with force noise only, H1 of a 50 Hz hammer record
 /// equals the analytic FRF within the force noise's own predicted error at every bin of
-/// 0.05-18 Hz (about 2,100 bins x 3 responses: `|ln |H1 / H|| < 5 sd`). A transform that
+/// 0.05-18 Hz (about 2,100 bins x 4 responses: `|ln |H1 / H|| < 5 sd`). A transform that
 /// starts inside the filter's pre-ringing (the former 0.1 s = 5 samples) misses force
 /// the structure responded to: measured, worst 201 sd (a factor 10.5) at the lowest bins,
 /// where the accelerance is smallest; with the floor of 32 samples
@@ -274,17 +241,11 @@ fn worst_force_noise_error(e: &TestFrf, modes: &Modes, c: &[f64]) -> (f64, f64) 
 fn force_noise_only_low_rate_h1_matches_the_analytic_frf() {
     let dir = tempfile::tempdir().unwrap();
     write_model(dir.path());
-    std::fs::write(dir.path().join("sim.toml"), SIM_LOW_RATE).unwrap();
+    std::fs::write(dir.path().join("sim.toml"), low_rate_sim()).unwrap();
     let model = SimModel::from_path(&dir.path().join("sim.toml")).unwrap();
     let sim = Simulator::new(model).unwrap();
     let campaign = sim.run(11, &|_| {}).unwrap();
-    let modes = sim.system().modes().unwrap();
-    let c: Vec<f64> = modes
-        .omega_rad_s
-        .iter()
-        .zip(sim.system().modal_damping_ratios().unwrap())
-        .map(|(w, x)| 2.0 * x * w)
-        .collect();
+    let (modes, c) = true_modes(&sim);
     let mut opts = EstimateOptions {
         freq_max_hz: Some(20.0),
         ..EstimateOptions::default()
@@ -324,13 +285,7 @@ fn force_noise_common_gain_is_calibrated() {
         model.noise.displacement_m = 0.0;
         let sim = Simulator::new(model).unwrap();
         let campaign = sim.run(seed, &|_| {}).unwrap();
-        let modes = sim.system().modes().unwrap();
-        let c: Vec<f64> = modes
-            .omega_rad_s
-            .iter()
-            .zip(sim.system().modal_damping_ratios().unwrap())
-            .map(|(w, x)| 2.0 * x * w)
-            .collect();
+        let (modes, c) = true_modes(&sim);
         for (t, e) in estimate_campaign(&campaign, &opts)
             .unwrap()
             .iter()

@@ -1,17 +1,15 @@
 //! The ten-story frame given as Matrix Market files (`experiments/models/ten-story/`) and
 //! its simulated hammer campaign (`experiments/models/ten-story-hammer.toml`).
 
-use frfbayes::frf::{modal_frf, FrfPair};
+mod truth_frf;
+
 use frfbayes::io::{read_campaign, write_campaign};
 use frfbayes::modal::Modes;
 use frfbayes::model::{ModelManifest, StructuralModel};
-use frfbayes::signal::{
-    estimate_campaign, windowed_modal_frf, EstimateOptions, InputKind, TestFrf,
-};
+use frfbayes::signal::{estimate_campaign, EstimateOptions};
 use frfbayes::simulate::{NoiseSpec, SimModel, Simulator};
-use num_complex::Complex64;
-use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
+use truth_frf::{analytic, true_modes};
 
 fn models_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/models")
@@ -19,28 +17,6 @@ fn models_dir() -> PathBuf {
 
 fn sim_model() -> SimModel {
     SimModel::from_path(&models_dir().join("ten-story-hammer.toml")).unwrap()
-}
-
-/// The analytic FRF an estimate stands for (the exponential window's exact effect when
-/// one was applied).
-fn analytic(est: &TestFrf, modes: &Modes, c: &[f64], pair: &FrfPair, f_hz: f64) -> Complex64 {
-    let w = 2.0 * PI * f_hz;
-    match (&est.input, est.exp_window_tau_s) {
-        (InputKind::Force { .. }, Some(tau)) => windowed_modal_frf(modes, c, pair, w, tau),
-        _ => modal_frf(modes, c, pair, w),
-    }
-}
-
-/// True modes and modal damping coefficients `2 xi_i omega_i` of the simulated system.
-fn truth(sim: &Simulator) -> (Modes, Vec<f64>) {
-    let modes = sim.system().modes().unwrap();
-    let c = modes
-        .omega_rad_s
-        .iter()
-        .zip(sim.system().modal_damping_ratios().unwrap())
-        .map(|(w, x)| 2.0 * x * w)
-        .collect();
-    (modes, c)
 }
 
 /// The generated files are the shear frame of the documented masses and stiffnesses, with
@@ -85,7 +61,7 @@ fn noise_free_h1_matches_the_analytic_frf() {
     model.noise = NoiseSpec::default();
     let sim = Simulator::new(model).unwrap();
     assert_eq!(sim.modal_basis().unwrap().n_modes(), 10);
-    let (modes, c) = truth(&sim);
+    let (modes, c) = true_modes(&sim);
     let campaign = sim.run(1, &|_| {}).unwrap();
     let opts = EstimateOptions {
         freq_max_hz: Some(25.0),
@@ -132,7 +108,7 @@ const EPS_MAX: f64 = 0.1;
 #[test]
 fn noisy_campaign_reads_back_and_h1_is_within_the_estimator_error() {
     let sim = Simulator::new(sim_model()).unwrap();
-    let (modes, c) = truth(&sim);
+    let (modes, c) = true_modes(&sim);
     let seed = sim.model().seed.unwrap();
     let simulated = sim.run(seed, &|_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();

@@ -26,6 +26,10 @@ pub struct Args {
     /// Highest frequency kept, Hz.
     #[arg(long, default_value_t = 25.0)]
     pub freq_max_hz: f64,
+    /// Least hammer pretrigger, samples: at least the half-length of the recorder's
+    /// anti-alias filter (its pre-ringing); the pretrigger is `max(0.1 s, this)`.
+    #[arg(long, default_value_t = frfbayes::signal::MIN_PRETRIGGER_SAMPLES)]
+    pub min_pretrigger_samples: usize,
     /// Write `frf.uff` as binary dataset 58b (exact doubles) instead of ASCII 58.
     #[arg(long)]
     pub uff_binary: bool,
@@ -45,6 +49,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut opts = EstimateOptions::default();
     opts.bands.band_factor = args.band_factor;
     opts.freq_max_hz = Some(args.freq_max_hz);
+    opts.hammer.min_pretrigger_samples = args.min_pretrigger_samples;
     opts.hammer.exp_window = if args.exp_window_tau_s > 0.0 {
         ExpWindow::TauS(args.exp_window_tau_s)
     } else {

@@ -22,6 +22,9 @@ pub struct EstimateSection {
     pub band_factor: f64,
     /// Upper frequency of the estimates, Hz.
     pub freq_max_hz: Option<f64>,
+    /// Least hammer pretrigger, samples ([`super::HammerOptions::min_pretrigger_samples`]:
+    /// at least the half-length of the recorder's anti-alias filter).
+    pub min_pretrigger_samples: usize,
     /// Transducer filters to take out of the estimates (e.g. the low-pass `frfbayes
     /// diagnose` identified in a campaign's accelerometers); none by default.
     pub sensor_low_pass: Vec<SensorLowPass>,
@@ -45,6 +48,7 @@ impl Default for EstimateSection {
             exp_window_tau_s: Some(20.0),
             band_factor: 1.0,
             freq_max_hz: Some(25.0),
+            min_pretrigger_samples: super::MIN_PRETRIGGER_SAMPLES,
             sensor_low_pass: Vec::new(),
         }
     }
@@ -61,6 +65,7 @@ impl EstimateSection {
         };
         o.bands.band_factor = self.band_factor;
         o.freq_max_hz = self.freq_max_hz;
+        o.hammer.min_pretrigger_samples = self.min_pretrigger_samples;
         o
     }
 }
