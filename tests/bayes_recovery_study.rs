@@ -26,7 +26,8 @@
 //! magnitudes at the maximum-likelihood start, the default of `frfbayes sample`, or
 //! `measured` ones, the former default; the profile oracle also takes `truth`),
 //! `FRFBAYES_STUDY_N_MODES`, `FRFBAYES_STUDY_FREQ_MAX_HZ` and `FRFBAYES_STUDY_MODE_SOLVER=exact`
-//! (as `sample`'s `--n-modes`, `--freq-max-hz`, `--mode-solver`; the bridge needs them). Writes
+//! (as `sample`'s `--n-modes`, `--freq-max-hz`, `--mode-solver`; the bridge needs them),
+//! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.
 
 use frfbayes::bayes::recovery::{joint_error, JointError};
@@ -552,6 +553,9 @@ fn study_settings(model_file: &str) -> SampleSettings {
     if std::env::var("FRFBAYES_STUDY_MODE_SOLVER").as_deref() == Ok("exact") {
         s.posterior.mode_solver = frfbayes::predict::ModeSolverChoice::Exact;
     }
+    if let Ok(v) = std::env::var("FRFBAYES_STUDY_MIN_PRETRIGGER") {
+        s.estimate.min_pretrigger_samples = v.parse().expect("FRFBAYES_STUDY_MIN_PRETRIGGER");
+    }
     s
 }
 
@@ -769,7 +773,7 @@ fn residuals_at_the_truth() {
 /// selected bin; `FRFBAYES_STUDY_SIGMA=true`, each point's sd from the model file's
 /// acceleration noise and the windowed force spectrum (response noise only, accelerance);
 /// `FRFBAYES_STUDY_DEBIAS=c`, magnitudes divided by `1 + c r_k^2` (the Rice bias at
-/// `c = 0.5`).
+/// `c = 0.5`); `FRFBAYES_STUDY_FORCE_MARGIN_S`, the force window's flat margin.
 fn selected_posterior(
     campaign: &frfbayes::io::Campaign,
     model: &SimModel,
@@ -779,6 +783,9 @@ fn selected_posterior(
     use frfbayes::bayes::{FrfData, FrfPosterior, InputNoiseModel};
     let mut opts = settings.estimate.options();
     opts.hammer.tail_correction = env_or("FRFBAYES_STUDY_TAIL", "on") == "on";
+    if let Ok(v) = std::env::var("FRFBAYES_STUDY_FORCE_MARGIN_S") {
+        opts.hammer.force_margin_s = v.parse().expect("FRFBAYES_STUDY_FORCE_MARGIN_S: s");
+    }
     let mut frfs = frfbayes::signal::estimate_campaign(campaign, &opts).unwrap();
     if env_or("FRFBAYES_STUDY_SELECT", "measured") == "truth" {
         let mut clean_model = model.clone();
