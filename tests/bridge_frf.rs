@@ -1,7 +1,7 @@
 //! FRF updating of the 946-DOF bridge (`experiments/models/bridge-hammer.toml`: SMU's FE
 //! model of `../shared/data/real/bridge-fe`, read in place) from a simulated hammer
 //! campaign, exactly as `frfbayes sample --damping rayleigh --frf accelerance --n-modes 9
-//! --freq-max-hz 15.5 --bin-correlation window --walkers-per-dim 4` does it
+//! --freq-max-hz 15.5 --bin-correlation window --walkers-per-dim 8` does it
 //! ([`prepare_campaign`], [`sample_prepared`]; band capped at [`FREQ_MAX_HZ`]: modes 1-6;
 //! neighbouring bins correlated by the window, as the ten-story check needs). The predictor's modes come from the reduced basis
 //! ([`frfbayes::predict::ModelModes::Reduced`], anchored at the maximum-likelihood point),
@@ -263,7 +263,7 @@ fn bridge_frf_recovers_the_truth() {
     let walkers: usize = std::env::var("FRFBAYES_BRIDGE_WALKERS_PER_DIM")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(4);
+        .unwrap_or(8);
     let mut s = window_settings(walkers);
     s.max_steps = std::env::var("FRFBAYES_BRIDGE_MAX_STEPS")
         .ok()
