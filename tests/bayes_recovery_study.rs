@@ -27,7 +27,9 @@
 //! `measured` ones, the former default; the profile oracle also takes `truth`),
 //! `FRFBAYES_STUDY_N_MODES`, `FRFBAYES_STUDY_FREQ_MAX_HZ` and `FRFBAYES_STUDY_MODE_SOLVER=exact`
 //! (as `sample`'s `--n-modes`, `--freq-max-hz`, `--mode-solver`; the bridge needs them),
-//! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone). Writes
+//! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone),
+//! `FRFBAYES_STUDY_BINS=window` (neighbouring bins correlated, as the ten-story check),
+//! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.
 
 use frfbayes::bayes::recovery::{joint_error, JointError};
@@ -254,14 +256,7 @@ fn common_scale_offset_over_noise_draws() {
     let seed0: u64 = env_or("FRFBAYES_STUDY_SEED", &base.seed.unwrap().to_string())
         .parse()
         .unwrap();
-    let mut settings = SampleSettings::new(
-        model_file.clone(),
-        DampingModel::Rayleigh,
-        FrfKind::Accelerance,
-        TestSelection::Hammer,
-        1,
-    )
-    .unwrap();
+    let mut settings = study_settings(&model_file);
     settings.walkers_per_dim = env_or("FRFBAYES_STUDY_WALKERS", "4").parse().unwrap();
     let loadings = env_or("FRFBAYES_STUDY_LOADINGS", "model");
     settings.loading_magnitude = loading_magnitude(&loadings);
@@ -552,6 +547,12 @@ fn study_settings(model_file: &str) -> SampleSettings {
         .map(|v| v.parse().expect("FRFBAYES_STUDY_FREQ_MAX_HZ: Hz"));
     if std::env::var("FRFBAYES_STUDY_MODE_SOLVER").as_deref() == Ok("exact") {
         s.posterior.mode_solver = frfbayes::predict::ModeSolverChoice::Exact;
+    }
+    if std::env::var("FRFBAYES_STUDY_RESIDUAL").as_deref() == Ok("log") {
+        s.residual = frfbayes::update::ResidualForm::LogMagnitude;
+    }
+    if std::env::var("FRFBAYES_STUDY_BINS").as_deref() == Ok("window") {
+        s.bin_correlation = frfbayes::bayes::BinCorrelation::Window;
     }
     if let Ok(v) = std::env::var("FRFBAYES_STUDY_MIN_PRETRIGGER") {
         s.estimate.min_pretrigger_samples = v.parse().expect("FRFBAYES_STUDY_MIN_PRETRIGGER");
