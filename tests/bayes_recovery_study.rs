@@ -29,7 +29,8 @@
 //! (as `sample`'s `--n-modes`, `--freq-max-hz`, `--mode-solver`; the bridge needs them),
 //! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone),
 //! `FRFBAYES_STUDY_BINS=window` (neighbouring bins correlated, as the ten-story check),
-//! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals). Writes
+//! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals), `FRFBAYES_STUDY_BAND_FACTOR`
+//! (as `sample`'s `--band-factor`). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.
 
 use frfbayes::bayes::recovery::{joint_error, JointError};
@@ -547,6 +548,9 @@ fn study_settings(model_file: &str) -> SampleSettings {
         .map(|v| v.parse().expect("FRFBAYES_STUDY_FREQ_MAX_HZ: Hz"));
     if std::env::var("FRFBAYES_STUDY_MODE_SOLVER").as_deref() == Ok("exact") {
         s.posterior.mode_solver = frfbayes::predict::ModeSolverChoice::Exact;
+    }
+    if let Ok(v) = std::env::var("FRFBAYES_STUDY_BAND_FACTOR") {
+        s.estimate.band_factor = v.parse().expect("FRFBAYES_STUDY_BAND_FACTOR");
     }
     if std::env::var("FRFBAYES_STUDY_RESIDUAL").as_deref() == Ok("log") {
         s.residual = frfbayes::update::ResidualForm::LogMagnitude;
