@@ -803,8 +803,17 @@ fn selected_posterior(
             .unwrap();
         let cf = frfbayes::signal::estimate_campaign(&clean, &opts).unwrap();
         for (f, c) in frfs.iter_mut().zip(&cf) {
-            assert_eq!(f.freq_hz.len(), c.freq_hz.len(), "same grid");
-            f.selected = c.selected.clone();
+            // The grids differ when the two triggers do (the noise-free force triggers
+            // at its first ringing sample): the nearest bin of the noisy grid.
+            let df = f.freq_hz[1] - f.freq_hz[0];
+            let mut sel: Vec<usize> = c
+                .selected
+                .iter()
+                .map(|&k| ((c.freq_hz[k] - f.freq_hz[0]) / df).round() as usize)
+                .filter(|&k| k < f.freq_hz.len())
+                .collect();
+            sel.dedup();
+            f.selected = sel;
             f.bands = c.bands.clone();
         }
     }
