@@ -383,6 +383,31 @@ fn force_window_keeps_the_pulse() {
     }
 }
 
+/// `model` with the structure and damping of sampled coordinates `z` of `post` (the
+/// inverse of [`truth_coords`]).
+fn fitted_model(post: &frfbayes::bayes::FrfPosterior, model: &SimModel, z: &[f64]) -> SimModel {
+    let mut fitted = model.clone();
+    let StructureSpec::General { alpha, beta, .. } = &mut fitted.structure else {
+        unreachable!()
+    };
+    let (mut a0, mut a1) = (0.0, 0.0);
+    for (j, n) in post.names().iter().enumerate() {
+        let i: Option<usize> = n[1..].parse().ok();
+        match (&n[..1], i) {
+            ("k", Some(i)) => alpha[i - 1] = z[j],
+            ("m", Some(i)) => beta[i - 1] = z[j],
+            _ if n == "ln_a0" => a0 = z[j].exp(),
+            _ if n == "ln_a1" => a1 = z[j].exp(),
+            _ => {}
+        }
+    }
+    fitted.damping = DampingSpec::Rayleigh {
+        a0_per_s: a0,
+        a1_s: a1,
+    };
+    fitted
+}
+
 /// The sampled coordinates of the truth of `model` for `post` (noise scale 1).
 fn truth_coords(post: &frfbayes::bayes::FrfPosterior, model: &SimModel, t: &[f64]) -> Vec<f64> {
     let n_alpha = match &model.structure {
@@ -690,7 +715,14 @@ fn residuals_at_the_truth() {
         let (model, t) = campaign_model(&base, i, "fixed", &noise);
         let sim = Simulator::new(model.clone()).unwrap();
         let campaign = sim.run(base.seed.unwrap() + i as u64, &|_| {}).unwrap();
-        let post = selected_posterior(&campaign, &model, base.seed.unwrap() + i as u64, &settings);
+        let select = env_or("FRFBAYES_STUDY_SELECT", "measured");
+        let post = selected_posterior(
+            &campaign,
+            &model,
+            base.seed.unwrap() + i as u64,
+            &settings,
+            &select,
+        );
         let h = post.magnitudes(&truth_coords(&post, &model, &t)).unwrap();
         let d = post.data();
         let mut at = 0;
@@ -772,8 +804,9 @@ fn residuals_at_the_truth() {
 
 /// The posterior of `frfbayes sample`'s data and noise model (correlated bins as the
 /// settings say), with the oracles of the ten-story study (README, "Fixed: the ten-story
-/// check"): `FRFBAYES_STUDY_SELECT=truth`, the bands and selected bins of the noise-free
-/// campaign of the same seed (`measured`, the default: the estimator's own);
+/// check"): `select` = `truth`, the bands and selected bins of `model`'s noise-free
+/// campaign of the same seed, mapped to the nearest bin (`measured`: the estimator's
+/// own; `ml_offset_over_noise_draws` also takes `fit`: `truth` of the fitted model);
 /// `FRFBAYES_STUDY_TAIL=off`, no tail correction; `FRFBAYES_STUDY_THIN=k`, every k-th
 /// selected bin; `FRFBAYES_STUDY_SIGMA=true`, each point's sd from the model file's
 /// acceleration noise and the windowed force spectrum (response noise only, accelerance);
@@ -784,6 +817,7 @@ fn selected_posterior(
     model: &SimModel,
     seed: u64,
     settings: &SampleSettings,
+    select: &str,
 ) -> frfbayes::bayes::FrfPosterior {
     use frfbayes::bayes::{FrfData, FrfPosterior, InputNoiseModel};
     let mut opts = settings.estimate.options();
@@ -792,7 +826,7 @@ fn selected_posterior(
         opts.hammer.force_margin_s = v.parse().expect("FRFBAYES_STUDY_FORCE_MARGIN_S: s");
     }
     let mut frfs = frfbayes::signal::estimate_campaign(campaign, &opts).unwrap();
-    if env_or("FRFBAYES_STUDY_SELECT", "measured") == "truth" {
+    if select == "truth" {
         let mut clean_model = model.clone();
         clean_model.noise.force_n = 0.0;
         clean_model.noise.acceleration_m_per_s2 = 0.0;
@@ -928,9 +962,17 @@ fn ml_offset_over_noise_draws() {
             .unwrap()
             .run(seed, &|_| {})
             .unwrap();
-        let post = selected_posterior(&campaign, &model, seed, &settings);
+        let select = env_or("FRFBAYES_STUDY_SELECT", "measured");
+        let first = if select == "fit" { "measured" } else { &select };
+        let post = selected_posterior(&campaign, &model, seed, &settings, first);
         let zt = truth_coords(&post, &model, &t);
-        let (post, start) = plug_in_start(post, LoadingMagnitude::Model, &ms).unwrap();
+        let (mut post, mut start) = plug_in_start(post, LoadingMagnitude::Model, &ms).unwrap();
+        if select == "fit" {
+            // the bands and bins of the fitted model's noise-free campaign
+            let fitted = fitted_model(&post, &model, &start.z);
+            let again = selected_posterior(&campaign, &fitted, seed, &settings, "truth");
+            (post, start) = plug_in_start(again, LoadingMagnitude::Model, &ms).unwrap();
+        }
         let names = post.names();
         let (mut off, mut zsum, mut cnt) = (0.0, 0.0, 0.0);
         let mut z2 = 0.0;
