@@ -838,7 +838,7 @@ fn selected_posterior(
         let cf = frfbayes::signal::estimate_campaign(&clean, &opts).unwrap();
         for (f, c) in frfs.iter_mut().zip(&cf) {
             // The grids differ when the two triggers do (the noise-free force triggers
-            // at its first ringing sample): the nearest bin of the noisy grid.
+            // early in its pre-ringing): the nearest bin of the noisy grid.
             let df = f.freq_hz[1] - f.freq_hz[0];
             let mut sel: Vec<usize> = c
                 .selected

@@ -58,8 +58,8 @@
 //! so it has a floor in samples, [`HammerOptions::min_pretrigger_samples`] (32: the
 //! half-length of a filter with 100 dB stop band from the Nyquist frequency and pass band
 //! to 0.8 of it, the simulator's design; records at 320 Hz and above keep their 0.1 s).
-//! With noise-free force the detector's threshold is 0 and the trigger falls at the first
-//! ringing sample, which is why noise-free checks never saw it. Measured on the simulated
+//! With noise-free force the detector's threshold falls to 1e-3 of the peak and the
+//! trigger comes early in the pre-ringing, which is why noise-free checks never saw it. Measured on the simulated
 //! bridge campaign (60 Hz output, force noise only; `tests/bridge_frf.rs`): with 0.1 s
 //! (6 samples) `|H1|` was 3.5-9 times the analytic accelerance at 0.45-0.6 Hz, where the
 //! band selection then found resonances. The check of `tests/simulate_general.rs` (50 Hz,
