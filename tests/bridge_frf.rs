@@ -310,8 +310,9 @@ fn bridge_frf_recovers_the_truth() {
 /// The start is the maximum of the likelihood that is sampled (correlated bins and
 /// shared force noise included): the exact log-likelihood (condensed solve) at the start
 /// is at least its value at the truth, less 1 nat for the reduced basis's error there.
-/// Measured: -1906.8 at the start, -1987.0 at the truth; with the former per-point start
-/// 106 nats below the truth's (-2096.0 against -1989.5), and the chains drifted from it.
+/// Measured: -1661.3 at the start, -1672.3 at the truth (11.0 nats for 22 parameters;
+/// with the former 0.1 s pretrigger -1906.8 against -1987.0, and with the former
+/// per-point start 106 nats below the truth's).
 /// `FRFBAYES_BRIDGE_NOISE=responses_only|force_only` and `FRFBAYES_BRIDGE_BINS=independent`
 /// for the diagnosis in the README. About 30 s.
 #[test]
