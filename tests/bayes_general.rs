@@ -159,7 +159,11 @@ fn six_dof_network_recovers_the_truth() {
 /// The ten-story frame as Matrix Market files (`experiments/models/ten-story-hammer.toml`:
 /// 10 alphas, 10 betas, Rayleigh; 23 sampled coordinates), with neighbouring bins
 /// correlated as the window makes them (`--bin-correlation window`; with the default,
-/// independent bins, the check fails: worst |z| 4.08, README). Slow (minutes):
+/// independent bins, the check fails: worst |z| 4.08, README). **Fails at present**
+/// (m2 at -4.07 sd since the 32-sample pretrigger moved the frequency grid): the known
+/// -0.67 % bias of the maximum-likelihood scale, which the band selection on the noisy
+/// curve causes in part (README, "Not yet right"); over 10 noise draws 3 are beyond
+/// 3 sd. Slow (minutes):
 ///
 /// ```sh
 /// nice -n 10 cargo test --release --test bayes_general -- --ignored --nocapture
