@@ -453,14 +453,7 @@ fn gain_error_of_the_estimates() {
     );
     let n: usize = env_or("FRFBAYES_STUDY_N", "20").parse().unwrap();
     let base = SimModel::from_path(&root.join(&model_file)).unwrap();
-    let settings = SampleSettings::new(
-        model_file.clone(),
-        DampingModel::Rayleigh,
-        FrfKind::Accelerance,
-        TestSelection::Hammer,
-        1,
-    )
-    .unwrap();
+    let settings = study_settings(&model_file);
     for noise in ["none", "responses_only", "force_only", "all"] {
         let mut per_test: Vec<Vec<f64>> = Vec::new();
         for i in 0..if noise == "none" { 1 } else { n } {

@@ -266,7 +266,7 @@ fn force_noise_only_low_rate_h1_matches_the_analytic_frf() {
 /// uses it: on the six-DOF hammer campaign (`experiments/models/six-dof-hammer.toml`,
 /// 100 Hz, force noise only, 30 noise seeds), the mean of `ln |H1 / H|` over each test's
 /// selected bins (the common gain that moves the mass-stiffness scale) divided by its
-/// predicted sd (`InputNoise` loadings averaged over the bins) has sd 1 and mean 0.
+/// predicted sd (from `InputNoise::relative_covariance`) has sd 1 and mean 0.
 /// Bounds: the 99.9 % intervals of `sqrt(chi2(29) / 29)`, 0.62-1.42, and of the mean,
 /// `3.29 sd / sqrt(30)`. Measured: sd 1.05 and 0.80, mean -0.24 and -0.31 (with the
 /// pretrigger at 0.1 s: 1.06 and 0.79).
@@ -292,16 +292,9 @@ fn force_noise_common_gain_is_calibrated() {
             .enumerate()
         {
             let noise = e.input_noise.as_ref().expect("force window: input noise");
-            let a = noise.relative_loadings(&e.selected).unwrap();
-            let n_cols = noise.n_samples();
             let n = e.selected.len() as f64;
-            let sd = (0..n_cols)
-                .map(|j| {
-                    let m: f64 = (0..e.selected.len()).map(|i| a[i * n_cols + j]).sum();
-                    (m / n).powi(2)
-                })
-                .sum::<f64>()
-                .sqrt();
+            // sd of the mean over the bins: sqrt(1^T C 1) / n
+            let sd = noise.relative_covariance(&e.selected).unwrap().sum().sqrt() / n;
             let r = &e.responses[0];
             let pair = r.pair(&e.input).unwrap();
             let gain: f64 = e

@@ -26,7 +26,6 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Arguments of `frfbayes diagnose`.
 /// The noise model of a diagnosis: `diagnose`'s and `diagnose-benchmark`'s flags.
 #[derive(Debug, Clone, Copy, clap::Args)]
 pub struct NoiseModelArgs {
@@ -62,6 +61,7 @@ impl NoiseModelArgs {
     }
 }
 
+/// Arguments of `frfbayes diagnose`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Campaign folder (the recording format of ../shared/spec), or bundled:four-story.
