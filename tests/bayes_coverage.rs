@@ -10,13 +10,14 @@
 //! Environment: `FRFBAYES_COVERAGE_N` campaigns (default 20), `FRFBAYES_COVERAGE_NOISE`
 //! (`all`, `force_only`, `responses_only`; default `all`), `FRFBAYES_COVERAGE_SEED`
 //! (default 1), `FRFBAYES_COVERAGE_INPUT_NOISE` (`shared`, the default of `sample`, or
-//! `per_point`, the model before), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
+//! `per_point`, the model before), `FRFBAYES_COVERAGE_BAND_SELECTION` (`measured`, the
+//! default, or `model`, as `sample`'s `--band-selection`), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
 //! `FRFBAYES_COVERAGE_OUT` (default `results/coverage`). Writes `<label>_<noise>.md` and
 //! `.csv` there.
 
 use frfbayes::bayes::coverage::{binomial_bounds, run_coverage, CoverageOptions, NoiseSources};
 use frfbayes::bayes::run::{SampleSettings, TestSelection};
-use frfbayes::bayes::InputNoiseModel;
+use frfbayes::bayes::{BandSelection, InputNoiseModel};
 use frfbayes::frf::FrfKind;
 use frfbayes::io::write_atomic;
 use frfbayes::simulate::SimModel;
@@ -60,6 +61,12 @@ fn coverage_of_ninety_percent_intervals() {
         "shared" => InputNoiseModel::Shared,
         "per_point" => InputNoiseModel::PerPoint,
         other => panic!("FRFBAYES_COVERAGE_INPUT_NOISE={other}: use shared or per_point"),
+    };
+    settings.band_selection = match env_or("FRFBAYES_COVERAGE_BAND_SELECTION", "measured").as_str()
+    {
+        "measured" => BandSelection::Measured,
+        "model" => BandSelection::Model,
+        other => panic!("FRFBAYES_COVERAGE_BAND_SELECTION={other}: use measured or model"),
     };
     let opts = CoverageOptions {
         base,

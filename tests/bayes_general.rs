@@ -22,7 +22,7 @@
 use frfbayes::bayes::run::{
     prepare_campaign, sample_prepared, PosteriorSample, SampleSettings, TestSelection,
 };
-use frfbayes::bayes::BinCorrelation;
+use frfbayes::bayes::{reselect_on_model, BandSelection, BinCorrelation};
 use frfbayes::frf::FrfKind;
 use frfbayes::simulate::{DampingSpec, SimModel, Simulator, StructureSpec};
 use frfbayes::update::DampingModel;
@@ -64,7 +64,12 @@ struct Recovery {
 /// Rayleigh damping (hammer tests, seed 1, defaults of `frfbayes sample` otherwise;
 /// `small`: 4 x dim walkers per ensemble),
 /// prints a table against the truth and returns the worst standardised error.
-fn recover(model_file: &str, small: bool, bins: BinCorrelation) -> Recovery {
+fn recover(
+    model_file: &str,
+    small: bool,
+    bins: BinCorrelation,
+    selection: BandSelection,
+) -> Recovery {
     let t0 = Instant::now();
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(model_file);
     let model = SimModel::from_path(&path).unwrap();
@@ -81,6 +86,7 @@ fn recover(model_file: &str, small: bool, bins: BinCorrelation) -> Recovery {
     .unwrap();
     let mut settings = settings;
     settings.bin_correlation = bins;
+    settings.band_selection = selection;
     if small {
         // 4 x dim walkers per ensemble: a third of the default work per step
         settings.walkers_per_dim = 4;
@@ -153,6 +159,7 @@ fn six_dof_network_recovers_the_truth() {
         "experiments/models/six-dof-hammer.toml",
         true,
         BinCorrelation::Independent,
+        BandSelection::Measured,
     ));
 }
 
@@ -175,5 +182,74 @@ fn ten_story_recovers_the_truth() {
         "experiments/models/ten-story-hammer.toml",
         false,
         BinCorrelation::Window,
+        BandSelection::Model,
     ));
+}
+
+/// Two-stage band selection (`--band-selection model`) on noise-free data: the
+/// maximum-likelihood model's curve is then the estimate's own, so the bands it finds
+/// are the estimate's (peaks on the same bin, edges within a bin) and so are the
+/// selected bins. The six-DOF campaign without noise.
+#[test]
+fn model_band_selection_on_noise_free_data_finds_the_estimates_bands() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/models/six-dof-hammer.toml");
+    let mut model = SimModel::from_path(&path).unwrap();
+    model.noise.force_n = 0.0;
+    model.noise.acceleration_m_per_s2 = 0.0;
+    model.noise.displacement_m = 0.0;
+    let sim = Simulator::new(model).unwrap();
+    let campaign = sim.run(sim.model().seed.unwrap(), &|_| {}).unwrap();
+    let mut settings = SampleSettings::new(
+        "six-dof".into(),
+        DampingModel::Rayleigh,
+        FrfKind::Accelerance,
+        TestSelection::Hammer,
+        1,
+    )
+    .unwrap();
+    let measured = prepare_campaign(&campaign, &settings).unwrap();
+    settings.band_selection = BandSelection::Model;
+    let reselected = prepare_campaign(&campaign, &settings).unwrap();
+    for (a, b) in measured.frfs.iter().zip(&reselected.frfs) {
+        let df = a.freq_hz[1] - a.freq_hz[0];
+        assert_eq!(a.bands.len(), b.bands.len(), "{}: bands", a.test);
+        for (x, y) in a.bands.iter().zip(&b.bands) {
+            assert_eq!(x.peak_index, y.peak_index, "{}: peak {}", a.test, x.peak_hz);
+            assert!(
+                (x.lo_hz - y.lo_hz).abs() < df && (x.hi_hz - y.hi_hz).abs() < df,
+                "{}: band {x:?} against {y:?}",
+                a.test
+            );
+        }
+        let moved = a.selected.len().abs_diff(b.selected.len());
+        assert!(
+            moved <= 2 * a.bands.len(),
+            "{}: {} bins against {}",
+            a.test,
+            b.selected.len(),
+            a.selected.len()
+        );
+    }
+    // and it is the model's curve that decides: twice the damping, wider bands
+    let post = &reselected.posterior;
+    let mut z = reselected.start.z.clone();
+    for (j, name) in post.names().iter().enumerate() {
+        if name == "ln_a0" || name == "ln_a1" {
+            z[j] += 2f64.ln();
+        }
+    }
+    let mut frfs = reselected.frfs.clone();
+    let bands = settings.estimate.options().bands;
+    reselect_on_model(post, &z, &mut frfs, |_| true, &bands, 6).unwrap();
+    for (a, b) in reselected.frfs.iter().zip(&frfs) {
+        for (x, y) in a.bands.iter().zip(&b.bands) {
+            let ratio = y.bandwidth_hz() / x.bandwidth_hz();
+            assert!(
+                ratio > 1.3,
+                "{}: band at {} Hz widened {ratio}",
+                a.test,
+                x.peak_hz
+            );
+        }
+    }
 }

@@ -30,12 +30,13 @@
 //! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone),
 //! `FRFBAYES_STUDY_BINS=window` (neighbouring bins correlated, as the ten-story check),
 //! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals), `FRFBAYES_STUDY_BAND_FACTOR`
-//! (as `sample`'s `--band-factor`). Writes
+//! (as `sample`'s `--band-factor`), `FRFBAYES_STUDY_BAND_SELECTION=model` (as `sample`'s
+//! `--band-selection model`). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.
 
 use frfbayes::bayes::recovery::{joint_error, JointError};
 use frfbayes::bayes::run::{prepare_campaign, sample_prepared, SampleSettings, TestSelection};
-use frfbayes::bayes::{plug_in_start, LoadingMagnitude};
+use frfbayes::bayes::{plug_in_start, BandSelection, LoadingMagnitude};
 use frfbayes::frf::FrfKind;
 use frfbayes::io::write_atomic;
 use frfbayes::mcmc::quantile;
@@ -576,6 +577,9 @@ fn study_settings(model_file: &str) -> SampleSettings {
     if std::env::var("FRFBAYES_STUDY_BINS").as_deref() == Ok("window") {
         s.bin_correlation = frfbayes::bayes::BinCorrelation::Window;
     }
+    if std::env::var("FRFBAYES_STUDY_BAND_SELECTION").as_deref() == Ok("model") {
+        s.band_selection = BandSelection::Model;
+    }
     if let Ok(v) = std::env::var("FRFBAYES_STUDY_MIN_PRETRIGGER") {
         s.estimate.min_pretrigger_samples = v.parse().expect("FRFBAYES_STUDY_MIN_PRETRIGGER");
     }
@@ -957,9 +961,17 @@ fn ml_offset_over_noise_draws() {
             .unwrap();
         let select = env_or("FRFBAYES_STUDY_SELECT", "measured");
         let first = if select == "fit" { "measured" } else { &select };
-        let post = selected_posterior(&campaign, &model, seed, &settings, first);
-        let zt = truth_coords(&post, &model, &t);
-        let (mut post, mut start) = plug_in_start(post, LoadingMagnitude::Model, &ms).unwrap();
+        let (mut post, mut start, zt) = if settings.band_selection == BandSelection::Model {
+            // `sample`'s own two-stage selection, on the fitted model's FRFs
+            let prep = prepare_campaign(&campaign, &settings).unwrap();
+            let zt = truth_coords(&prep.posterior, &model, &t);
+            (prep.posterior, prep.start, zt)
+        } else {
+            let post = selected_posterior(&campaign, &model, seed, &settings, first);
+            let zt = truth_coords(&post, &model, &t);
+            let (post, start) = plug_in_start(post, LoadingMagnitude::Model, &ms).unwrap();
+            (post, start, zt)
+        };
         if select == "fit" {
             // the bands and bins of the fitted model's noise-free campaign
             let fitted = fitted_model(&post, &model, &start.z);

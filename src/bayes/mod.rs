@@ -75,6 +75,7 @@ pub mod predictive;
 pub mod prior;
 pub mod recovery;
 pub mod report;
+mod reselect;
 pub mod run;
 pub mod sbc;
 mod settings;
@@ -89,4 +90,5 @@ pub use data::{
 };
 pub use posterior::{FrfPosterior, PosteriorOptions};
 pub use prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};
+pub use reselect::{reselect_on_model, BandSelection};
 pub use start::{ball_positions, find_start, plug_in_start, StartPoint};

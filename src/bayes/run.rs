@@ -23,6 +23,7 @@ use super::figures::write_figures;
 use super::inference_data::{write_inference_data, INFERENCE_DATA_FILE};
 pub use super::moves::{de_stretch_moves, default_moves};
 use super::posterior::FrfPosterior;
+use super::reselect::{reselect_on_model, BandSelection};
 pub use super::settings::{SampleSettings, TestSelection};
 use super::start::{ball_positions, find_start, plug_in_start, StartPoint};
 use super::summary::{
@@ -71,7 +72,8 @@ pub fn prepare_measured(manifest: &Path, settings: &SampleSettings) -> Result<Pr
     let measured = read_measured(manifest, &settings.estimate.options())?;
     let model = measured.nominal.structural_model()?;
     let where_ = format!("the measured FRFs of {}", manifest.display());
-    posterior_of(model, measured.tests, settings, &where_)
+    let n_peaks = n_peaks(settings, measured.nominal.n_floors());
+    posterior_of(model, measured.tests, settings, n_peaks, &where_)
 }
 
 /// [`prepare`] for a campaign already in memory (e.g. simulated): estimates its FRFs
@@ -80,16 +82,52 @@ pub fn prepare_campaign(campaign: &Campaign, settings: &SampleSettings) -> Resul
     let model = campaign.nominal.structural_model()?;
     let frfs = estimate_campaign(campaign, &settings.estimate.options())?;
     let where_ = format!("the campaign at {}", campaign.root.display());
-    posterior_of(model, frfs, settings, &where_)
+    let n_peaks = n_peaks(settings, campaign.nominal.n_floors());
+    posterior_of(model, frfs, settings, n_peaks, &where_)
 }
 
-/// The posterior of the `settings.tests` among `frfs` (`where_` names them in errors).
+/// Resonances per test, as the estimate found them: the settings' or the model's modes.
+fn n_peaks(settings: &SampleSettings, n_floors: usize) -> usize {
+    settings
+        .estimate
+        .options()
+        .bands
+        .n_peaks
+        .unwrap_or(n_floors)
+}
+
+/// The posterior of the `settings.tests` among `frfs` and its start (`where_` names them
+/// in errors); with [`BandSelection::Model`] the bins are then selected again on the
+/// start's model ([`reselect_on_model`], `n_peaks` per test) and the start found again.
 fn posterior_of(
     model: crate::model::StructuralModel,
-    frfs: Vec<TestFrf>,
+    mut frfs: Vec<TestFrf>,
     settings: &SampleSettings,
+    n_peaks: usize,
     where_: &str,
 ) -> Result<Prepared> {
+    let (mut posterior, mut start) = start_of(model.clone(), &frfs, settings, where_)?;
+    if settings.band_selection == BandSelection::Model {
+        let bands = settings.estimate.options().bands;
+        let chosen = |f: &TestFrf| settings.tests.includes(f);
+        reselect_on_model(&posterior, &start.z, &mut frfs, chosen, &bands, n_peaks)?;
+        (posterior, start) = start_of(model, &frfs, settings, where_)?;
+    }
+    Ok(Prepared {
+        frfs,
+        posterior,
+        start,
+    })
+}
+
+/// The posterior of the `settings.tests` among `frfs` at their selected bins, and its
+/// start ([`plug_in_start`]).
+fn start_of(
+    model: crate::model::StructuralModel,
+    frfs: &[TestFrf],
+    settings: &SampleSettings,
+    where_: &str,
+) -> Result<(FrfPosterior, StartPoint)> {
     let chosen: Vec<&TestFrf> = frfs.iter().filter(|f| settings.tests.includes(f)).collect();
     if chosen.is_empty() {
         return Err(Error::Usage(format!(
@@ -112,16 +150,11 @@ fn posterior_of(
         &settings.variables,
         settings.posterior,
     )?;
-    let (posterior, start) = plug_in_start(
+    plug_in_start(
         posterior,
         settings.loading_magnitude,
         &multistart_options(settings),
-    )?;
-    Ok(Prepared {
-        frfs,
-        posterior,
-        start,
-    })
+    )
 }
 
 /// What a run produced.

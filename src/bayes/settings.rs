@@ -3,6 +3,7 @@
 use super::data::{BinCorrelation, InputNoiseModel, LoadingMagnitude, DEFAULT_REL_SIGMA_FLOOR};
 use super::moves::default_moves;
 use super::posterior::PosteriorOptions;
+use super::reselect::BandSelection;
 use crate::error::{Error, Result};
 use crate::frf::FrfKind;
 use crate::mcmc::WeightedMove;
@@ -71,6 +72,11 @@ pub struct SampleSettings {
     /// masses and stiffnesses rms z 2.0-2.3, 4 of 20 campaigns beyond 2 sd; README).
     #[serde(default)]
     pub bin_correlation: BinCorrelation,
+    /// Where each test's bins are selected: on the estimate, or again on the
+    /// maximum-likelihood model's FRFs ([`BandSelection::Model`], two-stage; a settings
+    /// file without the key: on the estimate, as runs before it was added did).
+    #[serde(default)]
+    pub band_selection: BandSelection,
     /// Multistart local solves for the start point.
     pub n_starts: usize,
     /// Initial ball: this many Gauss-Newton standard deviations.
@@ -117,6 +123,7 @@ impl SampleSettings {
             input_noise: InputNoiseModel::Shared,
             loading_magnitude: LoadingMagnitude::Model,
             bin_correlation: BinCorrelation::Independent,
+            band_selection: BandSelection::Measured,
             n_starts: 32,
             ball_factor: 1.0,
             walkers_per_dim: 12,

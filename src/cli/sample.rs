@@ -4,7 +4,7 @@ use frfbayes::bayes::run::{
     checkpoint_path, resume_sample, run_sample, SampleOutcome, SampleSettings, StageFn,
     TestSelection,
 };
-use frfbayes::bayes::{BinCorrelation, PriorKind};
+use frfbayes::bayes::{BandSelection, BinCorrelation, PriorKind};
 use frfbayes::frf::FrfKind;
 use frfbayes::io::{OutputClaim, StagedDir};
 use frfbayes::mcmc::{Progress, ProgressFn};
@@ -38,6 +38,12 @@ pub enum TestsArg {
 pub enum BinCorrelationArg {
     Independent,
     Window,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum BandSelectionArg {
+    Measured,
+    Model,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -111,6 +117,11 @@ pub struct Args {
     /// estimator's exponential window makes it (`window`; see the README).
     #[arg(long, value_enum)]
     pub bin_correlation: Option<BinCorrelationArg>,
+    /// Where each test's bins are selected: on its estimate (`measured`, default) or,
+    /// after a first fit, again on the fitted model's FRFs (`model`: the peak bins and
+    /// -3 dB points then do not lean on the noise of the bins they select; README).
+    #[arg(long, value_enum)]
+    pub band_selection: Option<BandSelectionArg>,
     /// Prior family [default: uniform].
     #[arg(long, value_enum)]
     pub prior: Option<PriorArg>,
@@ -204,6 +215,7 @@ impl Args {
             ("--settings", self.settings.is_some()),
             ("--residual", self.residual.is_some()),
             ("--bin-correlation", self.bin_correlation.is_some()),
+            ("--band-selection", self.band_selection.is_some()),
             ("--prior", self.prior.is_some()),
             ("--n-modes", self.n_modes.is_some()),
             ("--mode-solver", self.mode_solver.is_some()),
@@ -268,6 +280,12 @@ impl Args {
             s.bin_correlation = match b {
                 BinCorrelationArg::Independent => BinCorrelation::Independent,
                 BinCorrelationArg::Window => BinCorrelation::Window,
+            };
+        }
+        if let Some(b) = self.band_selection {
+            s.band_selection = match b {
+                BandSelectionArg::Measured => BandSelection::Measured,
+                BandSelectionArg::Model => BandSelection::Model,
             };
         }
         if let Some(r) = self.residual {

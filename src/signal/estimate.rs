@@ -465,23 +465,75 @@ fn test_bands(
     input_power: &[f64],
     opts: &EstimateOptions,
 ) -> Result<(Vec<Band>, Vec<usize>)> {
-    let n_keep = freq_hz.len();
     let n_peaks = opts
         .bands
         .n_peaks
         .unwrap_or_else(|| responses.iter().map(|r| r.channel.floor).max().unwrap_or(0));
     let h_refs: Vec<&[Complex64]> = responses.iter().map(|r| r.h1.as_slice()).collect();
-    let mean_coherence: Vec<f64> = (0..n_keep)
-        .map(|k| responses.iter().map(|r| r.coherence[k]).sum::<f64>() / responses.len() as f64)
-        .collect();
-    select_bands(
+    bands_on(
         freq_hz,
+        responses,
         &h_refs,
         input_power,
-        &mean_coherence,
         &opts.bands,
         n_peaks,
     )
+}
+
+/// [`select_bands`] on `curves` (one per response, on the grid), searching where the
+/// responses' mean coherence and the input power allow.
+fn bands_on(
+    freq_hz: &[f64],
+    responses: &[ResponseFrf],
+    curves: &[&[Complex64]],
+    input_power: &[f64],
+    opts: &BandOptions,
+    n_peaks: usize,
+) -> Result<(Vec<Band>, Vec<usize>)> {
+    let mean_coherence: Vec<f64> = (0..freq_hz.len())
+        .map(|k| responses.iter().map(|r| r.coherence[k]).sum::<f64>() / responses.len() as f64)
+        .collect();
+    select_bands(freq_hz, curves, input_power, &mean_coherence, opts, n_peaks)
+}
+
+impl TestFrf {
+    /// The bands and selected bins this test's estimate would have if its responses'
+    /// magnitudes were `magnitudes` (one curve per response, in response order, on
+    /// `freq_hz`): the same search ([`select_bands`]; the test's input power and
+    /// coherence decide where) on another curve, e.g. the fitted model's FRFs
+    /// (`crate::bayes`, two-stage selection: their peak bins and -3 dB points do not
+    /// lean on the noise of the bins they select). Replaces `bands` and `selected`.
+    pub fn reselect_on(
+        &mut self,
+        magnitudes: &[Vec<f64>],
+        opts: &BandOptions,
+        n_peaks: usize,
+    ) -> Result<()> {
+        let n = self.freq_hz.len();
+        if magnitudes.len() != self.responses.len() || magnitudes.iter().any(|m| m.len() != n) {
+            return Err(Error::Usage(format!(
+                "test {}: band reselection needs {} curves of {n} bins",
+                self.test,
+                self.responses.len()
+            )));
+        }
+        let curves: Vec<Vec<Complex64>> = magnitudes
+            .iter()
+            .map(|m| m.iter().map(|&v| Complex64::new(v, 0.0)).collect())
+            .collect();
+        let refs: Vec<&[Complex64]> = curves.iter().map(Vec::as_slice).collect();
+        let (bands, selected) = bands_on(
+            &self.freq_hz,
+            &self.responses,
+            &refs,
+            &self.input_power,
+            opts,
+            n_peaks,
+        )?;
+        self.bands = bands;
+        self.selected = selected;
+        Ok(())
+    }
 }
 
 /// Estimates every test of a campaign (in test order). `n_peaks` defaults to the number of
