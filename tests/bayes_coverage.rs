@@ -11,7 +11,8 @@
 //! (`all`, `force_only`, `responses_only`; default `all`), `FRFBAYES_COVERAGE_SEED`
 //! (default 1), `FRFBAYES_COVERAGE_INPUT_NOISE` (`shared`, the default of `sample`, or
 //! `per_point`, the model before), `FRFBAYES_COVERAGE_BAND_SELECTION` (`measured`, the
-//! default, or `model`, as `sample`'s `--band-selection`), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
+//! default, or `model`, as `sample`'s `--band-selection`), `FRFBAYES_COVERAGE_NOISE_POOL_BINS`
+//! (as `sample`'s `--noise-pool-bins`, default 0), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
 //! `FRFBAYES_COVERAGE_OUT` (default `results/coverage`). Writes `<label>_<noise>.md` and
 //! `.csv` there.
 
@@ -62,6 +63,9 @@ fn coverage_of_ninety_percent_intervals() {
         "per_point" => InputNoiseModel::PerPoint,
         other => panic!("FRFBAYES_COVERAGE_INPUT_NOISE={other}: use shared or per_point"),
     };
+    settings.noise_pool_bins = env_or("FRFBAYES_COVERAGE_NOISE_POOL_BINS", "0")
+        .parse()
+        .expect("FRFBAYES_COVERAGE_NOISE_POOL_BINS: bins");
     settings.band_selection = match env_or("FRFBAYES_COVERAGE_BAND_SELECTION", "measured").as_str()
     {
         "measured" => BandSelection::Measured,

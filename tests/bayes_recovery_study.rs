@@ -29,7 +29,9 @@
 //! (as `sample`'s `--n-modes`, `--freq-max-hz`, `--mode-solver`; the bridge needs them),
 //! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone),
 //! `FRFBAYES_STUDY_BINS=window` (neighbouring bins correlated, as the ten-story check),
-//! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals), `FRFBAYES_STUDY_BAND_FACTOR`
+//! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals), `FRFBAYES_STUDY_RHO` (with
+//! window bins, the chain's correlation at one bin; `ml_offset_over_noise_draws` with
+//! `FRFBAYES_STUDY_SELECT` other than `model`), `FRFBAYES_STUDY_BAND_FACTOR`
 //! (as `sample`'s `--band-factor`), `FRFBAYES_STUDY_BAND_SELECTION=model` (as `sample`'s
 //! `--band-selection model`). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.
@@ -577,6 +579,9 @@ fn study_settings(model_file: &str) -> SampleSettings {
     if std::env::var("FRFBAYES_STUDY_BINS").as_deref() == Ok("window") {
         s.bin_correlation = frfbayes::bayes::BinCorrelation::Window;
     }
+    if let Ok(v) = std::env::var("FRFBAYES_STUDY_NOISE_POOL_BINS") {
+        s.noise_pool_bins = v.parse().expect("FRFBAYES_STUDY_NOISE_POOL_BINS: bins");
+    }
     if std::env::var("FRFBAYES_STUDY_BAND_SELECTION").as_deref() == Ok("model") {
         s.band_selection = BandSelection::Model;
     }
@@ -862,10 +867,32 @@ fn selected_posterior(
         settings.rel_sigma_floor,
         InputNoiseModel::Shared,
         settings.bin_correlation,
+        settings.noise_pool_bins,
     )
     .unwrap();
+    if let Ok(rho) = std::env::var("FRFBAYES_STUDY_RHO") {
+        // the chain's correlation at one bin set to `rho`, at `d` bins about `rho^d`
+        // (the window's `|c(d)|` mapped through `c(1)`, its largest value)
+        let rho: f64 = rho.parse().expect("FRFBAYES_STUDY_RHO: a correlation");
+        let c1 = data.bin_correlation.iter().cloned().fold(0.0, f64::max);
+        assert!(
+            c1 > 0.0,
+            "FRFBAYES_STUDY_RHO needs FRFBAYES_STUDY_BINS=window"
+        );
+        for r in data.bin_correlation.iter_mut().filter(|r| **r > 0.0) {
+            *r = rho.powf(r.ln() / c1.ln());
+        }
+    }
     if env_or("FRFBAYES_STUDY_SIGMA", "estimated") == "true" {
         true_sigma(&mut data, &chosen, model.noise.acceleration_m_per_s2);
+    }
+    if let Ok(w) = std::env::var("FRFBAYES_STUDY_POOL") {
+        pooled_sigma(
+            &mut data,
+            &chosen,
+            w.parse().unwrap(),
+            model.noise.acceleration_m_per_s2,
+        );
     }
     if let Ok(c) = std::env::var("FRFBAYES_STUDY_DEBIAS") {
         // oracle of the Rice bias: |H1| ~ |H| (1 + c r^2), r the point's relative sd
@@ -928,6 +955,74 @@ fn true_sigma(
         q(0.75),
         q(0.95)
     );
+}
+
+/// Each point's output-noise sd pooled over `+-w` bins: `a_k = (r_k |H1_k|)^2 P_k` (the
+/// output noise's auto-spectrum over `2n`, from the output coherence) averaged over the
+/// neighbouring bins, then `sqrt(a / P_k)`; prints pooled over true (white response noise
+/// of `std`) and over the point's own estimate.
+fn pooled_sigma(
+    data: &mut frfbayes::bayes::FrfData,
+    chosen: &[&frfbayes::signal::TestFrf],
+    w: usize,
+    std: f64,
+) {
+    use frfbayes::signal::bendat_piersol_rel_std;
+    let mut at = 0;
+    let (mut to_true, mut to_own) = (Vec::new(), Vec::new());
+    let blocks = data.blocks.clone();
+    for (f, b) in chosen.iter().zip(&blocks) {
+        let tau = f.exp_window_tau_s.unwrap();
+        let df = f.freq_hz[1];
+        let fs = 2.0 * f.freq_hz[f.freq_hz.len() - 1];
+        let nsamp = (f.block_s * fs).round() as usize;
+        let w2: f64 = (0..nsamp)
+            .map(|m| (-2.0 * m as f64 / (tau * fs)).exp())
+            .sum();
+        let n = f.freq_hz.len();
+        for pair in &b.pairs {
+            let r = f
+                .responses
+                .iter()
+                .find(|r| r.pair(&f.input).unwrap() == *pair)
+                .unwrap();
+            let a: Vec<f64> = (0..n)
+                .map(|k| {
+                    let rel = bendat_piersol_rel_std(r.output_coherence[k], f.n_averages);
+                    (rel * r.h1[k].norm()).powi(2) * f.input_power[k]
+                })
+                .collect();
+            for &om in &b.omega_rad_s {
+                let k = (om / (2.0 * std::f64::consts::PI) / df).round() as usize;
+                let (lo, hi) = (k.saturating_sub(w), (k + w + 1).min(n));
+                let vals: Vec<f64> = a[lo..hi]
+                    .iter()
+                    .cloned()
+                    .filter(|v| v.is_finite() && *v > 0.0)
+                    .collect();
+                let pooled =
+                    (vals.iter().sum::<f64>() / vals.len() as f64 / f.input_power[k]).sqrt();
+                let st = std * (w2 / 2.0).sqrt() / f.input_power[k].sqrt();
+                to_true.push(pooled / st);
+                to_own.push(pooled / data.sigma[at]);
+                data.sigma[at] = pooled;
+                at += 1;
+            }
+        }
+    }
+    assert_eq!(at, data.len());
+    for (name, mut v) in [("true", to_true), ("own", to_own)] {
+        v.sort_by(f64::total_cmp);
+        let q = |p: f64| v[((v.len() - 1) as f64 * p) as usize];
+        println!(
+            "pooled / {name} sigma: 5 % {:.3}, 25 % {:.3}, median {:.3}, 75 % {:.3}, 95 % {:.3}",
+            q(0.05),
+            q(0.25),
+            q(0.5),
+            q(0.75),
+            q(0.95)
+        );
+    }
 }
 
 /// Oracle without sampling: the maximum-likelihood point (the start of `frfbayes

@@ -150,8 +150,8 @@ fn noise_free_bridge_campaign_is_the_analytic_frf() {
     let frfs = estimate_campaign(&campaign, &s.estimate.options()).unwrap();
     let chosen: Vec<_> = frfs.iter().collect();
     let (kind, res, floor) = (s.frf, s.residual, s.rel_sigma_floor);
-    let data =
-        FrfData::with_noise_model(&chosen, kind, res, floor, s.input_noise, s.bin_correlation);
+    let (noise, bins, pool) = (s.input_noise, s.bin_correlation, s.noise_pool_bins);
+    let data = FrfData::with_noise_model(&chosen, kind, res, floor, noise, bins, pool);
     let options = PosteriorOptions {
         mode_solver: ModeSolverChoice::Exact,
         ..s.posterior

@@ -176,11 +176,13 @@ impl FrfData {
             rel_sigma_floor,
             input_noise,
             BinCorrelation::Independent,
+            0,
         )
     }
 
     /// [`Self::with_input_noise`] with the correlation of neighbouring bins of
-    /// `bins` ([`Self::bin_correlation`]).
+    /// `bins` ([`Self::bin_correlation`]) and the output noise's auto-spectrum pooled over
+    /// `+-noise_pool_bins` bins ([`crate::signal::pooled_rel_std`]; 0: each bin's own).
     pub fn with_noise_model(
         frfs: &[&TestFrf],
         kind: FrfKind,
@@ -188,6 +190,7 @@ impl FrfData {
         rel_sigma_floor: f64,
         input_noise: InputNoiseModel,
         bins: BinCorrelation,
+        noise_pool_bins: usize,
     ) -> Result<Self> {
         if !(rel_sigma_floor.is_finite() && rel_sigma_floor > 0.0) {
             return Err(Error::Usage(format!(
@@ -207,7 +210,7 @@ impl FrfData {
             bin_correlation: Vec::new(),
         };
         for frf in frfs {
-            data.push_test(frf, kind, rel_sigma_floor, input_noise)?;
+            data.push_test(frf, kind, rel_sigma_floor, input_noise, noise_pool_bins)?;
             if bins == BinCorrelation::Window {
                 data.push_bin_correlation(frf);
             }
@@ -229,6 +232,7 @@ impl FrfData {
         kind: FrfKind,
         rel_sigma_floor: f64,
         input_noise: InputNoiseModel,
+        noise_pool_bins: usize,
     ) -> Result<()> {
         let full = frf.frf_block()?;
         let mags = frf.selected_magnitudes();
@@ -236,10 +240,7 @@ impl FrfData {
             .input_noise
             .as_ref()
             .filter(|_| input_noise == InputNoiseModel::Shared);
-        let rel = match noise {
-            Some(_) => frf.selected_output_rel_std(),
-            None => frf.selected_rel_std(),
-        };
+        let rel = frf.selected_pooled_rel_std(noise.is_some(), noise_pool_bins);
         let nw = full.omega_rad_s.len();
         let used: Vec<usize> = (0..full.pairs.len())
             .filter(|&j| full.pairs[j].kind == kind && nw > 0)

@@ -142,6 +142,7 @@ fn start_of(
         settings.rel_sigma_floor,
         settings.input_noise,
         settings.bin_correlation,
+        settings.noise_pool_bins,
     )?;
     let posterior = FrfPosterior::new(
         model,

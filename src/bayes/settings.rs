@@ -77,6 +77,11 @@ pub struct SampleSettings {
     /// file without the key: on the estimate, as runs before it was added did).
     #[serde(default)]
     pub band_selection: BandSelection,
+    /// The output noise's auto-spectrum behind each point's sd pooled over this many bins
+    /// either side ([`crate::signal::pooled_rel_std`]; 0, the default and a settings file
+    /// without the key: each bin's own coherence, as runs before it was added did).
+    #[serde(default)]
+    pub noise_pool_bins: usize,
     /// Multistart local solves for the start point.
     pub n_starts: usize,
     /// Initial ball: this many Gauss-Newton standard deviations.
@@ -124,6 +129,7 @@ impl SampleSettings {
             loading_magnitude: LoadingMagnitude::Model,
             bin_correlation: BinCorrelation::Independent,
             band_selection: BandSelection::Measured,
+            noise_pool_bins: 0,
             n_starts: 32,
             ball_factor: 1.0,
             walkers_per_dim: 12,

@@ -122,6 +122,10 @@ pub struct Args {
     /// -3 dB points then do not lean on the noise of the bins they select; README).
     #[arg(long, value_enum)]
     pub band_selection: Option<BandSelectionArg>,
+    /// Pool the output noise's auto-spectrum behind each point's sd over this many bins
+    /// either side [default: 0, each bin's own coherence]; see the README.
+    #[arg(long)]
+    pub noise_pool_bins: Option<usize>,
     /// Prior family [default: uniform].
     #[arg(long, value_enum)]
     pub prior: Option<PriorArg>,
@@ -216,6 +220,7 @@ impl Args {
             ("--residual", self.residual.is_some()),
             ("--bin-correlation", self.bin_correlation.is_some()),
             ("--band-selection", self.band_selection.is_some()),
+            ("--noise-pool-bins", self.noise_pool_bins.is_some()),
             ("--prior", self.prior.is_some()),
             ("--n-modes", self.n_modes.is_some()),
             ("--mode-solver", self.mode_solver.is_some()),
@@ -281,6 +286,9 @@ impl Args {
                 BinCorrelationArg::Independent => BinCorrelation::Independent,
                 BinCorrelationArg::Window => BinCorrelation::Window,
             };
+        }
+        if let Some(w) = self.noise_pool_bins {
+            s.noise_pool_bins = w;
         }
         if let Some(b) = self.band_selection {
             s.band_selection = match b {

@@ -4,7 +4,7 @@ use super::bands::{select_bands, Band, BandOptions};
 use super::hammer::{hammer_spectra, HammerOptions, Impact};
 use super::input_noise::InputNoise;
 use super::local_coherence::LocalModel;
-use super::noise::{bendat_piersol_rel_std, CoherenceMethod};
+use super::noise::{bendat_piersol_rel_std, pooled_rel_std, CoherenceMethod};
 use super::spectra::{bin_freq_hz, CrossSpectra};
 use super::sweep::full_record_spectra;
 use crate::error::{Error, Result};
@@ -177,6 +177,30 @@ impl TestFrf {
     pub fn selected_output_rel_std(&self) -> Vec<f64> {
         let n = self.n_averages;
         self.selected_map(|r, k| bendat_piersol_rel_std(r.output_coherence[k], n))
+    }
+
+    /// [`Self::selected_rel_std`] (`output` false) or [`Self::selected_output_rel_std`]
+    /// (true) with the noise's auto-spectrum pooled over `+-half_width` bins
+    /// ([`pooled_rel_std`]; 0: each bin's own, the same values).
+    pub fn selected_pooled_rel_std(&self, output: bool, half_width: usize) -> Vec<f64> {
+        self.responses
+            .iter()
+            .flat_map(|r| {
+                let coherence = if output {
+                    &r.output_coherence
+                } else {
+                    &r.coherence
+                };
+                pooled_rel_std(
+                    &r.h1,
+                    coherence,
+                    &self.input_power,
+                    self.n_averages,
+                    half_width,
+                    &self.selected,
+                )
+            })
+            .collect()
     }
 
     fn selected_map(&self, f: impl Fn(&ResponseFrf, usize) -> f64) -> Vec<f64> {

@@ -68,7 +68,7 @@ pub use estimate::{
 };
 pub use hammer::{windowed_force, HammerEstimator, HammerOptions, MIN_PRETRIGGER_SAMPLES};
 pub use input_noise::{InputNoise, LowRank};
-pub use noise::{bendat_piersol_rel_std, CoherenceMethod};
+pub use noise::{bendat_piersol_rel_std, pooled_rel_std, CoherenceMethod};
 pub use settings::{EstimateSection, SensorLowPass};
 pub use windows::{
     correct_exp_window_damping, exp_window_modal_parameters, unwindowed_pole, windowed_modal_frf,

@@ -455,6 +455,51 @@ pub fn bendat_piersol_rel_std(gamma2: f64, n_averages: usize) -> f64 {
     ((1.0 - g) / (2.0 * g * n_averages as f64)).sqrt()
 }
 
+/// [`bendat_piersol_rel_std`] at the bins `at`, with the output noise's auto-spectrum
+/// pooled over the `+-half_width` neighbouring bins (`half_width` 0: each bin's own).
+///
+/// At bin `k`, `(r_k |H1_k|)^2 G_ff,k = (1 - gamma_k^2) G_yy,k / (2n) = G_nn,k / (2n)`: the
+/// output noise's auto-spectrum, smooth in frequency (white sensor noise through the
+/// anti-alias filter and the window), while the FRF is not. Estimated from one bin's
+/// coherence it has few degrees of freedom and is correlated with that bin's own error
+/// (the residual a weight multiplies), so the points whose noise happened to lower their
+/// coherence estimate weigh most and the posterior is too narrow. The mean over the
+/// neighbouring bins with a finite value is the pooled `G_nn`; the relative sd returned is
+/// `sqrt(G_nn,k / (2n G_ff,k)) / |H1_k|`, so that times `|H1_k|` it is the pooled absolute
+/// sd. Ten-story campaign, 12 noise draws: the maximum-likelihood errors' rms z 1.61 with
+/// each bin's own estimate, 0.71 pooled over +-8 bins, 0.69 with the true sd (README).
+pub fn pooled_rel_std(
+    h1: &[Complex64],
+    coherence: &[f64],
+    input_power: &[f64],
+    n_averages: usize,
+    half_width: usize,
+    at: &[usize],
+) -> Vec<f64> {
+    let n = h1.len();
+    let noise_power = |k: usize| {
+        let r = bendat_piersol_rel_std(coherence[k], n_averages);
+        (r * h1[k].norm()).powi(2) * input_power[k]
+    };
+    at.iter()
+        .map(|&k| {
+            if half_width == 0 {
+                return bendat_piersol_rel_std(coherence[k], n_averages);
+            }
+            let (lo, hi) = (k.saturating_sub(half_width), (k + half_width + 1).min(n));
+            let (sum, count) = (lo..hi)
+                .map(noise_power)
+                .filter(|v| v.is_finite() && *v > 0.0)
+                .fold((0.0, 0usize), |(s, c), v| (s + v, c + 1));
+            let (m, p) = (h1[k].norm(), input_power[k]);
+            if count == 0 || !(m > 0.0 && p > 0.0) {
+                return f64::INFINITY;
+            }
+            (sum / count as f64 / p).sqrt() / m
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -517,6 +562,68 @@ mod tests {
         )
         .is_err());
         assert!(local_rational_noise(&[f], &[y], &h1, 150, 1, None).is_err());
+    }
+
+    /// An SDOF receptance over 400 bins, a force spectrum falling 20 dB, and the
+    /// coherence that an output noise of auto-spectrum `g_nn[k]` gives with 1 average.
+    fn resonance_with_noise(g_nn: &[f64]) -> (Vec<Complex64>, Vec<f64>, Vec<f64>) {
+        let n = g_nn.len();
+        let h1: Vec<Complex64> = (0..n)
+            .map(|k| {
+                let r = k as f64 / 200.0;
+                Complex64::new(1.0 - r * r, 0.02 * r).inv()
+            })
+            .collect();
+        let power: Vec<f64> = (0..n)
+            .map(|k| 10f64.powf(-2.0 * k as f64 / n as f64))
+            .collect();
+        let coherence = (0..n)
+            .map(|k| {
+                let s = h1[k].norm_sqr() * power[k];
+                s / (s + g_nn[k])
+            })
+            .collect();
+        (h1, power, coherence)
+    }
+
+    #[test]
+    fn pooled_noise_keeps_a_smooth_noise_spectrum_exactly() {
+        // constant G_nn: each bin's own value is already exact, and pooling over a peak
+        // of 34 dB (where |H1| and the coherence change fast) must not move it
+        let at: Vec<usize> = (5..395).collect();
+        let (h1, power, coh) = resonance_with_noise(&[1e-3; 400]);
+        let own = pooled_rel_std(&h1, &coh, &power, 1, 0, &at);
+        let pooled = pooled_rel_std(&h1, &coh, &power, 1, 8, &at);
+        for (i, &k) in at.iter().enumerate() {
+            assert_eq!(own[i], bendat_piersol_rel_std(coh[k], 1));
+            assert!((pooled[i] / own[i] - 1.0).abs() < 1e-9, "bin {k}");
+        }
+    }
+
+    #[test]
+    fn pooled_noise_averages_the_scatter_of_single_bins() {
+        // each bin's noise power an exponential variable (a periodogram ordinate) of mean
+        // 1e-3: its own sd estimate scatters with ln-sd about 0.64; pooled over 2w + 1 =
+        // 17 bins, an average of 17 such, ln-sd about 1 / sqrt(17) = 0.24 (seeded)
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let g: Vec<f64> = (0..400)
+            .map(|_| -1e-3 * (1.0 - rng.random::<f64>()).ln())
+            .collect();
+        let (h1, power, coh) = resonance_with_noise(&g);
+        let at: Vec<usize> = (20..380).collect();
+        let (_, _, coh_true) = resonance_with_noise(&[1e-3; 400]);
+        let truth = pooled_rel_std(&h1, &coh_true, &power, 1, 0, &at);
+        let ln_sd = |v: Vec<f64>| {
+            let d: Vec<f64> = v.iter().zip(&truth).map(|(a, t)| (a / t).ln()).collect();
+            let m = d.iter().sum::<f64>() / d.len() as f64;
+            (d.iter().map(|x| (x - m).powi(2)).sum::<f64>() / d.len() as f64).sqrt()
+        };
+        let own = ln_sd(pooled_rel_std(&h1, &coh, &power, 1, 0, &at));
+        let pooled = ln_sd(pooled_rel_std(&h1, &coh, &power, 1, 8, &at));
+        // ln of an exponential's square root: sd pi / sqrt(24) = 0.641
+        assert!((own - 0.641).abs() < 0.1, "own {own}");
+        assert!(pooled < 0.16 && pooled > 0.08, "pooled {pooled}");
     }
 
     #[test]
