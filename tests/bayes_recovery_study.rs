@@ -33,7 +33,7 @@
 //! window bins, the chain's correlation at one bin; `ml_offset_over_noise_draws` with
 //! `FRFBAYES_STUDY_SELECT` other than `model`), `FRFBAYES_STUDY_BAND_FACTOR`
 //! (as `sample`'s `--band-factor`), `FRFBAYES_STUDY_BAND_SELECTION=model` (as `sample`'s
-//! `--band-selection model`). Writes
+//! `--band-selection model`), `FRFBAYES_STUDY_NOISE_POOL_BINS` (as `--noise-pool-bins`). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.
 
 use frfbayes::bayes::recovery::{joint_error, JointError};
@@ -886,14 +886,6 @@ fn selected_posterior(
     if env_or("FRFBAYES_STUDY_SIGMA", "estimated") == "true" {
         true_sigma(&mut data, &chosen, model.noise.acceleration_m_per_s2);
     }
-    if let Ok(w) = std::env::var("FRFBAYES_STUDY_POOL") {
-        pooled_sigma(
-            &mut data,
-            &chosen,
-            w.parse().unwrap(),
-            model.noise.acceleration_m_per_s2,
-        );
-    }
     if let Ok(c) = std::env::var("FRFBAYES_STUDY_DEBIAS") {
         // oracle of the Rice bias: |H1| ~ |H| (1 + c r^2), r the point's relative sd
         let c: f64 = c.parse().unwrap();
@@ -955,74 +947,6 @@ fn true_sigma(
         q(0.75),
         q(0.95)
     );
-}
-
-/// Each point's output-noise sd pooled over `+-w` bins: `a_k = (r_k |H1_k|)^2 P_k` (the
-/// output noise's auto-spectrum over `2n`, from the output coherence) averaged over the
-/// neighbouring bins, then `sqrt(a / P_k)`; prints pooled over true (white response noise
-/// of `std`) and over the point's own estimate.
-fn pooled_sigma(
-    data: &mut frfbayes::bayes::FrfData,
-    chosen: &[&frfbayes::signal::TestFrf],
-    w: usize,
-    std: f64,
-) {
-    use frfbayes::signal::bendat_piersol_rel_std;
-    let mut at = 0;
-    let (mut to_true, mut to_own) = (Vec::new(), Vec::new());
-    let blocks = data.blocks.clone();
-    for (f, b) in chosen.iter().zip(&blocks) {
-        let tau = f.exp_window_tau_s.unwrap();
-        let df = f.freq_hz[1];
-        let fs = 2.0 * f.freq_hz[f.freq_hz.len() - 1];
-        let nsamp = (f.block_s * fs).round() as usize;
-        let w2: f64 = (0..nsamp)
-            .map(|m| (-2.0 * m as f64 / (tau * fs)).exp())
-            .sum();
-        let n = f.freq_hz.len();
-        for pair in &b.pairs {
-            let r = f
-                .responses
-                .iter()
-                .find(|r| r.pair(&f.input).unwrap() == *pair)
-                .unwrap();
-            let a: Vec<f64> = (0..n)
-                .map(|k| {
-                    let rel = bendat_piersol_rel_std(r.output_coherence[k], f.n_averages);
-                    (rel * r.h1[k].norm()).powi(2) * f.input_power[k]
-                })
-                .collect();
-            for &om in &b.omega_rad_s {
-                let k = (om / (2.0 * std::f64::consts::PI) / df).round() as usize;
-                let (lo, hi) = (k.saturating_sub(w), (k + w + 1).min(n));
-                let vals: Vec<f64> = a[lo..hi]
-                    .iter()
-                    .cloned()
-                    .filter(|v| v.is_finite() && *v > 0.0)
-                    .collect();
-                let pooled =
-                    (vals.iter().sum::<f64>() / vals.len() as f64 / f.input_power[k]).sqrt();
-                let st = std * (w2 / 2.0).sqrt() / f.input_power[k].sqrt();
-                to_true.push(pooled / st);
-                to_own.push(pooled / data.sigma[at]);
-                data.sigma[at] = pooled;
-                at += 1;
-            }
-        }
-    }
-    assert_eq!(at, data.len());
-    for (name, mut v) in [("true", to_true), ("own", to_own)] {
-        v.sort_by(f64::total_cmp);
-        let q = |p: f64| v[((v.len() - 1) as f64 * p) as usize];
-        println!(
-            "pooled / {name} sigma: 5 % {:.3}, 25 % {:.3}, median {:.3}, 75 % {:.3}, 95 % {:.3}",
-            q(0.05),
-            q(0.25),
-            q(0.5),
-            q(0.75),
-            q(0.95)
-        );
-    }
 }
 
 /// Oracle without sampling: the maximum-likelihood point (the start of `frfbayes
