@@ -30,8 +30,9 @@
 //! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone),
 //! `FRFBAYES_STUDY_BINS=window` (neighbouring bins correlated, as the ten-story check),
 //! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals), `FRFBAYES_STUDY_RHO` (with
-//! window bins, the chain's correlation at one bin; `ml_offset_over_noise_draws` with
-//! `FRFBAYES_STUDY_SELECT` other than `model`), `FRFBAYES_STUDY_BAND_FACTOR`
+//! window bins, the chain's correlation at one bin; `ml_offset_over_noise_draws`
+//! without `FRFBAYES_STUDY_BAND_SELECTION`, which takes `sample`'s own path and none of
+//! the oracles), `FRFBAYES_STUDY_BAND_FACTOR`
 //! (as `sample`'s `--band-factor`), `FRFBAYES_STUDY_BAND_SELECTION=model` (as `sample`'s
 //! `--band-selection model`), `FRFBAYES_STUDY_NOISE_POOL_BINS` (as `--noise-pool-bins`). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.

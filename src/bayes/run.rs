@@ -106,13 +106,16 @@ fn posterior_of(
     n_peaks: usize,
     where_: &str,
 ) -> Result<Prepared> {
-    let (mut posterior, mut start) = start_of(model.clone(), &frfs, settings, where_)?;
-    if settings.band_selection == BandSelection::Model {
-        let bands = settings.estimate.options().bands;
-        let chosen = |f: &TestFrf| settings.tests.includes(f);
-        reselect_on_model(&posterior, &start.z, &mut frfs, chosen, &bands, n_peaks)?;
-        (posterior, start) = start_of(model, &frfs, settings, where_)?;
-    }
+    let (posterior, start) = match settings.band_selection {
+        BandSelection::Measured => start_of(model, &frfs, settings, where_)?,
+        BandSelection::Model => {
+            let (first, start) = start_of(model.clone(), &frfs, settings, where_)?;
+            let bands = settings.estimate.options().bands;
+            let chosen = |f: &TestFrf| settings.tests.includes(f);
+            reselect_on_model(&first, &start.z, &mut frfs, chosen, &bands, n_peaks)?;
+            start_of(model, &frfs, settings, where_)?
+        }
+    };
     Ok(Prepared {
         frfs,
         posterior,

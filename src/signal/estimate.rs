@@ -4,7 +4,7 @@ use super::bands::{select_bands, Band, BandOptions};
 use super::hammer::{hammer_spectra, HammerOptions, Impact};
 use super::input_noise::InputNoise;
 use super::local_coherence::LocalModel;
-use super::noise::{bendat_piersol_rel_std, pooled_rel_std, CoherenceMethod};
+use super::noise::{pooled_rel_std, CoherenceMethod};
 use super::spectra::{bin_freq_hz, CrossSpectra};
 use super::sweep::full_record_spectra;
 use crate::error::{Error, Result};
@@ -163,25 +163,26 @@ impl TestFrf {
     /// Experimental `|H1|` at the selected points, in the long-vector order of
     /// [`Self::frf_block`] (pair, then frequency; Eqs. 17-19).
     pub fn selected_magnitudes(&self) -> Vec<f64> {
-        self.selected_map(|r, k| r.h1[k].norm())
+        self.responses
+            .iter()
+            .flat_map(|r| self.selected.iter().map(move |&k| r.h1[k].norm()))
+            .collect()
     }
 
     /// Bendat & Piersol relative standard deviation of `|H1|` at the selected points, same
     /// order as [`Self::selected_magnitudes`].
     pub fn selected_rel_std(&self) -> Vec<f64> {
-        let n = self.n_averages;
-        self.selected_map(|r, k| bendat_piersol_rel_std(r.coherence[k], n))
+        self.selected_pooled_rel_std(false, 0)
     }
 
     /// [`Self::selected_rel_std`] of the output noise alone (from `output_coherence`).
     pub fn selected_output_rel_std(&self) -> Vec<f64> {
-        let n = self.n_averages;
-        self.selected_map(|r, k| bendat_piersol_rel_std(r.output_coherence[k], n))
+        self.selected_pooled_rel_std(true, 0)
     }
 
-    /// [`Self::selected_rel_std`] (`output` false) or [`Self::selected_output_rel_std`]
-    /// (true) with the noise's auto-spectrum pooled over `+-half_width` bins
-    /// ([`pooled_rel_std`]; 0: each bin's own, the same values).
+    /// The Bendat & Piersol relative sd at the selected points from the coherence
+    /// (`output` false) or the output coherence (true), with the noise's auto-spectrum
+    /// pooled over `+-half_width` bins ([`pooled_rel_std`]; 0: each bin's own).
     pub fn selected_pooled_rel_std(&self, output: bool, half_width: usize) -> Vec<f64> {
         self.responses
             .iter()
@@ -203,12 +204,42 @@ impl TestFrf {
             .collect()
     }
 
-    fn selected_map(&self, f: impl Fn(&ResponseFrf, usize) -> f64) -> Vec<f64> {
-        self.responses
+    /// The bands and selected bins this test's estimate would have if its responses'
+    /// magnitudes were `magnitudes` (one curve per response, in response order, on
+    /// `freq_hz`): the same search ([`select_bands`]; the test's input power and
+    /// coherence decide where) on another curve, e.g. the fitted model's FRFs
+    /// (`crate::bayes`, two-stage selection: their peak bins and -3 dB points do not
+    /// lean on the noise of the bins they select). Replaces `bands` and `selected`.
+    pub fn reselect_on(
+        &mut self,
+        magnitudes: &[Vec<f64>],
+        opts: &BandOptions,
+        n_peaks: usize,
+    ) -> Result<()> {
+        let n = self.freq_hz.len();
+        if magnitudes.len() != self.responses.len() || magnitudes.iter().any(|m| m.len() != n) {
+            return Err(Error::Usage(format!(
+                "test {}: band reselection needs {} curves of {n} bins",
+                self.test,
+                self.responses.len()
+            )));
+        }
+        let curves: Vec<Vec<Complex64>> = magnitudes
             .iter()
-            .flat_map(|r| self.selected.iter().map(move |&k| (r, k)))
-            .map(|(r, k)| f(r, k))
-            .collect()
+            .map(|m| m.iter().map(|&v| Complex64::new(v, 0.0)).collect())
+            .collect();
+        let refs: Vec<&[Complex64]> = curves.iter().map(Vec::as_slice).collect();
+        let (bands, selected) = bands_on(
+            &self.freq_hz,
+            &self.responses,
+            &refs,
+            &self.input_power,
+            opts,
+            n_peaks,
+        )?;
+        self.bands = bands;
+        self.selected = selected;
+        Ok(())
     }
 }
 
@@ -518,46 +549,6 @@ fn bands_on(
         .map(|k| responses.iter().map(|r| r.coherence[k]).sum::<f64>() / responses.len() as f64)
         .collect();
     select_bands(freq_hz, curves, input_power, &mean_coherence, opts, n_peaks)
-}
-
-impl TestFrf {
-    /// The bands and selected bins this test's estimate would have if its responses'
-    /// magnitudes were `magnitudes` (one curve per response, in response order, on
-    /// `freq_hz`): the same search ([`select_bands`]; the test's input power and
-    /// coherence decide where) on another curve, e.g. the fitted model's FRFs
-    /// (`crate::bayes`, two-stage selection: their peak bins and -3 dB points do not
-    /// lean on the noise of the bins they select). Replaces `bands` and `selected`.
-    pub fn reselect_on(
-        &mut self,
-        magnitudes: &[Vec<f64>],
-        opts: &BandOptions,
-        n_peaks: usize,
-    ) -> Result<()> {
-        let n = self.freq_hz.len();
-        if magnitudes.len() != self.responses.len() || magnitudes.iter().any(|m| m.len() != n) {
-            return Err(Error::Usage(format!(
-                "test {}: band reselection needs {} curves of {n} bins",
-                self.test,
-                self.responses.len()
-            )));
-        }
-        let curves: Vec<Vec<Complex64>> = magnitudes
-            .iter()
-            .map(|m| m.iter().map(|&v| Complex64::new(v, 0.0)).collect())
-            .collect();
-        let refs: Vec<&[Complex64]> = curves.iter().map(Vec::as_slice).collect();
-        let (bands, selected) = bands_on(
-            &self.freq_hz,
-            &self.responses,
-            &refs,
-            &self.input_power,
-            opts,
-            n_peaks,
-        )?;
-        self.bands = bands;
-        self.selected = selected;
-        Ok(())
-    }
 }
 
 /// Estimates every test of a campaign (in test order). `n_peaks` defaults to the number of
