@@ -4,7 +4,7 @@
 use frfbayes::discrepancy::benchmark::{
     benchmark_markdown, read_cases, BenchmarkCase, CaseOutcome,
 };
-use frfbayes::discrepancy::data::DataOptions;
+use frfbayes::discrepancy::data::{DataOptions, GainCarrier};
 use frfbayes::discrepancy::diagnose::{
     diagnose_resumable, DiagnoseOptions, DiagnoseStage, Diagnosis,
 };
@@ -42,8 +42,13 @@ pub struct NoiseModelArgs {
     pub weight_bias_correction: bool,
     /// The input-gain error multiplies the model's H (exact) instead of the measured h
     /// (a plug-in; experimental: see README, "Why the structural sizes are biased").
-    #[arg(long)]
+    #[arg(long, conflicts_with = "gain_at_map")]
     pub gain_on_model: bool,
+    /// The input-gain error multiplies each model's own H at its MAP, fixed while that
+    /// model is sampled and its evidence computed (experimental: see README, "Why the
+    /// structural sizes are biased").
+    #[arg(long)]
+    pub gain_at_map: bool,
 }
 
 impl NoiseModelArgs {
@@ -53,7 +58,11 @@ impl NoiseModelArgs {
             estimator_bias: !self.no_estimator_bias,
             data: DataOptions {
                 weight_bias_correction: self.weight_bias_correction,
-                gain_on_model: self.gain_on_model,
+                gain_carrier: match (self.gain_on_model, self.gain_at_map) {
+                    (true, _) => GainCarrier::Model,
+                    (false, true) => GainCarrier::ModelAtMap,
+                    (false, false) => GainCarrier::Measured,
+                },
                 ..DataOptions::default()
             },
             ..DiagnoseOptions::default()

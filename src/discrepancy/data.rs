@@ -25,8 +25,9 @@
 //! point only where its coherence is at least `min_coherence`.
 //!
 //! # Amplitude
-//! For story `r` with displacement channels on floors `r - 1` (or the ground) and `r`,
-//! the drift `d(t)` over the analysed part of the record (the hammer block with its
+//! For story `r` with a displacement sensor or an accelerometer on floors `r - 1` (or
+//! the ground) and `r` (accelerations integrated twice above half the segment's lowest
+//! resonance where a floor has no displacement sensor), the drift `d(t)` over the analysed part of the record (the hammer block with its
 //! exponential window `w`, or the whole shake-table record) and Caughey's
 //! equivalent-linearisation weight `sum (w d)^2 d^2 / sum (w d)^2`: a cubic spring
 //! `k3 d^3` acts on that segment's FRFs as the linear spring `k3` times this weight
@@ -34,6 +35,7 @@
 
 use super::amplitude::story_drift_lin_sq;
 use super::bins::{band_span, select_bins};
+pub use super::data_options::{weight_bias, DataOptions, GainCarrier, MAX_WEIGHT_BIAS};
 use super::input_noise::input_gain_basis;
 pub use super::input_noise::{InputGainBasis, MAX_GAIN_RANK};
 pub use super::time_domain::SegmentSource;
@@ -42,73 +44,8 @@ use crate::frf::FrfKind;
 use crate::io::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
 use crate::modal::Modes;
 use crate::signal::hammer::detect_impacts;
-use crate::signal::{
-    bendat_piersol_rel_std, estimate_test, Band, EstimateOptions, InputKind, TestFrf,
-};
+use crate::signal::{bendat_piersol_rel_std, estimate_test, Band, InputKind, TestFrf};
 use num_complex::Complex64;
-use serde::{Deserialize, Serialize};
-
-/// How the data of a diagnosis are extracted from a campaign.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct DataOptions {
-    /// FRF estimation (windows, coherence, band search).
-    pub estimate: EstimateOptions,
-    /// One segment per hammer impact (default true); false averages the impacts of a test.
-    pub per_impact: bool,
-    /// Dense points within this many half-power half-widths of each peak (default 3).
-    pub band_factor: f64,
-    /// At most this many points per resonance band (default 30).
-    pub max_band_points: usize,
-    /// Log-spaced points over the analysed range (default 80).
-    pub off_band_points: usize,
-    /// Analysed range as multiples of the nominal model's lowest and highest natural
-    /// frequencies (default 0.25 and 4).
-    pub freq_range_rel: (f64, f64),
-    /// A channel keeps a point only where its coherence is at least this (default 0.5).
-    pub min_coherence: f64,
-    /// Peaks searched beyond the nominal number of modes (extra modes; default 2).
-    pub extra_peaks: usize,
-    /// Compare the models with `h (1 + v)`, `v = min(2 eps^2, MAX_WEIGHT_BIAS)`, instead
-    /// of the measured `h` ([`weight_bias`]; default false).
-    pub weight_bias_correction: bool,
-    /// The input-gain error acts on the model's `H` (`V = diag(H(theta)) U`, exact for
-    /// `h = H (1 + delta) + noise`) instead of the measured `h` (a plug-in whose noise
-    /// is correlated with the residual it weighs; default false).
-    pub gain_on_model: bool,
-}
-
-/// Largest relative correction of [`weight_bias`] (its expansion holds for small `eps`).
-pub const MAX_WEIGHT_BIAS: f64 = 0.1;
-
-/// The relative bias `v` of a fit whose errors are scaled by the measured `|h|`, for one
-/// point of relative error `eps` (`std(Re) = std(Im) = eps |H|`, so `h = H (1 + x)` with
-/// `E|x|^2 = 2 eps^2`). The weight `1 / |h|^2` follows the point's own noise: with
-/// `E[x] = E[x^2] = 0`, `E[(h - H) / |h|^2] = E[x / |1 + x|^2] / conj(H) = -E|x|^2 /
-/// conj(H)` to second order, while `E[h / |h|^2] = E[1 / conj(1 + x)] / conj(H) = 1 /
-/// conj(H)`. So comparing a model with `h (1 + v)`, `v = E|x|^2 = 2 eps^2`, removes the
-/// bias to that order (what is left is about `2 v^2`); `v` is capped at
-/// [`MAX_WEIGHT_BIAS`], where the expansion stops holding (and such points weigh little).
-pub fn weight_bias(eps: f64) -> f64 {
-    (2.0 * eps * eps).min(MAX_WEIGHT_BIAS)
-}
-
-impl Default for DataOptions {
-    fn default() -> Self {
-        DataOptions {
-            estimate: EstimateOptions::default(),
-            per_impact: true,
-            band_factor: 3.0,
-            max_band_points: 30,
-            off_band_points: 80,
-            freq_range_rel: (0.25, 4.0),
-            min_coherence: 0.5,
-            extra_peaks: 2,
-            weight_bias_correction: false,
-            gain_on_model: false,
-        }
-    }
-}
 
 /// The measured FRF of one response channel in one segment.
 #[derive(Debug, Clone, PartialEq)]
@@ -165,7 +102,7 @@ pub struct SegmentData {
     pub bands: Vec<Band>,
     pub channels: Vec<ChannelData>,
     /// Equivalent-linearisation weight of each story's drift (index `r - 1`), m^2,
-    /// where the displacement channels allow it (see the module docs).
+    /// where the sensors on its two levels allow it (see the module docs).
     pub story_drift_lin_sq_m2: Vec<Option<f64>>,
     /// How the segment was cut and estimated (for a time-domain model of the test).
     pub source: SegmentSource,
@@ -572,8 +509,21 @@ fn build_segment(
         }
     }
     let window = frf.exp_window_tau_s;
+    // Accelerometers stand in for missing displacement sensors, integrated above half the
+    // lowest resonance found in the segment (below it the response is quasi-static and
+    // small, and twice-integrated noise is not).
+    let lowest_peak_hz = frf
+        .bands
+        .iter()
+        .map(|b| b.peak_hz)
+        .fold(f64::INFINITY, f64::min);
+    let high_pass_hz = match lowest_peak_hz.is_finite() {
+        true => 0.5 * lowest_peak_hz,
+        false => 0.5 * freq_hz.first().copied().unwrap_or(0.0),
+    };
+    let block = (r.block_start, r.block_len);
     let story_drift_lin_sq_m2 = (1..=n_floors)
-        .map(|s| story_drift_lin_sq(&r.record, s, r.block_start, r.block_len, window))
+        .map(|s| story_drift_lin_sq(&r.record, s, block, window, high_pass_hz))
         .collect();
     let peak_force_n = if ground {
         None

@@ -25,7 +25,7 @@ use super::consistency::{check_campaign, ConsistencyOptions};
 use super::data::{DataOptions, DiagnosisData};
 pub use super::effect_summary::effect_columns;
 use super::estimator_bias::replay_bias;
-use super::fit::{fit_map, frame_starts, MapFit, MapOptions};
+use super::fit::{fit_map, frame_starts, refit_at_map, MapFit, MapOptions};
 use super::forward::frame_system;
 use super::heldout::HeldOut;
 use super::hypotheses::all_hypotheses;
@@ -364,6 +364,7 @@ fn nominal_model(
             fit_map(&post0, std::slice::from_ref(&map0.z), &opts.map)
         })?;
     }
+    let (post0, map0) = refit_at_map(post0, map0, &opts.map)?;
     watch.mark("nominal MAP", timings);
     let lap0 = laplace_u(&post0, &map0.z);
     let done = completion(

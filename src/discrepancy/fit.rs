@@ -353,3 +353,34 @@ pub fn frame_starts(
     }
     Ok(starts)
 }
+
+/// With [`super::data::GainCarrier::ModelAtMap`], `post` with its prediction at `map` as
+/// the gain carrier, the MAP refitted from there under it (one local fit), and the
+/// carrier reset to the refitted MAP, where the fit's likelihood, posterior and chi2
+/// are evaluated again (the two-stage plug-in); otherwise both unchanged. The
+/// multistart's record (`starts`, `n_at_best`) is kept.
+pub fn refit_at_map(
+    post: ModelPosterior,
+    map: MapFit,
+    opts: &MapOptions,
+) -> Result<(ModelPosterior, MapFit)> {
+    use super::data::GainCarrier;
+    if post.data().options.gain_carrier != GainCarrier::ModelAtMap {
+        return Ok((post, map));
+    }
+    let first = post.at_map(&map.z)?;
+    let refit = fit_map(&first, std::slice::from_ref(&map.z), opts)?;
+    let pred = first.predict(&refit.z)?;
+    let post = first.at_prediction(pred.clone());
+    let ln_likelihood = post.ln_likelihood_of(&pred, refit.eta);
+    let out = MapFit {
+        ln_posterior: ln_likelihood + post.ln_prior(&refit.z),
+        ln_likelihood,
+        chi2_per_dof: post.chi2_per_dof_of(&pred, refit.eta),
+        elapsed_s: map.elapsed_s + refit.elapsed_s,
+        z: refit.z,
+        eta: refit.eta,
+        ..map
+    };
+    Ok((post, out))
+}

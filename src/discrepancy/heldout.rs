@@ -133,7 +133,13 @@ fn held_out_density(
     let rest = chain.get(k..).unwrap_or(&[]);
     let (post_one, k_one) = first_posterior(subset(data, |j| j == i), rest)?;
     let post_one = with_replay(post_one, k + k_one)?;
-    post_one.ln_likelihood(&start_for(&fit.z, &fitted_effect, &post_one))
+    let z_one = start_for(&fit.z, &fitted_effect, &post_one);
+    // With the model's H at the fit as the gain carrier when the options ask for it.
+    let pred = post_one.predict(&z_one)?;
+    let eta = z_one[post_one.eta_index()].exp();
+    Ok(post_one
+        .at_prediction(pred.clone())
+        .ln_likelihood_of(&pred, eta))
 }
 
 /// Leave-one-segment-out comparison of `hypothesis` at `location` (full-data MAP

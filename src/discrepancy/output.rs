@@ -278,7 +278,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
             if sr.tried.len() > 6 { ", ..." } else { "" }
         );
         for (loc, e) in &sr.failed {
-            let _ = writeln!(s, "  - {loc}: fit failed: {e}");
+            let _ = writeln!(s, "  - {loc}: not fitted: {e}");
         }
     }
     let _ = writeln!(

@@ -21,10 +21,9 @@
 //! Single-impact hammer segments add the input channel's correlated relative error
 //! ([`super::data::InputGainBasis`]): `h = H (1 + delta) + noise`, `delta ~ CN(0, U U^*)`
 //! over the segment's frequencies, shared by its channels. With `H` replaced by the
-//! measured `h` (plug-in, so the covariance does not depend on the parameters; or kept,
-//! `V_i = H_i(theta) U_k(i)`, with [`super::data::DataOptions::gain_on_model`]: the
-//! plug-in's noise is correlated with the residual it weighs, which biases effect sizes,
-//! see the README), the
+//! measured `h` (plug-in, so the covariance does not depend on the parameters; or the
+//! model's, [`super::data::GainCarrier`]: the measured plug-in's noise is correlated
+//! with the residual it weighs, which biases effect sizes, see the README), the
 //! residual `e = h - H` of a segment has the complex covariance `Sigma = D + V V^*`,
 //! `D = diag(2 sigma_i^2)`, `V_i = h_i U_k(i)` (rank `r`, a few), and by Woodbury
 //! `e^* Sigma^-1 e = e^* D^-1 e - b^* G^-1 b`, `ln det Sigma = ln det D + ln det G`
@@ -33,8 +32,9 @@
 //! ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`: 1 when the noise model is
 //! right.
 
-use super::data::{weight_bias, DiagnosisData};
+use super::data::{weight_bias, DiagnosisData, GainCarrier};
 use super::forward::{BaseParams, ExtendedModel};
+use super::gain_solve::{gain_solve, GainSegment};
 use super::hypothesis::{EffectParam, Hypothesis};
 use super::location::Location;
 use super::time_domain::TimeDomainModel;
@@ -82,81 +82,9 @@ pub struct ModelPosterior {
     /// When set, predictions replay the tests in the time domain instead of using
     /// `model`'s frequency-domain solution ([`Self::with_time_domain`]).
     time_domain: Option<Arc<TimeDomainModel>>,
-}
-
-/// A segment's [`super::data::InputGainBasis`] on the flat layout.
-#[derive(Debug, Clone)]
-struct GainSegment {
-    rank: usize,
-    u: Vec<Complex64>,
-    n_freq: usize,
-    /// Flat range of the segment's points and the frequency index of each.
-    start: usize,
-    freq_of: Vec<u32>,
-}
-
-/// `G = I + sum_k w_k U_k^* U_k`, `b = sum_k U_k^* b_k`; returns `g = G^-1 b`,
-/// `b^* G^-1 b` and `ln det G` (see the module docs).
-fn gain_solve(gs: &GainSegment, w: &[f64], bk: &[Complex64]) -> (Vec<Complex64>, f64, f64) {
-    let r = gs.rank;
-    let mut g = vec![Complex64::new(0.0, 0.0); r * r];
-    let mut b = vec![Complex64::new(0.0, 0.0); r];
-    for i in 0..r {
-        g[i * r + i] = Complex64::new(1.0, 0.0);
-    }
-    for k in 0..gs.n_freq {
-        let uk = &gs.u[k * r..(k + 1) * r];
-        if w[k] != 0.0 {
-            for m in 0..r {
-                let cm = uk[m].conj() * w[k];
-                for n in m..r {
-                    g[m * r + n] += cm * uk[n];
-                }
-            }
-        }
-        for m in 0..r {
-            b[m] += uk[m].conj() * bk[k];
-        }
-    }
-    // Cholesky G = L L^* (upper triangle filled; Hermitian positive definite).
-    let mut l = vec![Complex64::new(0.0, 0.0); r * r];
-    let mut ln_det = 0.0;
-    for j in 0..r {
-        let mut d = g[j * r + j].re;
-        for k in 0..j {
-            d -= l[j * r + k].norm_sqr();
-        }
-        let d = d.max(1e-300).sqrt();
-        ln_det += 2.0 * d.ln();
-        l[j * r + j] = Complex64::new(d, 0.0);
-        for i in j + 1..r {
-            // G_ij with i > j is conj(G_ji) (upper triangle stored).
-            let mut v = g[j * r + i].conj();
-            for k in 0..j {
-                v -= l[i * r + k] * l[j * r + k].conj();
-            }
-            l[i * r + j] = v / d;
-        }
-    }
-    // Solve L y = b, then L^* x = y.
-    let mut y = b.clone();
-    for i in 0..r {
-        let mut v = y[i];
-        for k in 0..i {
-            v -= l[i * r + k] * y[k];
-        }
-        y[i] = v / l[i * r + i].re;
-    }
-    let quad: f64 = y.iter().map(|v| v.norm_sqr()).sum();
-    let mut x = y;
-    for i in (0..r).rev() {
-        let mut v = x[i];
-        for k in i + 1..r {
-            v -= l[k * r + i].conj() * x[k];
-        }
-        x[i] = v / l[i * r + i].re;
-    }
-    (x, quad, ln_det)
+    /// The model's prediction at its MAP, the gain carrier of
+    /// [`GainCarrier::ModelAtMap`] ([`Self::at_map`]); the measured `h` until set.
+    gain_plug_in: Option<Arc<Vec<Complex64>>>,
 }
 
 impl ModelPosterior {
@@ -246,6 +174,7 @@ impl ModelPosterior {
             gains,
             n_gain_residuals,
             time_domain: None,
+            gain_plug_in: None,
             model,
             effect_params,
             names,
@@ -535,13 +464,35 @@ impl ModelPosterior {
         (0.5 * (a + b)).exp()
     }
 
-    /// The ratios the input-gain error multiplies (flat layout): the measured `h`, or the
-    /// prediction with [`super::data::DataOptions::gain_on_model`].
+    /// The ratios the input-gain error multiplies (flat layout,
+    /// [`super::data::DataOptions::gain_carrier`]): the measured `h`, the prediction, or
+    /// the prediction at the MAP once [`Self::at_map`] has set it.
     fn gain_carrier<'a>(&'a self, pred: &'a [Complex64]) -> &'a [Complex64] {
-        match self.data().options.gain_on_model {
-            true => pred,
-            false => &self.h,
+        match (self.data().options.gain_carrier, &self.gain_plug_in) {
+            (GainCarrier::Model, _) => pred,
+            (GainCarrier::ModelAtMap, Some(at_map)) => at_map,
+            _ => &self.h,
         }
+    }
+
+    /// With [`GainCarrier::ModelAtMap`], the same posterior with the prediction at `z`
+    /// (its MAP) as the gain carrier from now on; otherwise unchanged.
+    pub fn at_map(self, z: &[f64]) -> Result<Self> {
+        match self.data().options.gain_carrier {
+            GainCarrier::ModelAtMap => {
+                let pred = self.predict(z)?;
+                Ok(self.at_prediction(pred))
+            }
+            _ => Ok(self),
+        }
+    }
+
+    /// [`Self::at_map`] with the prediction at the MAP given (flat layout).
+    pub fn at_prediction(mut self, pred: Vec<Complex64>) -> Self {
+        if self.data().options.gain_carrier == GainCarrier::ModelAtMap {
+            self.gain_plug_in = Some(Arc::new(pred));
+        }
+        self
     }
 
     /// Number of whitened residuals: `2 N` plus 2 per correlated gain coefficient.

@@ -75,6 +75,9 @@ pub fn refit_in_time_domain(
     let post = result.posterior.clone().with_time_domain(td)?;
     let map_opts = replay_map_options(&opts.map, REFIT_EVALUATIONS, 2);
     let map = fit_map(&post, std::slice::from_ref(&result.map.z), &map_opts)?;
+    // The replay's own prediction at its MAP carries the gain error from here on, when
+    // the options ask for it (the refit itself started from the linearised one's).
+    let post = post.at_map(&map.z)?;
     let mut n_evaluations = map.starts.iter().map(|s| s.n_evaluations).sum::<usize>();
 
     // Gauss-Newton covariance over every coordinate but ln eta.

@@ -2,7 +2,9 @@
 
 use super::diagnose::{Diagnosis, ModelResult};
 use super::hypotheses::hypothesis_by_name;
-use super::verdict::{decisive_ln_bayes_factor, DiagnosisRecord, EffectRecord, HypothesisEvidence};
+use super::verdict::{
+    decisive_ln_bayes_factor, DiagnosisRecord, EffectRecord, HypothesisEvidence, NotFitted,
+};
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
@@ -38,6 +40,14 @@ pub fn hypothesis_evidence(d: &Diagnosis) -> Vec<HypothesisEvidence> {
                     |e| e.estimator.label().to_string(),
                 ),
                 gain_bound: found.and_then(|e| e.gain_bound_nats),
+                not_fitted: s
+                    .failed
+                    .iter()
+                    .map(|(loc, reason)| NotFitted {
+                        location: serde_json::to_value(loc).unwrap_or_default(),
+                        reason: reason.clone(),
+                    })
+                    .collect(),
             }
         })
         .collect();

@@ -165,7 +165,8 @@ fn best_laplace(data: &Arc<DiagnosisData>, searches: &Searched) -> Result<BestLa
         let p = match s.best() {
             Some(b) => {
                 let post =
-                    ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())))?;
+                    ModelPosterior::new(data.clone(), Some((h.clone(), b.location.clone())))?
+                        .at_map(&b.map.z)?;
                 let lap = laplace_u(&post, &b.map.z);
                 Some((post, lap))
             }

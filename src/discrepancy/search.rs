@@ -13,7 +13,7 @@
 //! not from a fresh Latin hypercube: one start instead of `n_effect_starts + 1`.
 
 use super::data::DiagnosisData;
-use super::fit::{effect_starts, fit_map, MapFit, MapOptions};
+use super::fit::{effect_starts, fit_map, refit_at_map, MapFit, MapOptions};
 use super::hypothesis::Hypothesis;
 use super::location::Location;
 use super::posterior::ModelPosterior;
@@ -76,6 +76,7 @@ pub fn fit_location(
     let post = ModelPosterior::new(data.clone(), Some((hypothesis.clone(), location.clone())))?;
     let starts = effect_starts(&post, nominal_z, opts.n_effect_starts, opts.seed)?;
     let map = fit_map(&post, &starts, &opts.map)?;
+    let (_, map) = refit_at_map(post, map, &opts.map)?;
     Ok(LocationFit {
         location: location.clone(),
         map,

@@ -6,7 +6,7 @@
 
 use super::diagnose::{DiagnoseStage, ModelResult};
 use super::estimator_bias::replay_bias;
-use super::fit::fit_map;
+use super::fit::{fit_map, refit_at_map};
 use super::location::Location;
 use super::model_evidence::{completion, laplace_u, model_result};
 use super::posterior::ModelPosterior;
@@ -140,6 +140,7 @@ fn with_bias_remeasured(
     let map = staged(ctx.stages, &format!("step{step}-base-map-debiased"), || {
         fit_map(&post, std::slice::from_ref(&old.map.z), &ctx.opts.map)
     })?;
+    let (post, map) = refit_at_map(post, map, &ctx.opts.map)?;
     let laplace = laplace_u(&post, &map.z);
     let name = format!("step{step}-base-debiased");
     let index = (64 * step + 63) as u64;

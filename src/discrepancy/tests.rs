@@ -596,12 +596,16 @@ fn posterior_prior_is_normalised_and_likelihood_is_the_gaussian() {
 fn correlated_gain_likelihood_is_the_dense_gaussian() {
     // One hammer segment on 6 frequencies with a random rank-2 gain basis: ln L and the
     // whitened residuals against the dense complex covariance D + V V^*, V = diag(h) U,
-    // and with the gain on the model's H (`gain_on_model`: V = diag(H) U).
-    gain_likelihood_against_dense(false);
-    gain_likelihood_against_dense(true);
+    // with the gain on the model's H (`GainCarrier::Model`: V = diag(H) U), and on the
+    // model's H at a fixed point (`ModelAtMap`: V = diag(H(z0)) U, evaluated elsewhere).
+    use super::data::GainCarrier;
+    gain_likelihood_against_dense(GainCarrier::Measured);
+    gain_likelihood_against_dense(GainCarrier::Model);
+    gain_likelihood_against_dense(GainCarrier::ModelAtMap);
 }
 
-fn gain_likelihood_against_dense(on_model: bool) {
+fn gain_likelihood_against_dense(carrier: super::data::GainCarrier) {
+    use super::data::GainCarrier;
     let mut data = (*synthetic()).clone();
     let freq: Vec<f64> = (1..=6).map(|i| 0.7 * i as f64).collect();
     let mut seg = segment(
@@ -625,9 +629,17 @@ fn gain_likelihood_against_dense(on_model: bool) {
         }
     }
     data.segments = vec![seg.clone()];
-    data.options.gain_on_model = on_model;
+    data.options.gain_carrier = carrier;
     let post = ModelPosterior::new(Arc::new(data), None).unwrap();
     let z = post.z_of(&base(), 0.01, &[]);
+    // The plug-in point: 3 % stiffer, so its H differs from the evaluated one.
+    let z0: Vec<f64> = z
+        .iter()
+        .enumerate()
+        .map(|(i, v)| if i < 4 { v + 0.03 } else { *v })
+        .collect();
+    let at_z0 = post.predict(&z0).unwrap();
+    let post = post.at_map(&z0).unwrap();
     let pred = post.predict(&z).unwrap();
     let n = pred.len();
     let h = post.measured().to_vec();
@@ -639,7 +651,11 @@ fn gain_likelihood_against_dense(on_model: bool) {
         for (p, &k) in ch.freq_index.iter().enumerate() {
             let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * ch.h[p].norm_sqr();
             sigma[(i, i)] = Complex64::new(d, 0.0);
-            let carrier = if on_model { pred[i] } else { ch.h[p] };
+            let carrier = match carrier {
+                GainCarrier::Measured => ch.h[p],
+                GainCarrier::Model => pred[i],
+                GainCarrier::ModelAtMap => at_z0[i],
+            };
             for m in 0..rank {
                 v[(i, m)] = carrier * u[k * rank + m];
             }
@@ -831,4 +847,24 @@ fn the_weight_bias_correction_removes_the_magnitude_bias_of_measured_weights() {
     let expected = 1.0 / (1.0 + 2.0 * eps * eps);
     assert!((a_measured - expected).abs() < 4.0 * sd, "{a_measured}");
     assert!((a_corrected - 1.0).abs() < 4.0 * sd, "{a_corrected}");
+}
+
+#[test]
+fn a_story_without_drift_sensors_is_a_location_that_says_why_it_is_not_tested() {
+    use super::hypotheses::StiffnessNonlinearityHypothesis;
+    let mut data = (*synthetic()).clone();
+    for seg in &mut data.segments {
+        seg.story_drift_lin_sq_m2[2] = None;
+    }
+    let h = StiffnessNonlinearityHypothesis;
+    assert_eq!(h.locations(&data).len(), 4);
+    assert!(h.parameters(&data, &Location::Story(2)).is_ok());
+    let e = h
+        .parameters(&data, &Location::Story(3))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("not testable") && e.contains("floors 2 and 3"),
+        "{e}"
+    );
 }

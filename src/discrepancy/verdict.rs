@@ -84,6 +84,17 @@ pub struct HypothesisEvidence {
     /// Upper bound on `delta_log_evidence`: the gain in maximum log-likelihood, nats.
     #[serde(default)]
     pub gain_bound: Option<f64>,
+    /// Candidate locations the hypothesis could not be fitted at, with the reason (e.g.
+    /// a story whose drift no sensor measures): what the diagnosis could not test.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub not_fitted: Vec<NotFitted>,
+}
+
+/// A candidate location left out of a hypothesis' search, and why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NotFitted {
+    pub location: serde_json::Value,
+    pub reason: String,
 }
 
 /// One accepted effect in `diagnosis.json`.
@@ -408,6 +419,10 @@ mod tests {
                 delta_log_evidence_sd: Some(0.2),
                 estimator: "generalised_stepping_stone".into(),
                 gain_bound: Some(60.0),
+                not_fitted: vec![NotFitted {
+                    location: serde_json::json!({"story": 3}),
+                    reason: "not testable".into(),
+                }],
             }],
             explanation: "x".into(),
             effects: vec![EffectRecord {
@@ -443,6 +458,7 @@ mod tests {
         assert!(v["fit_before"].get("fdac_mean").is_some());
         assert!(v["fit_after"].get("chi2_per_point").is_some());
         assert!(v["hypotheses"][0].get("delta_log_evidence").is_some());
+        assert_eq!(v["hypotheses"][0]["not_fitted"][0]["location"]["story"], 3);
         let back: DiagnosisRecord = serde_json::from_value(v).unwrap();
         assert_eq!(back, r);
     }

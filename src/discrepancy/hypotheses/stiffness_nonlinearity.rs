@@ -4,15 +4,17 @@
 //! Forward model: equivalent linearisation per segment (Caughey 1963). In each segment
 //! the cubic term acts as the linear spring `k3 c` added across the story, where
 //! `c = sum (w d)^2 d^2 / sum (w d)^2` is measured from the segment's displacement
-//! channels under the estimator's window `w` ([`SegmentData::story_drift_lin_sq_m2`]):
+//! channels (or its accelerometers, integrated twice) under the estimator's window `w`
+//! ([`SegmentData::story_drift_lin_sq_m2`]):
 //! the `k_eq` minimising the windowed mean square of `k3 d^3 - k_eq d`, which is what the
 //! least-squares H1 estimate sees. It is `3 A^2 / 4` for a sinusoid (harmonic balance),
 //! `3 sigma^2` for Gaussian drift, and in between for a hammer's decaying modes.
 //! Neglected: the frequency dependence of the equivalent stiffness within a segment
 //! (one `k_eq` for all modes; a chirp's amplitude changes along the sweep), and the
 //! harmonics (the third harmonic of mode 1 can drive a mode near three times its
-//! frequency). A segment without displacement channels at the story is treated as
-//! linear.
+//! frequency). A segment without sensors on both levels of the story is treated as
+//! linear. Every story is a candidate location; one where no segment has that weight
+//! cannot be tested, and its search reports why (it is not dropped in silence).
 //!
 //! Prior: the relative stiffness change at the largest measured weight,
 //! `r = k3 c_max / k_s0` (`k_s0` nominal), uniform on -0.4..0.5 (so the linearised
@@ -50,10 +52,7 @@ impl Hypothesis for StiffnessNonlinearityHypothesis {
     }
 
     fn locations(&self, data: &DiagnosisData) -> Vec<Location> {
-        (1..=data.n_floors())
-            .filter(|&s| data.max_story_drift_lin_sq_m2(s).is_some_and(|m| m > 0.0))
-            .map(Location::Story)
-            .collect()
+        (1..=data.n_floors()).map(Location::Story).collect()
     }
 
     fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
@@ -62,8 +61,13 @@ impl Hypothesis for StiffnessNonlinearityHypothesis {
             .max_story_drift_lin_sq_m2(s)
             .filter(|m| *m > 0.0)
             .ok_or_else(|| {
+                let floors = match s {
+                    1 => "floor 1".to_string(),
+                    _ => format!("floors {} and {s}", s - 1),
+                };
                 Error::Usage(format!(
-                    "stiffness_nonlinearity at story {s} needs displacement channels on its floors"
+                    "not testable: the drift of story {s} is not measured in any segment \
+                     (it needs a displacement sensor or an accelerometer on {floors})"
                 ))
             })?;
         let factor = data.nominal.story_stiffness_n_per_m[s - 1] / c_max;
