@@ -6,34 +6,48 @@ use num_complex::Complex64;
 use realfft::RealFftPlanner;
 
 /// Caughey's equivalent-linearisation weight `sum (w d)^2 d^2 / sum (w d)^2` (m^2) of the
-/// drift `d` of `story` over `[start, start + len)` of `t`, with the estimator's
-/// exponential window `w = exp(-t / tau)` (none: 1). A cubic spring `k3 d^3` acts in that
-/// segment as the linear spring `k3` times this weight: it is the `k_eq` that minimises
-/// the windowed mean square of `k3 d^3 - k_eq d`, the error that the H1 estimate (a
-/// least-squares fit of a linear relation to the windowed records) averages over.
-/// `3 A^2 / 4` for a sinusoid of amplitude `A` (harmonic balance), `3 sigma^2` for
-/// Gaussian drift (statistical linearisation); a hammer response, a sum of decaying
-/// modes, lies between.
+/// drift `d` of each story `1..=n_stories` over `[start, start + len)` of `t` (index
+/// `story - 1`), with the estimator's exponential window `w = exp(-t / tau)` (none: 1).
+/// A cubic spring `k3 d^3` acts in that segment as the linear spring `k3` times this
+/// weight: it is the `k_eq` that minimises the windowed mean square of `k3 d^3 - k_eq d`,
+/// the error that the H1 estimate (a least-squares fit of a linear relation to the
+/// windowed records) averages over. `3 A^2 / 4` for a sinusoid of amplitude `A`
+/// (harmonic balance), `3 sigma^2` for Gaussian drift (statistical linearisation); a
+/// hammer response, a sum of decaying modes, lies between.
 ///
-/// Each level's displacement is its displacement channel where there is one, else its
-/// accelerometer integrated twice ([`relative_displacement`], above `high_pass_hz`).
-/// `None` when a level of the story has neither.
-pub(super) fn story_drift_lin_sq(
+/// Each level's displacement (found once, shared by the stories above and below it) is
+/// its displacement channel where there is one, else its accelerometer integrated twice
+/// ([`relative_displacement`], above `high_pass_hz`). `None` for a story with a level
+/// that has neither.
+pub(super) fn story_drift_weights(
     t: &Test,
-    story: usize,
+    n_stories: usize,
     (start, len): (usize, usize),
     tau_s: Option<f64>,
     high_pass_hz: f64,
-) -> Option<f64> {
+) -> Vec<Option<f64>> {
     let end = (start + len).min(t.n_samples());
-    if story == 0 || end <= start + 2 {
-        return None;
+    if end <= start + 2 {
+        return vec![None; n_stories];
     }
-    let upper = relative_displacement(t, story, (start, end), high_pass_hz)?;
-    let lower = relative_displacement(t, story - 1, (start, end), high_pass_hz)?;
+    let mut planner = RealFftPlanner::new();
+    let levels: Vec<Option<Vec<f64>>> = (0..=n_stories)
+        .map(|f| relative_displacement(t, f, (start, end), high_pass_hz, &mut planner))
+        .collect();
     let dt = 1.0 / t.sample_rate_hz;
+    levels
+        .windows(2)
+        .map(|pair| match pair {
+            [Some(lower), Some(upper)] => caughey_weight(upper, lower, dt, tau_s),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The weight of [`story_drift_weights`] of the drift `upper - lower`.
+fn caughey_weight(upper: &[f64], lower: &[f64], dt: f64, tau_s: Option<f64>) -> Option<f64> {
     let (mut num, mut den) = (0.0, 0.0);
-    for (i, (u, l)) in upper.iter().zip(&lower).enumerate() {
+    for (i, (u, l)) in upper.iter().zip(lower).enumerate() {
         let d = u - l;
         let w = tau_s.map_or(1.0, |tau| (-(i as f64) * dt / tau).exp());
         let u2 = (w * d).powi(2);
@@ -59,6 +73,7 @@ pub(super) fn relative_displacement(
     floor: usize,
     (start, end): (usize, usize),
     high_pass_hz: f64,
+    planner: &mut RealFftPlanner<f64>,
 ) -> Option<Vec<f64>> {
     let n = end.checked_sub(start)?;
     if floor == 0 {
@@ -84,14 +99,18 @@ pub(super) fn relative_displacement(
     let a: Vec<f64> = (start..end)
         .map(|k| t.data[acc][k] - ground.map_or(0.0, |g| t.data[g][k]))
         .collect();
-    Some(integrate_twice(&a, t.sample_rate_hz, high_pass_hz))
+    Some(integrate_twice(&a, t.sample_rate_hz, high_pass_hz, planner))
 }
 
 /// `x` with `x'' = a` (periodic over the block, mean zero), from the spectrum of `a`
 /// above `high_pass_hz` (see [`relative_displacement`]).
-fn integrate_twice(a: &[f64], fs_hz: f64, high_pass_hz: f64) -> Vec<f64> {
+fn integrate_twice(
+    a: &[f64],
+    fs_hz: f64,
+    high_pass_hz: f64,
+    planner: &mut RealFftPlanner<f64>,
+) -> Vec<f64> {
     let n = a.len();
-    let mut planner = RealFftPlanner::<f64>::new();
     let fwd = planner.plan_fft_forward(n);
     let inv = planner.plan_fft_inverse(n);
     let mut buf = a.to_vec();
@@ -120,6 +139,17 @@ fn integrate_twice(a: &[f64], fs_hz: f64, high_pass_hz: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Story `story`'s weight (the stories below it found too).
+    fn story_drift_lin_sq(
+        t: &Test,
+        story: usize,
+        block: (usize, usize),
+        tau_s: Option<f64>,
+        high_pass_hz: f64,
+    ) -> Option<f64> {
+        story_drift_weights(t, story, block, tau_s, high_pass_hz)[story - 1]
+    }
     use crate::io::{Channel, TestKind};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
@@ -276,36 +306,44 @@ mod tests {
 
     #[test]
     fn integrated_accelerations_give_the_displacements_weight() {
-        // An impact after 2 s at rest, then 98 s = 4.9 T of ringing, seen by an
-        // accelerometer with a constant bias. Twice integrated above 0.3 Hz it is the
+        // An impact after 2 s at rest, then 98 s = 9.8 T of ringing (what is left at the
+        // block's end, e^-9.8 = 6e-5, cannot make the periodic extension jump), seen by
+        // an accelerometer with a constant bias. Twice integrated above 0.3 Hz it is the
         // displacement with its content below 0.3 Hz removed (the same FFT filter applied
-        // to the displacement) within 2 % of the amplitude: the bias is gone, and what is
-        // left comes from the block's ends (1.05 % measured), where the ringing still has
-        // e^-4.9 = 0.7 % of its amplitude, so the periodic extension jumps in
-        // displacement and velocity. What the filter
+        // to the displacement) within 0.6 % of the amplitude (0.41 % measured): the bias
+        // is gone, and what is left is the test signal's own, as its acceleration is a
+        // second difference, which differs from the second derivative by
+        // `(pi f / fs)^2 / 3`; on the impact's kink (a velocity step `A w`, content
+        // `A w / (2 pi f)^2` up to fs / 2) that sums to `A w / (12 fs)` = 0.34 % of `A`
+        // near the impact. What the filter
         // removes is the impulse response's quasi-static part, about 2 f_hp / (2 pi f_n)
-        // = 7 % of the amplitude, decaying over 1 / f_hp; the weights, dominated by the
-        // ringing, agree within 1 %.
+        // = 7 % of the amplitude, decaying over 1 / f_hp; the weights agree with the
+        // filtered displacement's within 1 % and with the displacement's within 2 %
+        // (1.1 % measured). (Blocks whose ringing has not died out, as a campaign's may,
+        // are the integration test of `tests/discrepancy_time_domain.rs`.)
         let (fs, n, a, tau) = (200.0, 20_000, 2e-3, 30.0);
-        let (d, acc) = impulse_response(a, 1.3, 20.0, fs, 400, n);
+        let (d, acc) = impulse_response(a, 1.3, 10.0, fs, 400, n);
         let biased: Vec<f64> = acc.iter().map(|v| v + 0.05).collect();
         let kind = TestKind::Hammer { excited_floor: 1 };
         let by_acc = record_of(fs, kind, vec![("acc1", Quantity::Acceleration, 1, biased)]);
-        let x = relative_displacement(&by_acc, 1, (0, n), 0.3).unwrap();
+        let mut planner = RealFftPlanner::new();
+        let x = relative_displacement(&by_acc, 1, (0, n), 0.3, &mut planner).unwrap();
         let filtered = high_passed(&d, fs, 0.3);
         let worst = x
             .iter()
             .zip(&filtered)
             .map(|(x, d)| (x - d).abs())
             .fold(0.0, f64::max);
-        assert!(worst < 0.02 * a, "{worst}");
+        assert!(worst < 6e-3 * a, "{worst}");
         let from_acc = story_drift_lin_sq(&by_acc, 1, (0, n), Some(tau), 0.3).unwrap();
-        let by_disp = record_of(fs, kind, vec![("d1", Quantity::Displacement, 1, d)]);
-        let from_disp = story_drift_lin_sq(&by_disp, 1, (0, n), Some(tau), 0.3).unwrap();
-        assert!(
-            (from_acc / from_disp - 1.0).abs() < 0.01,
-            "{from_acc} vs {from_disp}"
-        );
+        let weight_of = |d: Vec<f64>| {
+            let by_disp = record_of(fs, kind, vec![("d1", Quantity::Displacement, 1, d)]);
+            story_drift_lin_sq(&by_disp, 1, (0, n), Some(tau), 0.3).unwrap()
+        };
+        let (of_filtered, of_disp) = (weight_of(filtered), weight_of(d));
+        let rel = |w: f64| (from_acc / w - 1.0).abs();
+        assert!(rel(of_filtered) < 0.01, "{from_acc} vs {of_filtered}");
+        assert!(rel(of_disp) < 0.02, "{from_acc} vs {of_disp}");
     }
 
     #[test]

@@ -33,7 +33,7 @@
 //! `k3 d^3` acts on that segment's FRFs as the linear spring `k3` times this weight
 //! ([`super::amplitude`]).
 
-use super::amplitude::story_drift_lin_sq;
+use super::amplitude::story_drift_weights;
 use super::bins::{band_span, select_bins};
 pub use super::data_options::{weight_bias, DataOptions, GainCarrier, MAX_WEIGHT_BIAS};
 use super::input_noise::input_gain_basis;
@@ -522,9 +522,8 @@ fn build_segment(
         false => 0.5 * freq_hz.first().copied().unwrap_or(0.0),
     };
     let block = (r.block_start, r.block_len);
-    let story_drift_lin_sq_m2 = (1..=n_floors)
-        .map(|s| story_drift_lin_sq(&r.record, s, block, window, high_pass_hz))
-        .collect();
+    let story_drift_lin_sq_m2 =
+        story_drift_weights(&r.record, n_floors, block, window, high_pass_hz);
     let peak_force_n = if ground {
         None
     } else {
