@@ -33,11 +33,9 @@ fn campaign_and_truth() -> (Campaign, BaseParams) {
         panic!("modal damping expected")
     };
     let campaign = Simulator::new(model).unwrap().run(4, &|_| {}).unwrap();
-    let base = BaseParams {
-        stiffness_n_per_m: story_stiffness_n_per_m,
-        mass_kg: floor_mass_kg,
-        xi,
-    };
+    let nominal = campaign.nominal.structural_model().unwrap();
+    let base =
+        BaseParams::from_physical(&nominal, &story_stiffness_n_per_m, &floor_mass_kg, xi).unwrap();
     (campaign, base)
 }
 
@@ -103,7 +101,7 @@ fn the_replayed_bias_explains_the_lightly_damped_second_impacts() {
     // in frequency) is printed, not held to it.
     let miss_of = |factor: f64| {
         let mut moved = truth.clone();
-        for k in &mut moved.stiffness_n_per_m {
+        for k in &mut moved.stiffness_scale {
             *k *= factor;
         }
         let z_moved = post.z_of(&moved, 1e-3, &[]);

@@ -94,11 +94,13 @@ fn truth_z(post: &ModelPosterior, model: &SimModel, eta: f64) -> Vec<f64> {
     let DampingSpec::Modal { xi } = &model.damping else {
         panic!("benchmark cases use modal damping")
     };
-    let base = frfbayes::discrepancy::BaseParams {
-        stiffness_n_per_m: story_stiffness_n_per_m.clone(),
-        mass_kg: floor_mass_kg.clone(),
-        xi: xi.clone(),
-    };
+    let base = frfbayes::discrepancy::BaseParams::from_physical(
+        &post.data().model,
+        story_stiffness_n_per_m,
+        floor_mass_kg,
+        xi.clone(),
+    )
+    .unwrap();
     let mut physical: Vec<f64> = Vec::new();
     for e in &model.effects {
         match e {

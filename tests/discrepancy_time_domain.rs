@@ -76,12 +76,9 @@ fn noise_free_campaign(effect: &str) -> Campaign {
     Simulator::new(model).unwrap().run(11, &|_| {}).unwrap()
 }
 
-fn truth() -> BaseParams {
-    BaseParams {
-        stiffness_n_per_m: K_TRUE.to_vec(),
-        mass_kg: M_TRUE.to_vec(),
-        xi: XI_TRUE.to_vec(),
-    }
+/// The truth as scales of `post`'s nominal model.
+fn truth(post: &ModelPosterior) -> BaseParams {
+    BaseParams::from_physical(&post.data().model, &K_TRUE, &M_TRUE, XI_TRUE.to_vec()).unwrap()
 }
 
 /// Chi2 per real dof at the noise floor's lower end (eta = 1e-4).
@@ -96,7 +93,7 @@ fn replay_of_a_linear_campaign_matches_the_frequency_domain_model() {
     let post = ModelPosterior::new(data.clone(), None).unwrap();
     let td = Arc::new(TimeDomainModel::new(&c, data).unwrap());
     let post_td = post.clone().with_time_domain(td).unwrap();
-    let z = post.z_of(&truth(), 1e-4, &[]);
+    let z = post.z_of(&truth(&post), 1e-4, &[]);
     let (fd, rp) = (post.predict(&z).unwrap(), post_td.predict(&z).unwrap());
     let mut rel: Vec<f64> = fd
         .iter()
@@ -126,7 +123,7 @@ fn replay_fits_a_cubic_spring_where_the_linearisation_cannot() {
     let td = Arc::new(TimeDomainModel::new(&c, data).unwrap());
     let post_td = post.clone().with_time_domain(td).unwrap();
     let coord = |k3: f64| post.effect_params()[0].coordinate_of(k3);
-    let at = |k3: f64| post.z_of(&truth(), 1e-4, &[coord(k3)]);
+    let at = |k3: f64| post.z_of(&truth(&post), 1e-4, &[coord(k3)]);
     let replay: Vec<f64> = [0.0, 0.8 * K3, K3, 1.2 * K3]
         .iter()
         .map(|&k| chi2(&post_td, &at(k)))

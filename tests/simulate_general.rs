@@ -177,7 +177,8 @@ fn general_simulation_model_errors_name_the_key() {
         ("acceleration_dofs = [1, 3, 6]", "acceleration_dofs = [0]", "DOF 0, outside 1..=6"),
         ("excited_dof = 2", "excited_dof = 9", "excited_floor must be in 1..=6"),
         ("[damping]", "[nominal]\nfloor_mass_kg = [1.0]\nstory_stiffness_n_per_m = [1.0]\n[damping]", "remove [nominal]"),
-        ("[damping]", "[[effect]]\nkind = \"dashpot\"\nfloors = [1, 2]\ncoefficient_n_s_per_m = 1.0\n[damping]", "remove [[effect]]"),
+        ("[damping]", "[[effect]]\nkind = \"dashpot\"\nstory = 2\ncoefficient_n_s_per_m = 1.0\n[damping]", "stories and the base are defined on shear frames"),
+        ("[damping]", "[[effect]]\nkind = \"oscillator\"\nfloor = 7\nmass_kg = 1.0\nstiffness_n_per_m = 1.0\ndamping_ratio = 0.01\n[damping]", "oscillator floor must be in 1..=6"),
     ];
     for (from, to, needle) in cases {
         let e = err(from, to);

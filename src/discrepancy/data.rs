@@ -43,9 +43,11 @@ use crate::error::{Error, Result};
 use crate::frf::FrfKind;
 use crate::io::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
 use crate::modal::Modes;
+use crate::model::StructuralModel;
 use crate::signal::hammer::detect_impacts;
 use crate::signal::{bendat_piersol_rel_std, estimate_test, Band, InputKind, TestFrf};
 use num_complex::Complex64;
+use std::sync::Arc;
 
 /// The measured FRF of one response channel in one segment.
 #[derive(Debug, Clone, PartialEq)]
@@ -137,6 +139,9 @@ impl SegmentData {
 pub struct DiagnosisData {
     pub title: String,
     pub nominal: NominalModel,
+    /// The nominal model's parametrised matrices (paper Eqs. 20-21): the shear frame, or
+    /// the general model read from its manifest once.
+    pub model: Arc<StructuralModel>,
     /// Undamped natural frequencies of the nominal model, Hz (ascending).
     pub nominal_freq_hz: Vec<f64>,
     pub segments: Vec<SegmentData>,
@@ -148,8 +153,18 @@ impl DiagnosisData {
     pub fn from_campaign(campaign: &Campaign, options: &DataOptions) -> Result<Self> {
         check_options(options)?;
         let nominal = campaign.nominal.clone();
-        let nominal_freq_hz = nominal_frequencies(&nominal)?;
+        let model = Arc::new(nominal.structural_model()?);
+        if nominal.n_floors() != model.n_dof() {
+            return Err(Error::Usage(format!(
+                "the campaign's nominal model has {} DOFs but its matrices have {}",
+                nominal.n_floors(),
+                model.n_dof()
+            )));
+        }
+        let nominal_freq_hz = model_frequencies(&model)?;
         let n_floors = nominal.n_floors();
+        // Stories (drift between neighbouring floors) exist on a shear frame only.
+        let n_stories = if nominal.model.is_none() { n_floors } else { 0 };
         let mut est = options.estimate;
         est.bands.n_peaks = Some(n_floors + options.extra_peaks);
         let f1 = nominal_freq_hz[0];
@@ -299,11 +314,12 @@ impl DiagnosisData {
         let mut segments = Vec::with_capacity(raw.len());
         for (i, r) in raw.iter().enumerate() {
             let sel = &selections[group_of[i]];
-            segments.push(build_segment(r, sel, options, n_floors)?);
+            segments.push(build_segment(r, sel, options, n_floors, n_stories)?);
         }
         let data = DiagnosisData {
             title: campaign.title.clone(),
             nominal,
+            model,
             nominal_freq_hz,
             segments,
             options: *options,
@@ -316,9 +332,16 @@ impl DiagnosisData {
         Ok(data)
     }
 
-    /// Number of floors of the nominal model.
+    /// Number of floors of the nominal model (of DOFs of a general model: DOF `d`,
+    /// 1-based, is "floor" `d` in the campaign format).
     pub fn n_floors(&self) -> usize {
         self.nominal.n_floors()
+    }
+
+    /// True when the nominal model is a shear frame (it has stories and a base under
+    /// story 1); false for a general model.
+    pub fn is_shear_frame(&self) -> bool {
+        self.nominal.model.is_none()
     }
 
     /// Number of complex points over all segments and channels.
@@ -392,7 +415,11 @@ fn check_options(o: &DataOptions) -> Result<()> {
 
 /// Undamped natural frequencies of the nominal model, Hz.
 pub fn nominal_frequencies(nominal: &NominalModel) -> Result<Vec<f64>> {
-    let model = nominal.structural_model()?;
+    model_frequencies(&nominal.structural_model()?)
+}
+
+/// Undamped natural frequencies of `model` at its nominal values, Hz (ascending).
+pub fn model_frequencies(model: &StructuralModel) -> Result<Vec<f64>> {
     let modes = Modes::solve(
         &model.stiffness(&model.alpha_zero()),
         &model.mass(&model.beta_zero()),
@@ -442,6 +469,7 @@ fn build_segment(
     sel: &[usize],
     o: &DataOptions,
     n_floors: usize,
+    n_stories: usize,
 ) -> Result<SegmentData> {
     let frf = &r.frf;
     let ground = matches!(frf.input, InputKind::Ground { .. });
@@ -523,7 +551,7 @@ fn build_segment(
     };
     let block = (r.block_start, r.block_len);
     let story_drift_lin_sq_m2 =
-        story_drift_weights(&r.record, n_floors, block, window, high_pass_hz);
+        story_drift_weights(&r.record, n_stories, block, window, high_pass_hz);
     let peak_force_n = if ground {
         None
     } else {

@@ -39,6 +39,7 @@ use super::residual_map::{ResidualMap, ResidualRow};
 use super::round::{run_round, BaseModel, Round, RoundContext, Stopwatch, Timings};
 use super::search::HypothesisSearch;
 use super::stepwise::{accepted_effects, continue_rounds, AcceptedEffect, Ambiguity};
+use super::time_domain::{hold_rel_err, HOLD_REL_ERR};
 use super::verdict::{Decision, EffectSummary, FitQuality};
 use crate::error::Result;
 use crate::infer::evidence::{EvidenceOptions, EvidenceProgress};
@@ -214,7 +215,7 @@ pub fn residual_map(post: &ModelPosterior, z: &[f64], eta: f64) -> Result<Residu
 
 /// The resonance bands of the frame of `post` at `z`: +-10 % of each natural frequency.
 pub fn mode_bands(post: &ModelPosterior, z: &[f64]) -> Result<Vec<(f64, f64)>> {
-    let modes = frame_system(&post.base_params(z))?.modes()?;
+    let modes = frame_system(&post.data().model, &post.base_params(z))?.modes()?;
     Ok(modes
         .omega_rad_s
         .iter()
@@ -356,7 +357,20 @@ fn nominal_model(
         fit_map(&post0, &starts, &opts.map)
     })?;
     let mut data = data;
-    if opts.estimator_bias && data.segments.iter().any(|s| !s.is_ground()) {
+    // The replay is only as good as its straight-line hold: at coarse sampling it would
+    // add its own error, not the estimator's (the stage table says so).
+    let (hold_err, hold_f_hz) = hold_rel_err(campaign, &data);
+    let replay_ok = hold_err <= HOLD_REL_ERR;
+    if opts.estimator_bias && !replay_ok {
+        watch.mark(
+            &format!(
+                "estimator bias not replayed: the replay's hold error {hold_err:.1e} at \
+                 {hold_f_hz:.1} Hz exceeds {HOLD_REL_ERR:.0e}"
+            ),
+            timings,
+        );
+    }
+    if opts.estimator_bias && replay_ok && data.segments.iter().any(|s| !s.is_ground()) {
         let bias = replay_bias(campaign, &post0, &map0.z)?;
         data = Arc::new(data.with_estimator_bias(post0.model().layout(), &bias)?);
         post0 = ModelPosterior::new(data.clone(), None)?;

@@ -251,9 +251,8 @@ fn solve_start(
 /// `xi0`, `eta = 1e-2`, effect coordinates at the middle of their boxes.
 pub fn nominal_start(post: &ModelPosterior, xi0: f64) -> Vec<f64> {
     let (lo, hi) = post.bounds();
-    let n = post.data().n_floors();
     let mut z = vec![0.0; post.dim()];
-    for v in &mut z[2 * n..3 * n] {
+    for v in &mut z[post.frame_layout().xi()] {
         *v = xi0.ln();
     }
     z[post.eta_index()] = 1e-2f64.ln();
@@ -328,14 +327,14 @@ pub fn frame_starts(
     spread: f64,
     seed: u64,
 ) -> Result<Vec<Vec<f64>>> {
-    let nf = post.data().n_floors();
+    let xi = post.frame_layout().xi();
     let (lo, hi) = post.bounds();
     let mut starts = vec![nominal_start(post, 0.01)];
     if n > 1 {
         let mut l = Vec::new();
         let mut u = Vec::new();
-        for i in 0..3 * nf {
-            if i < 2 * nf {
+        for i in 0..xi.end {
+            if i < xi.start {
                 l.push((-spread).max(lo[i]));
                 u.push(spread.min(hi[i]));
             } else {
@@ -347,7 +346,7 @@ pub fn frame_starts(
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         for p in latin_hypercube(&b, n - 1, &mut rng)? {
             let mut z = nominal_start(post, 0.01);
-            z[..3 * nf].copy_from_slice(&p);
+            z[..xi.end].copy_from_slice(&p);
             starts.push(z);
         }
     }

@@ -1,10 +1,11 @@
-//! The extended forward model: the nominal frame (shear frame with the sampled story
-//! stiffnesses, floor masses and modal damping of its own modes) plus, optionally, one
-//! hypothesis at one location, predicting every measured ratio of a [`DiagnosisData`].
+//! The extended forward model: the nominal model (the campaign's parametrised model,
+//! paper Eqs. 20-21, at the sampled stiffness and mass scales, with modal damping of its
+//! own modes; a shear frame or a general model) plus, optionally, one hypothesis at one
+//! location, predicting every measured ratio of a [`DiagnosisData`].
 //!
 //! # Physics (the simulator's conventions)
-//! The frame is a [`LinearSystem`] `M x'' + C x' + K x = f - M iota a_g`, `x` relative
-//! to the ground; `C = (M Phi) diag(2 xi_i omega_i) (M Phi)^T` from the frame's own
+//! The model is a [`LinearSystem`] `M x'' + C x' + K x = f - M iota a_g`, `x` relative
+//! to the ground; `C = (M Phi) diag(2 xi_i omega_i) (M Phi)^T` from its own
 //! mass-normalised modes. The hypothesis changes it ([`Hypothesis::modify_system`],
 //! extra DOFs allowed). At each Laplace variable `s` (`j omega`, or `j omega + 1/tau`
 //! under an exponential window) the dynamic stiffness `D(s) = K + s C + s^2 M` is
@@ -28,49 +29,96 @@ use crate::error::{Error, Result};
 use crate::frf::FrfKind;
 use crate::io::Channel;
 use crate::modal::Modes;
+use crate::model::StructuralModel;
 use crate::simulate::LinearSystem;
-use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use std::collections::HashMap;
 use std::ops::Range;
 use std::sync::Arc;
 
-/// Largest number of DOFs of an extended system (frame plus extra DOFs).
-pub const MAX_DOF: usize = 16;
+/// Largest number of DOFs of an extended system (model plus extra DOFs): the dense
+/// solve per frequency costs `n^3 / 3`; larger models need a reduced basis first.
+pub const MAX_DOF: usize = crate::predict::choice::DENSE_MAX_DOF;
 
-/// The frame's parameters in physical units.
+/// The nominal model's parameters: the updating variables of paper Eqs. (20)-(21) as
+/// scales, and the modal damping ratios.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BaseParams {
-    /// Story stiffnesses, N/m (story 1 first).
-    pub stiffness_n_per_m: Vec<f64>,
-    /// Floor masses, kg (floor 1 first).
-    pub mass_kg: Vec<f64>,
-    /// Modal damping ratios of the frame's modes (ascending frequency).
+    /// `1 + alpha_r` of each stiffness group (story r's `k_r / k_r0` in a shear frame).
+    pub stiffness_scale: Vec<f64>,
+    /// `1 + beta_r` of each mass group (floor r's `m_r / m_r0` in a shear frame).
+    pub mass_scale: Vec<f64>,
+    /// Modal damping ratios of the model's modes (ascending frequency).
     pub xi: Vec<f64>,
 }
 
-/// The frame as a [`LinearSystem`]: shear-frame `K` and `M`, modal damping of its own
-/// modes (as the simulator's `damping.model = "modal"`).
-pub fn frame_system(base: &BaseParams) -> Result<LinearSystem> {
-    let n = base.mass_kg.len();
-    if n == 0 || base.stiffness_n_per_m.len() != n || base.xi.len() != n {
+impl BaseParams {
+    /// The scales of physical group values (`k_r` and `m_r` of a shear frame) against
+    /// `model`'s nominal ones. Errors when a group has no single physical value.
+    pub fn from_physical(
+        model: &StructuralModel,
+        stiffness: &[f64],
+        mass: &[f64],
+        xi: Vec<f64>,
+    ) -> Result<Self> {
+        let scale = |ps: &[crate::model::Parameter], v: &[f64], what: &str| {
+            if ps.len() != v.len() {
+                return Err(Error::Usage(format!(
+                    "{} {what} values for {} groups",
+                    v.len(),
+                    ps.len()
+                )));
+            }
+            ps.iter()
+                .zip(v)
+                .map(|(p, x)| match p.nominal {
+                    Some(n) => Ok(x / n),
+                    None => Err(Error::Usage(format!(
+                        "group {} has no physical {what}; give its scale",
+                        p.name
+                    ))),
+                })
+                .collect::<Result<Vec<_>>>()
+        };
+        Ok(BaseParams {
+            stiffness_scale: scale(model.alpha_parameters(), stiffness, "stiffness")?,
+            mass_scale: scale(model.beta_parameters(), mass, "mass")?,
+            xi,
+        })
+    }
+
+    /// The updating variables `alpha_r = scale_r - 1` and `beta_r`.
+    pub fn alpha_beta(&self) -> (Vec<f64>, Vec<f64>) {
+        let minus_one = |v: &[f64]| v.iter().map(|s| s - 1.0).collect::<Vec<_>>();
+        (
+            minus_one(&self.stiffness_scale),
+            minus_one(&self.mass_scale),
+        )
+    }
+}
+
+/// The nominal model as a [`LinearSystem`]: `K(alpha)`, `M(beta)` (paper Eqs. 20-21) and
+/// modal damping of its own modes (as the simulator's `damping.model = "modal"`). A
+/// model DOF `d` (0-based) is "floor" `d + 1` (the campaign format's convention).
+pub fn frame_system(model: &StructuralModel, base: &BaseParams) -> Result<LinearSystem> {
+    let n = model.n_dof();
+    if base.stiffness_scale.len() != model.n_alpha()
+        || base.mass_scale.len() != model.n_beta()
+        || base.xi.len() != n
+    {
         return Err(Error::Usage(format!(
-            "frame needs as many stiffnesses and damping ratios as floors ({n}); got {} and {}",
-            base.stiffness_n_per_m.len(),
+            "the model needs {} stiffness scales, {} mass scales and {n} damping ratios; got {}, {} and {}",
+            model.n_alpha(),
+            model.n_beta(),
+            base.stiffness_scale.len(),
+            base.mass_scale.len(),
             base.xi.len()
         )));
     }
-    let mut k = DMatrix::zeros(n, n);
-    for (i, &ki) in base.stiffness_n_per_m.iter().enumerate() {
-        k[(i, i)] += ki;
-        if i > 0 {
-            k[(i - 1, i - 1)] += ki;
-            k[(i - 1, i)] -= ki;
-            k[(i, i - 1)] -= ki;
-        }
-    }
-    let m = DMatrix::from_diagonal(&DVector::from_column_slice(&base.mass_kg));
-    let iota = DVector::from_element(n, 1.0);
+    let (alpha, beta) = base.alpha_beta();
+    let k = model.stiffness(&alpha);
+    let m = model.mass(&beta);
+    let iota = model.ground_influence().clone();
     let modes = Modes::solve(&k, &m, &iota, None)?;
     let m_phi = &m * &modes.phi;
     let mut scaled = m_phi.clone();
@@ -295,7 +343,7 @@ impl ExtendedModel {
 
     /// The system of the frame with the hypothesis' segment-independent change.
     pub fn system(&self, base: &BaseParams, effect: &[f64]) -> Result<LinearSystem> {
-        let mut sys = frame_system(base)?;
+        let mut sys = frame_system(&self.data.model, base)?;
         if let Some((h, loc)) = &self.hypothesis {
             h.modify_system(loc, effect, &mut sys)?;
         }
@@ -375,8 +423,9 @@ impl ExtendedModel {
             })
             .collect();
         let mut sol = vec![Complex64::new(0.0, 0.0); self.n_solutions];
-        let mut a = [Complex64::new(0.0, 0.0); MAX_DOF * MAX_DOF];
-        let mut b = [Complex64::new(0.0, 0.0); MAX_DOF * MAX_DOF];
+        let max_rhs = self.slots.iter().map(|s| s.rhs.len()).max().unwrap_or(0);
+        let mut a = vec![Complex64::new(0.0, 0.0); n * n];
+        let mut b = vec![Complex64::new(0.0, 0.0); n * max_rhs];
         for slot in &self.slots {
             let v = &variants[slot.variant];
             let s = slot.s;

@@ -175,6 +175,28 @@ pub trait Hypothesis: Send + Sync + std::fmt::Debug {
     }
 }
 
+/// Where a hypothesis that speaks of stories or of the base (a shear frame's) stands on
+/// `data`'s model: its own `locations` on a shear frame; on a general model the whole
+/// structure, whose [`Hypothesis::parameters`] then fail with [`shear_frame_only`], so
+/// that the diagnosis reports it as not fitted, with the reason.
+pub fn shear_frame_locations(data: &DiagnosisData, locations: Vec<Location>) -> Vec<Location> {
+    match data.is_shear_frame() {
+        true => locations,
+        false => vec![Location::Whole],
+    }
+}
+
+/// Errors unless `data`'s model is a shear frame (see [`shear_frame_locations`]).
+pub fn shear_frame_only(name: &str, data: &DiagnosisData) -> Result<()> {
+    match data.is_shear_frame() {
+        true => Ok(()),
+        false => Err(crate::Error::Usage(format!(
+            "not testable: {name} acts on a shear frame's stories or base, and this \
+             campaign's model is general (its groups and DOFs have no stories)"
+        ))),
+    }
+}
+
 /// Candidate channel locations of a sensor hypothesis: every response quantity present,
 /// then every channel (inputs included) on its own.
 pub fn sensor_locations(data: &DiagnosisData) -> Vec<Location> {

@@ -56,5 +56,5 @@ pub use forward::{frame_system, BaseParams, ExtendedModel};
 pub use hypotheses::{all_hypotheses, hypothesis_by_name};
 pub use hypothesis::{Coordinate, EffectParam, Hypothesis};
 pub use location::Location;
-pub use posterior::{ModelPosterior, PhysicalValue};
+pub use posterior::{FrameLayout, ModelPosterior, PhysicalValue};
 pub use verdict::{decide, Candidate, Decision, DiagnosisRecord, EffectSummary, FitQuality};

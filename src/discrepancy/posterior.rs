@@ -1,10 +1,11 @@
 //! The posterior of the nominal model or of one hypothesis at one location.
 //!
 //! # Parameters (`z`, uniform prior box)
-//! `[ln k_1/k_1,0 .. ln k_n/k_n,0, ln m_1/m_1,0 .. ln m_n/m_n,0, ln xi_1 .. ln xi_n,
-//! ln eta, effect...]`: story stiffness and floor mass multipliers about the campaign's
-//! nominal model, uniform on `ln 0.5 .. ln 2` ([`MULTIPLIER_BOUNDS`]); modal damping ratios
-//! of the frame's modes, `ln xi` uniform on `ln 1e-4 .. ln 0.2` ([`XI_BOUNDS`]); the
+//! `[ln (1 + alpha_1) .. ln (1 + alpha_a), ln (1 + beta_1) .. ln (1 + beta_b), ln xi_1 ..
+//! ln xi_n, ln eta, effect...]` ([`FrameLayout`]): the scales of the model's stiffness and
+//! mass groups (paper Eqs. 20-21; a shear frame's `ln k_r/k_r0` and `ln m_r/m_r0`) about
+//! the campaign's nominal model, uniform on `ln 0.5 .. ln 2` ([`MULTIPLIER_BOUNDS`]);
+//! modal damping ratios of the model's modes, `ln xi` uniform on `ln 1e-4 .. ln 0.2` ([`XI_BOUNDS`]); the
 //! relative error floor `eta`, `ln eta` uniform on `ln 1e-4 .. ln 0.3`
 //! ([`ETA_BOUNDS`]); then the hypothesis' effect coordinates with their own boxes.
 //! [`ModelPosterior::ln_prior`] is the normalised log density of the box.
@@ -43,6 +44,7 @@ use crate::mcmc::LogDensity;
 use num_complex::Complex64;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
+use std::ops::Range;
 use std::sync::Arc;
 
 /// Box of the `ln` stiffness and mass multipliers.
@@ -51,6 +53,39 @@ pub const MULTIPLIER_BOUNDS: (f64, f64) = (0.5, 2.0);
 pub const XI_BOUNDS: (f64, f64) = (1e-4, 0.2);
 /// Box of the relative error floor.
 pub const ETA_BOUNDS: (f64, f64) = (1e-4, 0.3);
+
+/// Where the nominal model's parameters sit at the front of `z`: one `ln (1 + alpha_r)`
+/// per stiffness group, one `ln (1 + beta_r)` per mass group, one `ln xi` per mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameLayout {
+    pub n_stiffness: usize,
+    pub n_mass: usize,
+    pub n_xi: usize,
+}
+
+impl FrameLayout {
+    /// The layout of `data`'s model: its groups, and a damping ratio for each mode.
+    pub fn of(data: &DiagnosisData) -> Self {
+        FrameLayout {
+            n_stiffness: data.model.n_alpha(),
+            n_mass: data.model.n_beta(),
+            n_xi: data.model.n_dof(),
+        }
+    }
+    /// Indices of the stiffness scales.
+    pub fn stiffness(&self) -> Range<usize> {
+        0..self.n_stiffness
+    }
+    /// Indices of the mass scales.
+    pub fn mass(&self) -> Range<usize> {
+        self.n_stiffness..self.n_stiffness + self.n_mass
+    }
+    /// Indices of the damping ratios.
+    pub fn xi(&self) -> Range<usize> {
+        let start = self.n_stiffness + self.n_mass;
+        start..start + self.n_xi
+    }
+}
 
 /// A reported value.
 #[derive(Debug, Clone, PartialEq)]
@@ -74,7 +109,7 @@ pub struct ModelPosterior {
     /// `eps_i^2` and `|h_i|^2`.
     eps2: Vec<f64>,
     abs2: Vec<f64>,
-    n_floors: usize,
+    frame: FrameLayout,
     /// Segments with a correlated input-noise gain error.
     gains: Vec<GainSegment>,
     /// Extra whitened residuals (2 per gain coefficient).
@@ -94,7 +129,7 @@ impl ModelPosterior {
         data: Arc<DiagnosisData>,
         hypothesis: Option<(Arc<dyn Hypothesis>, Location)>,
     ) -> Result<Self> {
-        let n = data.n_floors();
+        let frame = FrameLayout::of(&data);
         let effect_params = match &hypothesis {
             Some((h, loc)) => h.parameters(&data, loc)?,
             None => Vec::new(),
@@ -102,16 +137,17 @@ impl ModelPosterior {
         let mut names = Vec::new();
         let mut lower = Vec::new();
         let mut upper = Vec::new();
-        for (prefix, (lo, hi)) in [
-            ("ln_k", MULTIPLIER_BOUNDS),
-            ("ln_m", MULTIPLIER_BOUNDS),
-            ("ln_xi", XI_BOUNDS),
-        ] {
-            for i in 1..=n {
-                names.push(format!("{prefix}{i}"));
-                lower.push(lo.ln());
-                upper.push(hi.ln());
-            }
+        let groups = data.model.alpha_parameters().iter();
+        let groups = groups.chain(data.model.beta_parameters());
+        for p in groups {
+            names.push(format!("ln_{}", p.name));
+            lower.push(MULTIPLIER_BOUNDS.0.ln());
+            upper.push(MULTIPLIER_BOUNDS.1.ln());
+        }
+        for i in 1..=frame.n_xi {
+            names.push(format!("ln_xi{i}"));
+            lower.push(XI_BOUNDS.0.ln());
+            upper.push(XI_BOUNDS.1.ln());
         }
         names.push("ln_eta".into());
         lower.push(ETA_BOUNDS.0.ln());
@@ -184,7 +220,7 @@ impl ModelPosterior {
             h,
             eps2,
             abs2,
-            n_floors: n,
+            frame,
         })
     }
 
@@ -210,7 +246,7 @@ impl ModelPosterior {
 
     /// Units of the sampled coordinates (`1` for logarithms).
     pub fn units(&self) -> Vec<String> {
-        let mut u = vec!["1".to_string(); 3 * self.n_floors + 1];
+        let mut u = vec!["1".to_string(); self.eta_index() + 1];
         u.extend(self.effect_params.iter().map(|p| match p.coordinate {
             super::hypothesis::Coordinate::Log => "1".to_string(),
             super::hypothesis::Coordinate::Linear { factor: 1.0 } => p.unit.to_string(),
@@ -231,7 +267,12 @@ impl ModelPosterior {
 
     /// Index of `ln eta` in `z`.
     pub fn eta_index(&self) -> usize {
-        3 * self.n_floors
+        self.frame.xi().end
+    }
+
+    /// Where the stiffness scales, the mass scales and the damping ratios sit in `z`.
+    pub fn frame_layout(&self) -> FrameLayout {
+        self.frame
     }
 
     /// Number of complex data points.
@@ -273,23 +314,18 @@ impl ModelPosterior {
 
     /// Frame parameters in physical units.
     pub fn base_params(&self, z: &[f64]) -> BaseParams {
-        let n = self.n_floors;
-        let nom = &self.data().nominal;
+        let exp = |r: Range<usize>| z[r].iter().map(|v| v.exp()).collect();
         BaseParams {
-            stiffness_n_per_m: (0..n)
-                .map(|i| nom.story_stiffness_n_per_m[i] * z[i].exp())
-                .collect(),
-            mass_kg: (0..n)
-                .map(|i| nom.floor_mass_kg[i] * z[n + i].exp())
-                .collect(),
-            xi: (0..n).map(|i| z[2 * n + i].exp()).collect(),
+            stiffness_scale: exp(self.frame.stiffness()),
+            mass_scale: exp(self.frame.mass()),
+            xi: exp(self.frame.xi()),
         }
     }
 
     /// The hypothesis' physical effect values.
     pub fn effect_physical(&self, z: &[f64]) -> Result<Vec<f64>> {
         match self.model.hypothesis() {
-            Some((h, loc)) => h.physical(self.data(), loc, &z[3 * self.n_floors + 1..]),
+            Some((h, loc)) => h.physical(self.data(), loc, &z[self.eta_index() + 1..]),
             None => Ok(Vec::new()),
         }
     }
@@ -304,11 +340,18 @@ impl ModelPosterior {
             value,
             unit: unit.into(),
         };
-        for (i, v) in b.stiffness_n_per_m.iter().enumerate() {
-            out.push(pv(format!("k{}", i + 1), *v, "N/m"));
-        }
-        for (i, v) in b.mass_kg.iter().enumerate() {
-            out.push(pv(format!("m{}", i + 1), *v, "kg"));
+        let model = &self.data().model;
+        let groups = [
+            (model.alpha_parameters(), &b.stiffness_scale),
+            (model.beta_parameters(), &b.mass_scale),
+        ];
+        for (params, scales) in groups {
+            for (p, v) in params.iter().zip(scales.iter()) {
+                out.push(match p.nominal {
+                    Some(nominal) => pv(p.name.clone(), nominal * v, &p.unit),
+                    None => pv(format!("{}_scale", p.name), *v, "1"),
+                });
+            }
         }
         for (i, v) in b.xi.iter().enumerate() {
             out.push(pv(format!("xi{}", i + 1), *v, "1"));
@@ -548,11 +591,9 @@ impl ModelPosterior {
     /// per-parameter (base damping) take the coordinate values directly in
     /// `effect_coordinates`.
     pub fn z_of(&self, base: &BaseParams, eta: f64, effect_coordinates: &[f64]) -> Vec<f64> {
-        let n = self.n_floors;
-        let nom = &self.data().nominal;
         let mut z = Vec::with_capacity(self.dim());
-        z.extend((0..n).map(|i| (base.stiffness_n_per_m[i] / nom.story_stiffness_n_per_m[i]).ln()));
-        z.extend((0..n).map(|i| (base.mass_kg[i] / nom.floor_mass_kg[i]).ln()));
+        z.extend(base.stiffness_scale.iter().map(|s| s.ln()));
+        z.extend(base.mass_scale.iter().map(|s| s.ln()));
         z.extend(base.xi.iter().map(|x| x.ln()));
         z.push(eta.ln());
         z.extend_from_slice(effect_coordinates);

@@ -160,15 +160,15 @@ pub fn explanation(d: &Diagnosis) -> String {
                 .map(|(f, r)| format!("{} was {}", f.name.replace('_', " "), r))
                 .collect();
             let opening = if !d.adequacy.adequate {
-                "No named effect: no hypothesis passes against the nominal model (shear frame, \
-                 proportional damping, ideal sensors), yet that model does not explain the \
+                "No named effect: no hypothesis passes against the nominal model (the campaign's \
+                 model, proportional damping, ideal sensors), yet that model does not explain the \
                  recordings (below)"
             } else if blocked.is_empty() {
                 "Nothing missing: no hypothesis is decisively better than the nominal model \
-                 (shear frame, proportional damping, ideal sensors)"
+                 (the campaign's model, proportional damping, ideal sensors)"
             } else {
                 "No hypothesis named: some are decisively better than the nominal model \
-                 (shear frame, proportional damping, ideal sensors), but none also has \
+                 (the campaign's model, proportional damping, ideal sensors), but none also has \
                  physically plausible parameters and predicts held-out recordings better"
             };
             s.push_str(opening);

@@ -102,6 +102,7 @@ pub(super) fn synthetic() -> Arc<DiagnosisData> {
     Arc::new(DiagnosisData {
         title: "synthetic".into(),
         nominal_freq_hz: nominal_frequencies(&nominal).unwrap(),
+        model: Arc::new(nominal.structural_model().unwrap()),
         nominal,
         segments,
         options: DataOptions::default(),
@@ -109,11 +110,7 @@ pub(super) fn synthetic() -> Arc<DiagnosisData> {
 }
 
 pub(super) fn base() -> BaseParams {
-    BaseParams {
-        stiffness_n_per_m: STIFF.to_vec(),
-        mass_kg: MASS.to_vec(),
-        xi: XI.to_vec(),
-    }
+    BaseParams::from_physical(&synthetic().model, &STIFF, &MASS, XI.to_vec()).unwrap()
 }
 
 /// The simulator's system for the same frame, with `effects` applied.
@@ -233,7 +230,7 @@ fn nominal_model_matches_the_windowed_modal_sum_and_the_direct_solve() {
     assert_eq!(model.n_factorisations(), 120);
     let b = base();
     let pred = model.predict(&b, &[]).unwrap();
-    let sys = frame_system(&b).unwrap();
+    let sys = frame_system(&data.model, &b).unwrap();
     let modes = sys.modes().unwrap();
     let modal_c: Vec<f64> = XI
         .iter()

@@ -140,7 +140,7 @@ impl TimeDomainModel {
         hypothesis: Option<(&dyn Hypothesis, &Location)>,
         effect: &[f64],
     ) -> Result<Vec<Complex64>> {
-        let mut sys = frame_system(base)?;
+        let mut sys = frame_system(&self.data.model, base)?;
         let springs = match hypothesis {
             Some((h, loc)) => {
                 h.modify_system(loc, effect, &mut sys)?;
@@ -200,6 +200,29 @@ impl TimeDomainModel {
             .collect::<Result<_>>()?;
         Ok(per_segment.concat())
     }
+}
+
+/// Largest relative error of the replay's straight-line hold, `(omega h)^2 / 12`, at
+/// which its estimator bias is used (see the module docs).
+pub const HOLD_REL_ERR: f64 = 1e-3;
+
+/// The replay's hold error `(2 pi f h)^2 / 12` at the highest analysed frequency `f` of
+/// `data`, for the coarsest sample interval `h` of `campaign`'s hammer tests (0 without
+/// hammer tests), and that frequency.
+pub fn hold_rel_err(campaign: &Campaign, data: &DiagnosisData) -> (f64, f64) {
+    let f_max_hz = data
+        .segments
+        .iter()
+        .filter(|s| !s.is_ground())
+        .filter_map(|s| s.freq_hz.last().copied())
+        .fold(0.0, f64::max);
+    let err = campaign
+        .tests
+        .iter()
+        .filter(|t| matches!(t.kind, TestKind::Hammer { .. }))
+        .map(|t| (2.0 * std::f64::consts::PI * f_max_hz / t.sample_rate_hz).powi(2) / 12.0)
+        .fold(0.0, f64::max);
+    (err, f_max_hz)
 }
 
 /// `test` with its response channels replaced by the responses of `sys` (with

@@ -40,7 +40,7 @@ pub struct Parameter {
 }
 
 /// A linear structural model with influence matrices for stiffness and mass updating.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct StructuralModel {
     k0: DMatrix<f64>,
     m0: DMatrix<f64>,

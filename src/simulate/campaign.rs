@@ -155,7 +155,7 @@ impl Simulator {
         Ok(Campaign {
             root: Default::default(),
             title: self.model.title.clone(),
-            nominal: self.model.nominal_model(self.system.n_dof())?,
+            nominal: self.model.nominal_model(self.system.n_floors())?,
             tests,
             warnings: Vec::new(),
         })

@@ -31,12 +31,15 @@ impl SimModel {
                         .into(),
                 );
             }
-            if !self.effects.is_empty() {
-                return bad(
-                    "effect: the effects are defined on shear frames; remove [[effect]] \
-                     for a general structure"
-                        .into(),
-                );
+            // A general structure's floors are its DOFs: an oscillator on a DOF and a
+            // dashpot between two DOFs are defined on it; stories and the base are not.
+            if let Some(i) = self.effects.iter().position(|e| !on_dofs(e)) {
+                return bad(format!(
+                    "effect {}: stories and the base are defined on shear frames; on a \
+                     general structure use an oscillator on a DOF (floor = DOF) or a dashpot \
+                     between two DOFs (floors = [a, b])",
+                    i + 1
+                ));
             }
             return Ok(super::general::load(&self.structure, path)?.0.n_dof());
         };
@@ -399,6 +402,15 @@ impl SimModel {
             }
         }
         Ok(())
+    }
+}
+
+/// True for an effect defined on DOFs alone (see [`SimModel::check_structure`]).
+fn on_dofs(e: &EffectSpec) -> bool {
+    match e {
+        EffectSpec::Oscillator(_) => true,
+        EffectSpec::Dashpot(d) => d.story.is_none(),
+        EffectSpec::BaseFlexibility(_) | EffectSpec::StiffnessNonlinearity(_) => false,
     }
 }
 

@@ -13,7 +13,7 @@
 //! natural frequency; `zeta_b` 1e-3..1.
 
 use crate::discrepancy::data::DiagnosisData;
-use crate::discrepancy::hypothesis::{EffectParam, Hypothesis};
+use crate::discrepancy::hypothesis::{shear_frame_only, EffectParam, Hypothesis};
 use crate::discrepancy::location::Location;
 use crate::error::{Error, Result};
 use crate::simulate::{BaseFlexibility, LinearSystem, SystemEffect};
@@ -48,6 +48,7 @@ impl Hypothesis for BaseFlexibilityHypothesis {
     }
 
     fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
+        shear_frame_only(self.name(), data)?;
         if *loc != Location::Whole {
             return Err(Error::Usage(format!(
                 "base_flexibility acts on the whole structure, not on {loc}"

@@ -7,7 +7,9 @@
 //! limit `c -> 0`.
 
 use crate::discrepancy::data::DiagnosisData;
-use crate::discrepancy::hypothesis::{EffectParam, Hypothesis};
+use crate::discrepancy::hypothesis::{
+    shear_frame_locations, shear_frame_only, EffectParam, Hypothesis,
+};
 use crate::discrepancy::location::Location;
 use crate::error::{Error, Result};
 use crate::simulate::{Dashpot, LinearSystem, SystemEffect};
@@ -34,10 +36,11 @@ impl Hypothesis for NonproportionalDamping {
     }
 
     fn locations(&self, data: &DiagnosisData) -> Vec<Location> {
-        (1..=data.n_floors()).map(Location::Story).collect()
+        shear_frame_locations(data, (1..=data.n_floors()).map(Location::Story).collect())
     }
 
     fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
+        shear_frame_only(self.name(), data)?;
         let s = story_of(loc, data.n_floors())?;
         let c_crit = 2.0
             * (data.nominal.story_stiffness_n_per_m[s - 1] * data.nominal.floor_mass_kg[s - 1])

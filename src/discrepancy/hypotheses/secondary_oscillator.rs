@@ -2,8 +2,12 @@
 //! appendage, equipment, a local mode): one extra DOF the floor sensors do not see. The
 //! simulator's [`Oscillator`].
 //!
+//! Locations: every floor of a shear frame; on a general model every DOF with mass that
+//! carries a response channel (a floor is a DOF: the campaign format's convention).
+//!
 //! Priors (log-uniform), scaled by the nominal model: mass 1e-3..0.3 x the floor's
-//! nominal mass (the nominal model is the limit of zero mass); natural frequency on a
+//! nominal mass (the DOF's diagonal entry of the nominal `M`; a shear frame's floor
+//! mass) (the nominal model is the limit of zero mass); natural frequency on a
 //! fixed floor 0.5 x the lowest .. 1.5 x the highest nominal natural frequency; damping
 //! ratio 1e-3..0.3.
 
@@ -23,6 +27,16 @@ fn floor_of(loc: &Location, n_floors: usize) -> Result<usize> {
             "secondary_oscillator sits on a floor 1..={n_floors}, not on {other}"
         ))),
     }
+}
+
+/// The nominal mass of floor (DOF) `f`, 1-based: the diagonal entry of the nominal `M`
+/// (a shear frame's floor mass).
+fn dof_mass(data: &DiagnosisData, f: usize) -> f64 {
+    let model = &data.model;
+    let m = model.mass(&model.beta_zero());
+    f.checked_sub(1)
+        .filter(|&d| d < m.nrows())
+        .map_or(0.0, |d| m[(d, d)])
 }
 
 impl SecondaryOscillator {
@@ -49,12 +63,28 @@ impl Hypothesis for SecondaryOscillator {
     }
 
     fn locations(&self, data: &DiagnosisData) -> Vec<Location> {
-        (1..=data.n_floors()).map(Location::Floor).collect()
+        if data.is_shear_frame() {
+            return (1..=data.n_floors()).map(Location::Floor).collect();
+        }
+        let mut dofs: Vec<usize> = data
+            .segments
+            .iter()
+            .flat_map(|s| s.channels.iter().map(|c| c.channel.floor))
+            .filter(|&f| dof_mass(data, f) > 0.0)
+            .collect();
+        dofs.sort_unstable();
+        dofs.dedup();
+        dofs.into_iter().map(Location::Floor).collect()
     }
 
     fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
         let f = floor_of(loc, data.n_floors())?;
-        let m = data.nominal.floor_mass_kg[f - 1];
+        let m = dof_mass(data, f);
+        if m.is_nan() || m <= 0.0 {
+            return Err(Error::Usage(format!(
+                "secondary_oscillator: DOF {f} has no mass of its own in the nominal model"
+            )));
+        }
         let fr = &data.nominal_freq_hz;
         Ok(vec![
             EffectParam::log_uniform("oscillator_mass", "kg", 1e-3 * m, 0.3 * m, Some(0.0)),

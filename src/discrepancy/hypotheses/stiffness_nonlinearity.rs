@@ -22,7 +22,9 @@
 //! nominal model is `k3 = 0`.
 
 use crate::discrepancy::data::{DiagnosisData, SegmentData};
-use crate::discrepancy::hypothesis::{Coordinate, EffectParam, Hypothesis};
+use crate::discrepancy::hypothesis::{
+    shear_frame_locations, shear_frame_only, Coordinate, EffectParam, Hypothesis,
+};
 use crate::discrepancy::location::Location;
 use crate::error::{Error, Result};
 use crate::simulate::{CubicSpring, LinearSystem};
@@ -52,10 +54,11 @@ impl Hypothesis for StiffnessNonlinearityHypothesis {
     }
 
     fn locations(&self, data: &DiagnosisData) -> Vec<Location> {
-        (1..=data.n_floors()).map(Location::Story).collect()
+        shear_frame_locations(data, (1..=data.n_floors()).map(Location::Story).collect())
     }
 
     fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
+        shear_frame_only(self.name(), data)?;
         let s = story_of(loc, data.n_floors())?;
         let c_max = data
             .max_story_drift_lin_sq_m2(s)
