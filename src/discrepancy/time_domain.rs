@@ -202,9 +202,12 @@ impl TimeDomainModel {
     }
 }
 
-/// Largest relative error of the replay's straight-line hold, `(omega h)^2 / 12`, at
-/// which its estimator bias is used (see the module docs).
-pub const HOLD_REL_ERR: f64 = 1e-3;
+/// Largest relative error of the replay's straight-line hold, `(omega h)^2 / 12`, at the
+/// top of the analysed band, at which its estimator bias is used (see the module docs):
+/// 1 %, the estimates' typical random error. The four-story campaign's is 7.1e-3 (23.2 Hz
+/// at 500 Hz); the six-DOF network's 0.76 (48 Hz at 100 Hz), where the replay's bias
+/// was measured to make the data worse, not better (README, "General models").
+pub const HOLD_REL_ERR: f64 = 1e-2;
 
 /// The replay's hold error `(2 pi f h)^2 / 12` at the highest analysed frequency `f` of
 /// `data`, for the coarsest sample interval `h` of `campaign`'s hammer tests (0 without
