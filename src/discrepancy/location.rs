@@ -1,8 +1,11 @@
 //! Where a hypothesis of missing physics acts: the whole structure, one story, one floor,
-//! named channels, or every channel of one quantity.
+//! a connection between two DOFs of a general model, named channels, or every channel of
+//! one quantity.
 //!
 //! Serialised exactly as `diagnosis.json` writes it (issue 5): `{}`, `{"story": 2}`,
-//! `{"floor": 3}`, `{"channels": ["acc1", "acc3"]}`, `{"quantity": "acceleration"}`.
+//! `{"floor": 3}`, `{"dofs": [2, 5]}`, `{"channels": ["acc1", "acc3"]}`,
+//! `{"quantity": "acceleration"}`. A general model's floor is its DOF (1-based, the
+//! campaign format's convention); a connection joins two of them (0 = the ground).
 
 use crate::io::Quantity;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -18,6 +21,9 @@ pub enum Location {
     Story(usize),
     /// Floor `f` (1-based): `{"floor": f}`.
     Floor(usize),
+    /// The connection between DOFs `a < b` of a general model (1-based; 0 the ground):
+    /// `{"dofs": [a, b]}`, a general model's counterpart of a story.
+    Dofs([usize; 2]),
     /// Named channels (input channels included): `{"channels": [...]}`.
     Channels(Vec<String>),
     /// Every channel measuring one quantity: `{"quantity": "acceleration"}`.
@@ -33,6 +39,8 @@ struct Repr {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     floor: Option<usize>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    dofs: Option<[usize; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     channels: Option<Vec<String>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     quantity: Option<Quantity>,
@@ -45,6 +53,7 @@ impl Serialize for Location {
             Location::Whole => {}
             Location::Story(v) => r.story = Some(*v),
             Location::Floor(v) => r.floor = Some(*v),
+            Location::Dofs(v) => r.dofs = Some(*v),
             Location::Channels(v) => r.channels = Some(v.clone()),
             Location::Quantity(q) => r.quantity = Some(*q),
         }
@@ -55,14 +64,15 @@ impl Serialize for Location {
 impl<'de> Deserialize<'de> for Location {
     fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
         let r = Repr::deserialize(d)?;
-        match (r.story, r.floor, r.channels, r.quantity) {
-            (None, None, None, None) => Ok(Location::Whole),
-            (Some(s), None, None, None) => Ok(Location::Story(s)),
-            (None, Some(f), None, None) => Ok(Location::Floor(f)),
-            (None, None, Some(c), None) => Ok(Location::Channels(c)),
-            (None, None, None, Some(q)) => Ok(Location::Quantity(q)),
+        match (r.story, r.floor, r.dofs, r.channels, r.quantity) {
+            (None, None, None, None, None) => Ok(Location::Whole),
+            (Some(s), None, None, None, None) => Ok(Location::Story(s)),
+            (None, Some(f), None, None, None) => Ok(Location::Floor(f)),
+            (None, None, Some(d), None, None) => Ok(Location::Dofs(d)),
+            (None, None, None, Some(c), None) => Ok(Location::Channels(c)),
+            (None, None, None, None, Some(q)) => Ok(Location::Quantity(q)),
             _ => Err(serde::de::Error::custom(
-                "a location has at most one of `story`, `floor`, `channels`, `quantity`",
+                "a location has at most one of `story`, `floor`, `dofs`, `channels`, `quantity`",
             )),
         }
     }
@@ -76,6 +86,7 @@ impl fmt::Display for Location {
             Location::Whole => write!(f, "the whole structure"),
             Location::Story(s) => write!(f, "story {s}"),
             Location::Floor(v) => write!(f, "floor {v}"),
+            Location::Dofs([a, b]) => write!(f, "DOFs {a}-{b}"),
             Location::Channels(c) => write!(f, "channels {}", c.join(", ")),
             Location::Quantity(q) => {
                 let name = serde_json::to_value(q)
@@ -110,6 +121,7 @@ mod tests {
             (Location::Whole, r#"{}"#),
             (Location::Story(2), r#"{"story":2}"#),
             (Location::Floor(3), r#"{"floor":3}"#),
+            (Location::Dofs([2, 5]), r#"{"dofs":[2,5]}"#),
             (
                 Location::Channels(vec!["acc1".into(), "acc3".into()]),
                 r#"{"channels":["acc1","acc3"]}"#,

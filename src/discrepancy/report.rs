@@ -61,6 +61,7 @@ fn plain_location(loc: &super::location::Location) -> String {
         Whole => "the whole structure".into(),
         Story(s) => format!("story {s}"),
         Floor(f) => format!("floor {f}"),
+        Dofs([a, b]) => format!("the connection of DOFs {a} and {b}"),
         Channels(c) => format!("channel(s) {}", c.join(", ")),
         Quantity(q) => format!("every {} channel", format!("{q:?}").to_lowercase()),
     }
