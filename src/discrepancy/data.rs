@@ -151,7 +151,7 @@ pub struct DiagnosisData {
 impl DiagnosisData {
     /// Estimates and selects the data of `campaign` (see the module docs).
     pub fn from_campaign(campaign: &Campaign, options: &DataOptions) -> Result<Self> {
-        check_options(options)?;
+        options.check()?;
         let nominal = campaign.nominal.clone();
         let model = Arc::new(nominal.structural_model()?);
         if nominal.n_floors() != model.n_dof() {
@@ -391,28 +391,6 @@ impl DiagnosisData {
     }
 }
 
-fn check_options(o: &DataOptions) -> Result<()> {
-    let (lo, hi) = o.freq_range_rel;
-    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
-        return Err(Error::Usage(format!(
-            "freq_range_rel must satisfy 0 < lo < hi, got ({lo}, {hi})"
-        )));
-    }
-    if !(o.band_factor.is_finite() && o.band_factor > 0.0) {
-        return Err(Error::Usage(format!(
-            "band_factor must be positive, got {}",
-            o.band_factor
-        )));
-    }
-    if !(0.0..1.0).contains(&o.min_coherence) {
-        return Err(Error::Usage(format!(
-            "min_coherence must be in [0, 1), got {}",
-            o.min_coherence
-        )));
-    }
-    Ok(())
-}
-
 /// Undamped natural frequencies of the nominal model, Hz.
 pub fn nominal_frequencies(nominal: &NominalModel) -> Result<Vec<f64>> {
     model_frequencies(&nominal.structural_model()?)
@@ -606,7 +584,7 @@ mod tests {
             freq_range_rel: (2.0, 1.0),
             ..Default::default()
         };
-        assert!(check_options(&bad).is_err());
-        assert!(check_options(&DataOptions::default()).is_ok());
+        assert!(bad.check().is_err());
+        assert!(DataOptions::default().check().is_ok());
     }
 }

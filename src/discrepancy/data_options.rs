@@ -1,6 +1,7 @@
 //! How the data of a diagnosis are extracted from a campaign ([`DataOptions`]), and the
 //! noise-model choices that go with them ([`GainCarrier`], [`weight_bias`]).
 
+use crate::error::{Error, Result};
 use crate::signal::EstimateOptions;
 use serde::{Deserialize, Serialize};
 
@@ -81,5 +82,31 @@ impl Default for DataOptions {
             weight_bias_correction: false,
             gain_carrier: GainCarrier::Measured,
         }
+    }
+}
+
+impl DataOptions {
+    /// Errors unless the range, the band factor and the coherence threshold are usable.
+    pub fn check(&self) -> Result<()> {
+        let o = self;
+        let (lo, hi) = o.freq_range_rel;
+        if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+            return Err(Error::Usage(format!(
+                "freq_range_rel must satisfy 0 < lo < hi, got ({lo}, {hi})"
+            )));
+        }
+        if !(o.band_factor.is_finite() && o.band_factor > 0.0) {
+            return Err(Error::Usage(format!(
+                "band_factor must be positive, got {}",
+                o.band_factor
+            )));
+        }
+        if !(0.0..1.0).contains(&o.min_coherence) {
+            return Err(Error::Usage(format!(
+                "min_coherence must be in [0, 1), got {}",
+                o.min_coherence
+            )));
+        }
+        Ok(())
     }
 }

@@ -17,6 +17,7 @@ pub mod extension;
 pub mod figures;
 pub mod fit;
 pub mod forward;
+mod frame_layout;
 mod gain_solve;
 pub mod heldout;
 pub mod hypotheses;

@@ -35,6 +35,7 @@
 
 use super::data::{weight_bias, DiagnosisData, GainCarrier};
 use super::forward::{BaseParams, ExtendedModel};
+pub use super::frame_layout::FrameLayout;
 use super::gain_solve::{gain_solve, GainSegment};
 use super::hypothesis::{EffectParam, Hypothesis};
 use super::location::Location;
@@ -53,39 +54,6 @@ pub const MULTIPLIER_BOUNDS: (f64, f64) = (0.5, 2.0);
 pub const XI_BOUNDS: (f64, f64) = (1e-4, 0.2);
 /// Box of the relative error floor.
 pub const ETA_BOUNDS: (f64, f64) = (1e-4, 0.3);
-
-/// Where the nominal model's parameters sit at the front of `z`: one `ln (1 + alpha_r)`
-/// per stiffness group, one `ln (1 + beta_r)` per mass group, one `ln xi` per mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct FrameLayout {
-    pub n_stiffness: usize,
-    pub n_mass: usize,
-    pub n_xi: usize,
-}
-
-impl FrameLayout {
-    /// The layout of `data`'s model: its groups, and a damping ratio for each mode.
-    pub fn of(data: &DiagnosisData) -> Self {
-        FrameLayout {
-            n_stiffness: data.model.n_alpha(),
-            n_mass: data.model.n_beta(),
-            n_xi: data.model.n_dof(),
-        }
-    }
-    /// Indices of the stiffness scales.
-    pub fn stiffness(&self) -> Range<usize> {
-        0..self.n_stiffness
-    }
-    /// Indices of the mass scales.
-    pub fn mass(&self) -> Range<usize> {
-        self.n_stiffness..self.n_stiffness + self.n_mass
-    }
-    /// Indices of the damping ratios.
-    pub fn xi(&self) -> Range<usize> {
-        let start = self.n_stiffness + self.n_mass;
-        start..start + self.n_xi
-    }
-}
 
 /// A reported value.
 #[derive(Debug, Clone, PartialEq)]
