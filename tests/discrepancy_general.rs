@@ -73,8 +73,11 @@ fn the_model_meets_a_general_campaign_at_its_truth() {
     let z = post.z_of(&truth, 1e-3, &[]);
     let (median, p90) = in_band_errors(&post, &post.predict(&z).unwrap());
     println!("at the truth: median {median:.2e}, 90 % {p90:.2e}");
+    // What is left is the campaign's own systematic error: the simulator's input hold at
+    // its 1 kHz internal rate alone, (omega h)^2 / 12, is 1.3e-3 at the 19.3 Hz top mode
+    // (3.35e-4 and 1.33e-3 measured).
     assert!(
-        median < 2e-3 && p90 < 1e-2,
+        median < 1e-3 && p90 < 3e-3,
         "median {median:e}, 90 % {p90:e}"
     );
     // Moving one stiffness group by 1 % is seen well above that.
@@ -106,8 +109,10 @@ fn story_hypotheses_are_not_testable_on_a_general_model() {
             }
             // Every instrumented DOF (all six carry an accelerometer).
             "secondary_oscillator" => assert_eq!(fitted.len(), 6, "{locs:?}"),
-            // The nine pairs of DOFs that K0.mtx joins.
+            // The nine pairs of DOFs that K0.mtx joins; not a story, not the ground.
             "nonproportional_damping" => {
+                assert!(h.parameters(&data, &Location::Story(2)).is_err());
+                assert!(h.parameters(&data, &Location::Dofs([0, 3])).is_err());
                 assert_eq!(fitted.len(), 9, "{locs:?}");
                 assert!(
                     locs.contains(&Location::Dofs([3, 5]))

@@ -139,6 +139,10 @@ fn integrate_twice(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::{Channel, TestKind};
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, StandardNormal};
 
     /// Story `story`'s weight (the stories below it found too).
     fn story_drift_lin_sq(
@@ -150,10 +154,6 @@ mod tests {
     ) -> Option<f64> {
         story_drift_weights(t, story, block, tau_s, high_pass_hz)[story - 1]
     }
-    use crate::io::{Channel, TestKind};
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
-    use rand_distr::{Distribution, StandardNormal};
 
     /// A record with the drift of story 1 (floor 1 against the ground) as its only
     /// channel.

@@ -164,7 +164,11 @@ impl DiagnosisData {
         let nominal_freq_hz = model_frequencies(&model)?;
         let n_floors = nominal.n_floors();
         // Stories (drift between neighbouring floors) exist on a shear frame only.
-        let n_stories = if nominal.model.is_none() { n_floors } else { 0 };
+        let n_stories = if nominal.is_shear_frame() {
+            n_floors
+        } else {
+            0
+        };
         let mut est = options.estimate;
         est.bands.n_peaks = Some(n_floors + options.extra_peaks);
         let f1 = nominal_freq_hz[0];
@@ -341,7 +345,7 @@ impl DiagnosisData {
     /// True when the nominal model is a shear frame (it has stories and a base under
     /// story 1); false for a general model.
     pub fn is_shear_frame(&self) -> bool {
-        self.nominal.model.is_none()
+        self.nominal.is_shear_frame()
     }
 
     /// Number of complex points over all segments and channels.

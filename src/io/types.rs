@@ -159,6 +159,11 @@ impl NominalModel {
         }
     }
 
+    /// True for a shear frame (floors, stories and a base), false for a general model.
+    pub fn is_shear_frame(&self) -> bool {
+        self.model.is_none()
+    }
+
     /// The parametrised model (Eqs. 20-21) at the nominal values: the shear frame, or the
     /// general model loaded from its manifest.
     pub fn structural_model(&self) -> Result<StructuralModel> {

@@ -207,6 +207,14 @@ impl StructuralModel {
     pub fn mass_influence(&self) -> &[DMatrix<f64>] {
         &self.m_influence
     }
+    /// The nominal stiffness `K(0) = K0` (Eq. 20 at alpha = 0), without a copy.
+    pub fn nominal_stiffness(&self) -> &DMatrix<f64> {
+        &self.k0
+    }
+    /// The nominal mass `M(0) = M0` (Eq. 21 at beta = 0), without a copy.
+    pub fn nominal_mass(&self) -> &DMatrix<f64> {
+        &self.m0
+    }
     /// Ground-motion influence vector (Eq. 13; ones for a shear frame).
     pub fn ground_influence(&self) -> &DVector<f64> {
         &self.ground_influence

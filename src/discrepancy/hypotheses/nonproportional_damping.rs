@@ -21,20 +21,38 @@ use crate::simulate::{Dashpot, LinearSystem, SystemEffect};
 pub struct NonproportionalDamping;
 
 /// The two levels (0 = the ground; floors and DOFs 1-based) the damper at `loc` joins.
-fn levels_of(loc: &Location, data_is_frame: bool, n: usize) -> Result<[usize; 2]> {
+fn levels(loc: &Location) -> Result<[usize; 2]> {
     match loc {
-        Location::Story(s) if data_is_frame && (1..=n).contains(s) => Ok([s - 1, *s]),
-        Location::Dofs([a, b]) if !data_is_frame && a < b && *b <= n => Ok([*a, *b]),
+        Location::Story(s) if *s >= 1 => Ok([s - 1, *s]),
+        Location::Dofs([a, b]) if a < b => Ok([*a, *b]),
         other => Err(Error::Usage(format!(
-            "nonproportional_damping acts on a story of a shear frame or on the connection \
-             of two DOFs of a general model (1..={n}), not on {other}"
+            "nonproportional_damping acts on a story or on the connection of two DOFs, not \
+             on {other}"
         ))),
     }
 }
 
-/// Diagonal entry `d` (1-based) of `m`, 0 for the ground.
-fn diagonal(m: &nalgebra::DMatrix<f64>, d: usize) -> f64 {
-    d.checked_sub(1).map_or(0.0, |i| m[(i, i)])
+/// [`levels`], checked against `data`'s model: a story of a shear frame, a connection
+/// of two DOFs of a general model, inside its floors or DOFs.
+fn levels_in(loc: &Location, data: &DiagnosisData) -> Result<[usize; 2]> {
+    let [a, b] = levels(loc)?;
+    // A general model's connections join two of its DOFs (the ground is not one).
+    let kind_fits = match loc {
+        Location::Story(_) => data.is_shear_frame(),
+        _ => !data.is_shear_frame() && a >= 1,
+    };
+    if !kind_fits || b > data.n_floors() {
+        return Err(Error::Usage(format!(
+            "nonproportional_damping: {loc} is not a {} of this model (1..={})",
+            if data.is_shear_frame() {
+                "story"
+            } else {
+                "connection of DOFs"
+            },
+            data.n_floors()
+        )));
+    }
+    Ok([a, b])
 }
 
 impl Hypothesis for NonproportionalDamping {
@@ -51,8 +69,7 @@ impl Hypothesis for NonproportionalDamping {
         if data.is_shear_frame() {
             return (1..=n).map(Location::Story).collect();
         }
-        let model = &data.model;
-        let k = model.stiffness(&model.alpha_zero());
+        let k = data.model.nominal_stiffness();
         let instrumented: Vec<usize> = data
             .segments
             .iter()
@@ -71,19 +88,14 @@ impl Hypothesis for NonproportionalDamping {
     }
 
     fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
-        let [a, b] = levels_of(loc, data.is_shear_frame(), data.n_floors())?;
-        let model = &data.model;
+        let [a, b] = levels_in(loc, data)?;
         let c_crit = if data.is_shear_frame() {
             2.0 * (data.nominal.story_stiffness_n_per_m[b - 1] * data.nominal.floor_mass_kg[b - 1])
                 .sqrt()
         } else {
-            let (k, m) = (
-                model.stiffness(&model.alpha_zero()),
-                model.mass(&model.beta_zero()),
-            );
-            let (ma, mb) = (diagonal(&m, a), diagonal(&m, b));
-            let lighter = if a == 0 { mb } else { ma.min(mb) };
-            2.0 * (k[(a.max(1) - 1, b - 1)].abs() * lighter).sqrt()
+            let (k, m) = (data.model.nominal_stiffness(), data.model.nominal_mass());
+            let lighter = m[(a - 1, a - 1)].min(m[(b - 1, b - 1)]);
+            2.0 * (k[(a - 1, b - 1)].abs() * lighter).sqrt()
         };
         if !(c_crit.is_finite() && c_crit > 0.0) {
             return Err(Error::Usage(format!(
@@ -100,15 +112,6 @@ impl Hypothesis for NonproportionalDamping {
     }
 
     fn modify_system(&self, loc: &Location, effect: &[f64], sys: &mut LinearSystem) -> Result<()> {
-        let levels = match loc {
-            Location::Story(s) if *s >= 1 => [s - 1, *s],
-            Location::Dofs(d) => *d,
-            other => {
-                return Err(Error::Usage(format!(
-                    "nonproportional_damping cannot act on {other}"
-                )))
-            }
-        };
-        Dashpot::between(levels, effect[0]).apply(sys)
+        Dashpot::between(levels(loc)?, effect[0]).apply(sys)
     }
 }

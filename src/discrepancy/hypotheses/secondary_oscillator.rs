@@ -30,10 +30,10 @@ fn floor_of(loc: &Location, n_floors: usize) -> Result<usize> {
 }
 
 /// The nominal mass of floor (DOF) `f`, 1-based: the diagonal entry of the nominal `M`
-/// (a shear frame's floor mass).
+/// (a shear frame's floor mass). Read in place: [`Hypothesis::physical`] asks for the
+/// parameters at every posterior evaluation.
 fn dof_mass(data: &DiagnosisData, f: usize) -> f64 {
-    let model = &data.model;
-    let m = model.mass(&model.beta_zero());
+    let m = data.model.nominal_mass();
     f.checked_sub(1)
         .filter(|&d| d < m.nrows())
         .map_or(0.0, |d| m[(d, d)])
