@@ -26,7 +26,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The noise model of a diagnosis: `diagnose`'s and `diagnose-benchmark`'s flags.
+/// The analysed band and the noise model of a diagnosis: `diagnose`'s and
+/// `diagnose-benchmark`'s flags.
 #[derive(Debug, Clone, Copy, clap::Args)]
 pub struct NoiseModelArgs {
     /// Do not correct the hammer estimates' own systematic error (the previous impact's
@@ -49,6 +50,11 @@ pub struct NoiseModelArgs {
     /// structural sizes are biased").
     #[arg(long)]
     pub gain_at_map: bool,
+    /// Top of the analysed band, Hz (default: 4 x the nominal model's highest mode; a
+    /// model of more than 200 DOFs, reduced for the diagnosis, 0.4 x the sample rate).
+    /// In `diagnose-benchmark` a case's own `freq_max_hz` comes first.
+    #[arg(long)]
+    pub freq_max_hz: Option<f64>,
 }
 
 impl NoiseModelArgs {
@@ -63,6 +69,7 @@ impl NoiseModelArgs {
                     (false, true) => GainCarrier::ModelAtMap,
                     (false, false) => GainCarrier::Measured,
                 },
+                freq_max_hz: self.freq_max_hz,
                 ..DataOptions::default()
             },
             ..DiagnoseOptions::default()
@@ -347,6 +354,9 @@ fn diagnose_case(args: &BenchArgs, case: &BenchmarkCase) -> anyhow::Result<CaseR
         only: args.hypotheses.clone(),
         ..args.noise.options()
     };
+    if case.freq_max_hz.is_some() {
+        opts.data.freq_max_hz = case.freq_max_hz;
+    }
     if args.quick {
         opts = quick_options(opts);
     }

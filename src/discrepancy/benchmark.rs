@@ -31,6 +31,9 @@ pub struct BenchmarkCase {
     /// reports them (`effect_parameters`); for scoring intervals only.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub truth: BTreeMap<String, f64>,
+    /// Top of the analysed band, Hz (`diagnose --freq-max-hz`), when the case sets it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub freq_max_hz: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -51,6 +54,8 @@ struct RawCase {
     seed: u64,
     #[serde(default)]
     truth: BTreeMap<String, f64>,
+    #[serde(default)]
+    freq_max_hz: Option<f64>,
 }
 
 /// Reads `cases.toml`: the hypothesis names and the cases (model paths made absolute).
@@ -85,6 +90,7 @@ pub fn read_cases(path: &Path) -> Result<(Vec<String>, Vec<BenchmarkCase>)> {
             noise_scale: c.noise_scale,
             seed: c.seed,
             truth: c.truth,
+            freq_max_hz: c.freq_max_hz,
         });
     }
     Ok((file.hypotheses, cases))

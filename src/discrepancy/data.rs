@@ -38,6 +38,8 @@ use super::bins::{band_span, select_bins};
 pub use super::data_options::{weight_bias, DataOptions, GainCarrier, MAX_WEIGHT_BIAS};
 use super::input_noise::input_gain_basis;
 pub use super::input_noise::{InputGainBasis, MAX_GAIN_RANK};
+use super::location::Location;
+use super::reduction::{model_for_campaign, Reduction};
 pub use super::time_domain::SegmentSource;
 use crate::error::{Error, Result};
 use crate::frf::FrfKind;
@@ -146,6 +148,9 @@ pub struct DiagnosisData {
     pub nominal_freq_hz: Vec<f64>,
     pub segments: Vec<SegmentData>,
     pub options: DataOptions,
+    /// How a model too large for the dense forward solve was reduced onto the kept
+    /// DOFs (`model` is then the reduced one); `None` when it was not.
+    pub reduction: Option<Arc<Reduction>>,
 }
 
 impl DiagnosisData {
@@ -153,16 +158,16 @@ impl DiagnosisData {
     pub fn from_campaign(campaign: &Campaign, options: &DataOptions) -> Result<Self> {
         options.check()?;
         let nominal = campaign.nominal.clone();
-        let model = Arc::new(nominal.structural_model()?);
-        if nominal.n_floors() != model.n_dof() {
-            return Err(Error::Usage(format!(
-                "the campaign's nominal model has {} DOFs but its matrices have {}",
-                nominal.n_floors(),
-                model.n_dof()
-            )));
-        }
-        let nominal_freq_hz = model_frequencies(&model)?;
-        let n_floors = nominal.n_floors();
+        let (reduced_campaign, model, reduction, nominal_freq_hz) =
+            model_for_campaign(campaign, options)?;
+        let campaign = reduced_campaign.as_ref().unwrap_or(campaign);
+        let cap_hz = match &reduction {
+            Some(r) => Some(r.freq_max_hz),
+            None => options.freq_max_hz,
+        };
+        let n_floors = reduction
+            .as_ref()
+            .map_or(nominal.n_floors(), |r| r.kept_dof.len());
         // Stories (drift between neighbouring floors) exist on a shear frame only.
         let n_stories = if nominal.is_shear_frame() {
             n_floors
@@ -170,11 +175,12 @@ impl DiagnosisData {
             0
         };
         let mut est = options.estimate;
-        est.bands.n_peaks = Some(n_floors + options.extra_peaks);
+        est.bands.n_peaks = Some(nominal_freq_hz.len() + options.extra_peaks);
         let f1 = nominal_freq_hz[0];
         let range = (
             options.freq_range_rel.0 * f1,
-            options.freq_range_rel.1 * nominal_freq_hz[nominal_freq_hz.len() - 1],
+            (options.freq_range_rel.1 * nominal_freq_hz[nominal_freq_hz.len() - 1])
+                .min(cap_hz.unwrap_or(f64::INFINITY)),
         );
 
         // Hammer blocks: a common length over all impacts of all hammer tests.
@@ -327,6 +333,7 @@ impl DiagnosisData {
             nominal_freq_hz,
             segments,
             options: *options,
+            reduction: reduction.map(Arc::new),
         };
         if data.n_points() == 0 {
             return Err(Error::Usage(
@@ -339,7 +346,20 @@ impl DiagnosisData {
     /// Number of floors of the nominal model (of DOFs of a general model: DOF `d`,
     /// 1-based, is "floor" `d` in the campaign format).
     pub fn n_floors(&self) -> usize {
-        self.nominal.n_floors()
+        self.reduction
+            .as_ref()
+            .map_or(self.nominal.n_floors(), |r| r.kept_dof.len())
+    }
+
+    /// `loc` as the user's model numbers it: on a reduced model the diagnosis's DOFs
+    /// `1..=kept` are mapped back to the model's DOFs ([`Reduction::model_dof`]); other
+    /// locations, and every location of a model that is not reduced, unchanged.
+    pub fn shown(&self, loc: &Location) -> Location {
+        match (&self.reduction, loc) {
+            (Some(r), Location::Floor(f)) => Location::Floor(r.model_dof(*f)),
+            (Some(r), Location::Dofs([a, b])) => Location::Dofs([r.model_dof(*a), r.model_dof(*b)]),
+            _ => loc.clone(),
+        }
     }
 
     /// True when the nominal model is a shear frame (it has stories and a base under

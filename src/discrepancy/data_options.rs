@@ -31,6 +31,10 @@ pub struct DataOptions {
     pub weight_bias_correction: bool,
     /// What the input-gain error multiplies ([`GainCarrier`]; default the measured `h`).
     pub gain_carrier: GainCarrier,
+    /// Top of the analysed band, Hz (default none: `freq_range_rel` alone; a model
+    /// reduced for the diagnosis then uses 0.4 of the slowest sample rate, the
+    /// anti-aliasing pass band, and its modes up to this top).
+    pub freq_max_hz: Option<f64>,
 }
 
 /// What the correlated input-gain error of a hammer segment multiplies in the
@@ -81,6 +85,7 @@ impl Default for DataOptions {
             extra_peaks: 2,
             weight_bias_correction: false,
             gain_carrier: GainCarrier::Measured,
+            freq_max_hz: None,
         }
     }
 }
@@ -106,6 +111,13 @@ impl DataOptions {
                 "min_coherence must be in [0, 1), got {}",
                 o.min_coherence
             )));
+        }
+        if let Some(f) = o.freq_max_hz {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(Error::Usage(format!(
+                    "freq_max_hz must be positive, got {f}"
+                )));
+            }
         }
         Ok(())
     }

@@ -98,16 +98,18 @@ impl BaseParams {
 }
 
 /// The nominal model as a [`LinearSystem`]: `K(alpha)`, `M(beta)` (paper Eqs. 20-21) and
-/// modal damping of its own modes (as the simulator's `damping.model = "modal"`). A
-/// model DOF `d` (0-based) is "floor" `d + 1` (the campaign format's convention).
+/// modal damping of its own modes (as the simulator's `damping.model = "modal"`; modes
+/// beyond `base.xi`, above the analysed band, take its last ratio). A model DOF `d`
+/// (0-based) is "floor" `d + 1` (the campaign format's convention).
 pub fn frame_system(model: &StructuralModel, base: &BaseParams) -> Result<LinearSystem> {
     let n = model.n_dof();
     if base.stiffness_scale.len() != model.n_alpha()
         || base.mass_scale.len() != model.n_beta()
-        || base.xi.len() != n
+        || base.xi.is_empty()
+        || base.xi.len() > n
     {
         return Err(Error::Usage(format!(
-            "the model needs {} stiffness scales, {} mass scales and {n} damping ratios; got {}, {} and {}",
+            "the model needs {} stiffness scales, {} mass scales and 1..={n} damping ratios; got {}, {} and {}",
             model.n_alpha(),
             model.n_beta(),
             base.stiffness_scale.len(),
@@ -122,7 +124,9 @@ pub fn frame_system(model: &StructuralModel, base: &BaseParams) -> Result<Linear
     let modes = Modes::solve(&k, &m, &iota, None)?;
     let m_phi = &m * &modes.phi;
     let mut scaled = m_phi.clone();
-    for (j, (x, w)) in base.xi.iter().zip(&modes.omega_rad_s).enumerate() {
+    let last_xi = base.xi[base.xi.len() - 1];
+    for (j, w) in modes.omega_rad_s.iter().enumerate() {
+        let x = base.xi.get(j).copied().unwrap_or(last_xi);
         scaled.column_mut(j).scale_mut(2.0 * x * w);
     }
     let c = scaled * m_phi.transpose();

@@ -13,12 +13,14 @@ pub struct FrameLayout {
 }
 
 impl FrameLayout {
-    /// The layout of `data`'s model: its groups, and a damping ratio for each mode.
+    /// The layout of `data`'s model: its groups, and a damping ratio for each of its
+    /// modes in the analysed band (`nominal_freq_hz`: every mode of a model that is not
+    /// reduced; the modes above share the last ratio, [`super::forward::frame_system`]).
     pub fn of(data: &DiagnosisData) -> Self {
         FrameLayout {
             n_stiffness: data.model.n_alpha(),
             n_mass: data.model.n_beta(),
-            n_xi: data.model.n_dof(),
+            n_xi: data.nominal_freq_hz.len(),
         }
     }
     /// Indices of the stiffness scales.

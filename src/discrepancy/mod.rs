@@ -29,6 +29,7 @@ pub mod location;
 pub mod model_evidence;
 pub mod output;
 pub mod posterior;
+pub mod reduction;
 pub mod refine;
 pub mod report;
 pub mod residual_map;

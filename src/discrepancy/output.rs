@@ -3,6 +3,7 @@
 //! `models.json` (every fit), written into a staging folder and swapped in only when
 //! complete, so a failed run never leaves a half-written folder or loses the last one.
 
+use super::data::DiagnosisData;
 use super::diagnose::{Diagnosis, ModelResult};
 use super::figures::{channel_misfits, channels_to_show, write_figures};
 use super::report::record;
@@ -20,12 +21,18 @@ fn fmt_opt(v: Option<f64>, digits: usize) -> String {
     }
 }
 
-fn model_row(m: &ModelResult, nominal_ln_z: f64, laplace: Option<f64>, reason: &str) -> String {
+fn model_row(
+    data: &DiagnosisData,
+    m: &ModelResult,
+    nominal_ln_z: f64,
+    laplace: Option<f64>,
+    reason: &str,
+) -> String {
     let ev = m.evidence.as_ref();
     format!(
         "| {} | {} | {:.1} | {} | {} | {} | {} | {} | {} | {} |",
         m.name.replace('_', " "),
-        m.location,
+        data.shown(&m.location),
         m.map.ln_likelihood,
         fmt_opt(ev.and_then(|e| e.gain_bound_nats), 1),
         fmt_opt(laplace, 1),
@@ -65,7 +72,7 @@ fn open_world_section(d: &Diagnosis) -> String {
                 "| {} | {} | {} | {} |",
                 k + 1,
                 e.hypothesis,
-                e.location,
+                d.data.shown(&e.location),
                 params.join("; ")
             );
         }
@@ -81,7 +88,7 @@ fn open_world_section(d: &Diagnosis) -> String {
             r.base_ln_z_sd
         );
         for (f, why) in r.finalists.iter().zip(&r.decision.reasons) {
-            let _ = writeln!(s, "- {} at {}: {why}", f.name, f.location);
+            let _ = writeln!(s, "- {} at {}: {why}", f.name, d.data.shown(&f.location));
         }
         s.push('\n');
     }
@@ -194,10 +201,20 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
     let _ = writeln!(
         s,
         "{}",
-        model_row(&d.nominal, nominal_ln_z, lap("nominal"), "reference")
+        model_row(
+            &d.data,
+            &d.nominal,
+            nominal_ln_z,
+            lap("nominal"),
+            "reference"
+        )
     );
     for (f, reason) in d.finalists.iter().zip(&d.decision.reasons) {
-        let _ = writeln!(s, "{}", model_row(f, nominal_ln_z, lap(&f.name), reason));
+        let _ = writeln!(
+            s,
+            "{}",
+            model_row(&d.data, f, nominal_ln_z, lap(&f.name), reason)
+        );
     }
     for sr in &d.searches {
         if d.finalists.iter().any(|f| f.name == sr.name) {
@@ -213,7 +230,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
                 s,
                 "| {} | {} | {:.1} | {:.1} | {} | laplace | - | - | {} | {why} |",
                 sr.name.replace('_', " "),
-                b.location,
+                d.data.shown(&b.location),
                 b.map.ln_likelihood,
                 b.map.ln_likelihood - d.nominal.map.ln_likelihood,
                 fmt_opt(lap(sr.name), 1),
@@ -265,7 +282,7 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
             .map(|t| {
                 format!(
                     "{} ({:.1})",
-                    t.location,
+                    d.data.shown(&t.location),
                     t.map.ln_likelihood - d.nominal.map.ln_likelihood
                 )
             })
@@ -423,7 +440,7 @@ fn write_effect_inference_data(d: &Diagnosis, dir: &Path) -> Result<()> {
         .with_stat("ln_prior", p.ln_prior.clone())?
         .with_attr("frfbayes_command", "diagnose")
         .with_attr("hypothesis", &f.name)
-        .with_attr("location", &f.location.to_string())
+        .with_attr("location", &d.data.shown(&f.location).to_string())
         .write(&dir.join(INFERENCE_DATA_FILE))
 }
 

@@ -44,7 +44,7 @@ pub fn hypothesis_evidence(d: &Diagnosis) -> Vec<HypothesisEvidence> {
                     .failed
                     .iter()
                     .map(|(loc, reason)| NotFitted {
-                        location: serde_json::to_value(loc).unwrap_or_default(),
+                        location: serde_json::to_value(d.data.shown(loc)).unwrap_or_default(),
                         reason: reason.clone(),
                     })
                     .collect(),
@@ -55,9 +55,9 @@ pub fn hypothesis_evidence(d: &Diagnosis) -> Vec<HypothesisEvidence> {
     rows
 }
 
-fn plain_location(loc: &super::location::Location) -> String {
+fn plain_location(loc: &super::location::Location, data: &super::data::DiagnosisData) -> String {
     use super::location::Location::*;
-    match loc {
+    match data.shown(loc) {
         Whole => "the whole structure".into(),
         Story(s) => format!("story {s}"),
         Floor(f) => format!("floor {f}"),
@@ -87,7 +87,7 @@ pub fn explanation(d: &Diagnosis) -> String {
                  evidence by {delta:.1} +- {se:.1} (Bayes factor e^{delta:.0}; decisive is above \
                  ln 150 = {thr:.1}) ",
                 name = f.name.replace('_', " "),
-                loc = plain_location(&f.location),
+                loc = plain_location(&f.location, &d.data),
                 thr = decisive_ln_bayes_factor(),
             );
             if let Some(h) = &f.held_out {
@@ -146,7 +146,7 @@ pub fn explanation(d: &Diagnosis) -> String {
                     s,
                     " The next best explanation, {} at {}, is {:.1} nats less likely.",
                     r.1.name.replace('_', " "),
-                    plain_location(&r.1.location),
+                    plain_location(&r.1.location, &d.data),
                     -dr
                 );
             }
@@ -224,7 +224,7 @@ pub fn record(d: &Diagnosis) -> DiagnosisRecord {
         .iter()
         .map(|e| EffectRecord {
             hypothesis: e.hypothesis.clone(),
-            location: json_of(&e.location),
+            location: json_of(&d.data.shown(&e.location)),
             effect_parameters: e.effect_parameters.iter().cloned().collect(),
         })
         .collect();
@@ -284,7 +284,7 @@ pub fn open_world_explanation(d: &Diagnosis) -> String {
                     s,
                     "With {with} in the model, {} at {} is also missing (delta ln Z = {:.1} over that model). ",
                     f.name.replace('_', " "),
-                    plain_location(&f.location),
+                    plain_location(&f.location, &d.data),
                     f.ln_z().unwrap_or(f64::NAN) - r.base_ln_z
                 );
             }
@@ -301,9 +301,9 @@ pub fn open_world_explanation(d: &Diagnosis) -> String {
             s,
             "Ambiguous: {} at {} and {} at {} both pass every test and are {:.1} nats apart (decisive needs {:.1}); {}. ",
             a.hypotheses[0].replace('_', " "),
-            plain_location(&a.locations[0]),
+            plain_location(&a.locations[0], &d.data),
             a.hypotheses[1].replace('_', " "),
-            plain_location(&a.locations[1]),
+            plain_location(&a.locations[1], &d.data),
             a.delta_ln_z,
             decisive_ln_bayes_factor(),
             a.separating_test

@@ -106,6 +106,7 @@ pub(super) fn synthetic() -> Arc<DiagnosisData> {
         nominal,
         segments,
         options: DataOptions::default(),
+        reduction: None,
     })
 }
 

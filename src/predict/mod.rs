@@ -12,6 +12,7 @@
 
 pub mod choice;
 pub mod frf;
+pub mod kept;
 pub mod modal;
 pub mod poles;
 pub mod reduced;

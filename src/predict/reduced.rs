@@ -103,7 +103,7 @@ pub struct ReducedModes {
 }
 
 /// `V^T A V` for a dense `A`.
-fn project(v: &Mat<f64>, a: &DMatrix<f64>) -> Mat<f64> {
+pub(crate) fn project(v: &Mat<f64>, a: &DMatrix<f64>) -> Mat<f64> {
     let af = Mat::from_fn(a.nrows(), a.ncols(), |i, j| a[(i, j)]);
     let mut av = Mat::<f64>::zeros(a.nrows(), v.ncols());
     matmul(av.as_mut(), false, af.as_ref(), v.as_ref(), 1.0);
@@ -116,7 +116,7 @@ fn project(v: &Mat<f64>, a: &DMatrix<f64>) -> Mat<f64> {
 /// The POD basis `V` (n x b, `V^T W V = I`) of the snapshots' `modes_per_snapshot`
 /// lowest exact modes in the energy norm `W = M0 + K0 / lambda_ref` (`lambda_ref` the
 /// median snapshot eigenvalue), and `W`.
-fn pod_basis(
+pub(crate) fn pod_basis(
     model: &StructuralModel,
     snapshots: &[(Vec<f64>, Vec<f64>)],
     opts: &BasisOptions,

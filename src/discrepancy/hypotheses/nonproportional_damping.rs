@@ -5,7 +5,7 @@
 //!
 //! Locations: every story of a shear frame; on a general model every pair of DOFs that a
 //! stiffness term of the nominal `K` joins (`K_ab != 0`), at least one of them
-//! instrumented.
+//! instrumented (on a model reduced for the diagnosis, both kept).
 //!
 //! Prior: `c` log-uniform on 1e-4..1 x the connection's critical coefficient
 //! `2 sqrt(k m)`: a story's nominal stiffness and its upper floor's mass; a connection's
@@ -69,22 +69,28 @@ impl Hypothesis for NonproportionalDamping {
         if data.is_shear_frame() {
             return (1..=n).map(Location::Story).collect();
         }
-        let k = data.model.nominal_stiffness();
         let instrumented: Vec<usize> = data
             .segments
             .iter()
             .flat_map(|s| s.channels.iter().map(|c| c.channel.floor))
             .collect();
-        let mut out = Vec::new();
-        for b in 1..=n {
-            for a in 1..b {
-                let joined = k[(a - 1, b - 1)] != 0.0;
-                if joined && (instrumented.contains(&a) || instrumented.contains(&b)) {
-                    out.push(Location::Dofs([a, b]));
-                }
+        // A reduced model's DOFs are coupled through its generalised coordinates; its
+        // connections are the full model's, between kept DOFs.
+        let pairs: Vec<[usize; 2]> = match &data.reduction {
+            Some(r) => r.connections.clone(),
+            None => {
+                let k = data.model.nominal_stiffness();
+                (1..=n)
+                    .flat_map(|b| (1..b).map(move |a| [a, b]))
+                    .filter(|&[a, b]| k[(a - 1, b - 1)] != 0.0)
+                    .collect()
             }
-        }
-        out
+        };
+        pairs
+            .into_iter()
+            .filter(|[a, b]| instrumented.contains(a) || instrumented.contains(b))
+            .map(Location::Dofs)
+            .collect()
     }
 
     fn parameters(&self, data: &DiagnosisData, loc: &Location) -> Result<Vec<EffectParam>> {
