@@ -79,7 +79,7 @@ fn reduced_bridge_matches_the_full_solve_over_the_band() {
         "kept {} DOFs + {} generalised of {}; connections {:?}",
         red.kept_dof.len(),
         red.n_generalised,
-        red.n_full,
+        red.full.n_dof(),
         red.connections
     );
     let m = reduced.model.nominal_mass();

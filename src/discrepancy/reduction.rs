@@ -38,8 +38,6 @@ pub struct Reduction {
     pub kept_dof: Vec<usize>,
     /// Generalised coordinates beside the kept DOFs.
     pub n_generalised: usize,
-    /// DOFs of the full model.
-    pub n_full: usize,
     /// Pairs of kept DOFs (diagnosis numbering, 1-based) joined by a term of the full
     /// nominal `K`: the connections a damper can act across.
     pub connections: Vec<[usize; 2]>,
@@ -150,7 +148,6 @@ pub fn reduce_for_campaign(
     let mut reduction = Reduction {
         kept_dof: kept.iter().map(|d| d + 1).collect(),
         n_generalised: 0,
-        n_full: full.n_dof(),
         connections,
         freq_max_hz: top_hz,
         anchor_alpha: full.alpha_zero(),

@@ -25,10 +25,9 @@ use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
 use rayon::prelude::*;
 
-use super::reduced::{pod_basis, project, BasisOptions};
+use super::reduced::{pod_basis, principal_directions, project, BasisOptions};
 use crate::error::{Error, Result};
 use crate::modal::condensed::lowest_modes_condensed;
-use crate::modal::dense::symmetric_eigen;
 use crate::modal::dense::{cholesky_in_place, matmul, solve_lower, solve_lower_transpose};
 use crate::model::StructuralModel;
 
@@ -97,22 +96,7 @@ fn interior_vectors(
     let vk = Mat::from_fn(kept.len(), v.ncols(), |i, j| v[(kept[i], j)]);
     let mut r = v.clone();
     matmul(r.as_mut(), true, psi.as_ref(), vk.as_ref(), -1.0);
-    let gram = project(&r, k0);
-    let (s, u) = symmetric_eigen(gram.as_ref())?;
-    let s_max = s.last().copied().unwrap_or(0.0);
-    let keep: Vec<usize> = (0..s.len())
-        .rev()
-        .filter(|&i| s[i] > 1e-10 * s_max)
-        .collect();
-    let mut coef = Mat::<f64>::zeros(r.ncols(), keep.len());
-    for (c, &i) in keep.iter().enumerate() {
-        for row in 0..r.ncols() {
-            coef[(row, c)] = u[(row, i)] / s[i].sqrt();
-        }
-    }
-    let mut q = Mat::<f64>::zeros(r.nrows(), keep.len());
-    matmul(q.as_mut(), false, r.as_ref(), coef.as_ref(), 1.0);
-    Ok(q)
+    principal_directions(&r, k0, 1e-10, usize::MAX)
 }
 
 /// Where a reduction's interior is exact: the point `(alpha, beta)` and how many of its
@@ -349,6 +333,6 @@ mod tests {
         let a0 = model.alpha_zero();
         let err = compare_frf_with_full(&model, &red, &a0, &[], (0.3, 1e-4), &low).unwrap();
         let worst = err.iter().copied().fold(0.0, f64::max);
-        assert!(worst < 1e-2, "{worst:e}");
+        assert!(worst < 1e-2, "{worst:e}"); // 5.4e-3 measured
     }
 }

@@ -143,13 +143,26 @@ pub(crate) fn pod_basis(
         model.mass(&model.beta_zero()),
     );
     let w = &m0 + &k0 / lambda_ref;
-    let gram = project(&x, &w);
+    let v = principal_directions(&x, &w, opts.rel_tol, opts.max_size)?;
+    Ok((v, w))
+}
+
+/// The span of `x`'s columns as `W`-orthonormal directions (`V^T W V = I`), the most
+/// energetic first: the eigen-decomposition of the Gram matrix `x^T W x`, directions
+/// whose eigenvalue is below `rel_tol` of the largest dropped, at most `max_size` kept.
+pub(crate) fn principal_directions(
+    x: &Mat<f64>,
+    w: &DMatrix<f64>,
+    rel_tol: f64,
+    max_size: usize,
+) -> Result<Mat<f64>> {
+    let gram = project(x, w);
     let (s, u) = symmetric_eigen(gram.as_ref())?;
     let s_max = s.last().copied().unwrap_or(0.0);
     let keep: Vec<usize> = (0..s.len())
         .rev()
-        .filter(|&i| s[i] > opts.rel_tol * s_max)
-        .take(opts.max_size)
+        .filter(|&i| s[i] > rel_tol * s_max)
+        .take(max_size)
         .collect();
     let mut coef = Mat::<f64>::zeros(x.ncols(), keep.len());
     for (c, &i) in keep.iter().enumerate() {
@@ -157,9 +170,9 @@ pub(crate) fn pod_basis(
             coef[(r, c)] = u[(r, i)] / s[i].sqrt();
         }
     }
-    let mut v = Mat::<f64>::zeros(n, keep.len());
+    let mut v = Mat::<f64>::zeros(x.nrows(), keep.len());
     matmul(v.as_mut(), false, x.as_ref(), coef.as_ref(), 1.0);
-    Ok((v, w))
+    Ok(v)
 }
 
 impl ReducedModes {
