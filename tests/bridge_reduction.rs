@@ -110,9 +110,11 @@ fn reduced_bridge_matches_the_full_solve_over_the_band() {
         "largest relative error: nominal {nominal:.2e}; truth {at_anchor:.2e} anchored there \
          ({unanchored:.2e} on the nominal basis); 0.02 off it {off_anchor:.2e}"
     );
-    // Measured 2026-11-28: 1.2e-4, 2.4e-3 (5.4e-2 on the nominal basis), 8.5e-3.
+    // Measured 2026-11-28: 1.2e-4, 1.3e-4 (5.4e-2 on the nominal basis), 8.5e-3. With the
+    // static constraint modes of K0 instead of the anchor's K, the re-anchored figure was
+    // 2.4e-3: the bound below fails on that basis.
     assert!(
-        nominal < 5e-4 && at_anchor < 5e-3,
+        nominal < 5e-4 && at_anchor < 5e-4,
         "{nominal:e} {at_anchor:e}"
     );
     assert!(off_anchor < 2e-2, "{off_anchor:e}");

@@ -597,18 +597,3 @@ fn build_segment(
         story_drift_lin_sq_m2,
     })
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn options_are_checked() {
-        let bad = DataOptions {
-            freq_range_rel: (2.0, 1.0),
-            ..Default::default()
-        };
-        assert!(bad.check().is_err());
-        assert!(DataOptions::default().check().is_ok());
-    }
-}

@@ -122,3 +122,18 @@ impl DataOptions {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn options_are_checked() {
+        let bad = DataOptions {
+            freq_range_rel: (2.0, 1.0),
+            ..Default::default()
+        };
+        assert!(bad.check().is_err());
+        assert!(DataOptions::default().check().is_ok());
+    }
+}

@@ -75,6 +75,9 @@ pub struct DiagnoseOptions {
     pub estimator_bias: bool,
 }
 
+/// Re-anchorings of a reduced basis at the nominal MAP, at most.
+const MAX_REANCHOR: usize = 3;
+
 impl Default for DiagnoseOptions {
     fn default() -> Self {
         DiagnoseOptions {
@@ -357,6 +360,24 @@ fn nominal_model(
         fit_map(&post0, &starts, &opts.map)
     })?;
     let mut data = data;
+    // A reduced basis is exact only at its anchor: move it to the MAP and refit there
+    // until the MAP stays put.
+    for round in 1..=MAX_REANCHOR {
+        let Some((moved_data, moved)) = data.reanchored(&post0.base_params(&map0.z))? else {
+            break;
+        };
+        data = Arc::new(moved_data);
+        post0 = ModelPosterior::new(data.clone(), None)?;
+        map0 = staged(stages, &format!("nominal-map-reanchored-{round}"), || {
+            fit_map(&post0, std::slice::from_ref(&map0.z), &opts.map)
+        })?;
+        watch.mark(
+            &format!(
+                "reduced basis re-anchored at the nominal MAP ({moved:.3} from the last anchor)"
+            ),
+            timings,
+        );
+    }
     // The replay is only as good as its straight-line hold: at coarse sampling it would
     // add its own error, not the estimator's (the stage table says so).
     let (hold_err, hold_f_hz) = hold_rel_err(campaign, &data);
@@ -396,7 +417,11 @@ fn locate_and_assess(
     nominal: &ModelResult,
     last: &ModelResult,
 ) -> Result<(std::result::Result<LocateReport, String>, Adequacy)> {
-    let locate = check_campaign(campaign, &ConsistencyOptions::default())
+    // Peaks searched: the modes of the analysed band (every mode of a model that is not
+    // reduced, as the checks' default; on a reduced model not its thousand DOFs).
+    let mut check_opts = ConsistencyOptions::default();
+    check_opts.estimate.bands.n_peaks = Some(nominal.posterior.data().nominal_freq_hz.len());
+    let locate = check_campaign(campaign, &check_opts)
         .map_err(|e| e.to_string())
         .and_then(|c| {
             let map = residual_map(&nominal.posterior, &nominal.map.z, nominal.map.eta)

@@ -23,13 +23,14 @@
 //! [`DiagnosisData`]; [`ExtendedModel::layout`] gives the ranges.
 
 use super::data::DiagnosisData;
+pub(crate) use super::forward_modal::solve_in_place;
+use super::forward_modal::{LowRankModal, ModalDamping, MODAL_MIN_DOF};
 use super::hypothesis::Hypothesis;
 use super::location::Location;
+pub use super::nominal_system::{frame_system, frame_system_modal, BaseParams};
 use crate::error::{Error, Result};
 use crate::frf::FrfKind;
 use crate::io::Channel;
-use crate::modal::Modes;
-use crate::model::StructuralModel;
 use crate::simulate::LinearSystem;
 use num_complex::Complex64;
 use std::collections::HashMap;
@@ -39,107 +40,6 @@ use std::sync::Arc;
 /// Largest number of DOFs of an extended system (model plus extra DOFs): the dense
 /// solve per frequency costs `n^3 / 3`; larger models need a reduced basis first.
 pub const MAX_DOF: usize = crate::predict::choice::DENSE_MAX_DOF;
-
-/// The nominal model's parameters: the updating variables of paper Eqs. (20)-(21) as
-/// scales, and the modal damping ratios.
-#[derive(Debug, Clone, PartialEq)]
-pub struct BaseParams {
-    /// `1 + alpha_r` of each stiffness group (story r's `k_r / k_r0` in a shear frame).
-    pub stiffness_scale: Vec<f64>,
-    /// `1 + beta_r` of each mass group (floor r's `m_r / m_r0` in a shear frame).
-    pub mass_scale: Vec<f64>,
-    /// Modal damping ratios of the model's modes (ascending frequency).
-    pub xi: Vec<f64>,
-}
-
-impl BaseParams {
-    /// The scales of physical group values (`k_r` and `m_r` of a shear frame) against
-    /// `model`'s nominal ones. Errors when a group has no single physical value.
-    pub fn from_physical(
-        model: &StructuralModel,
-        stiffness: &[f64],
-        mass: &[f64],
-        xi: Vec<f64>,
-    ) -> Result<Self> {
-        let scale = |ps: &[crate::model::Parameter], v: &[f64], what: &str| {
-            if ps.len() != v.len() {
-                return Err(Error::Usage(format!(
-                    "{} {what} values for {} groups",
-                    v.len(),
-                    ps.len()
-                )));
-            }
-            ps.iter()
-                .zip(v)
-                .map(|(p, x)| match p.nominal {
-                    Some(n) => Ok(x / n),
-                    None => Err(Error::Usage(format!(
-                        "group {} has no physical {what}; give its scale",
-                        p.name
-                    ))),
-                })
-                .collect::<Result<Vec<_>>>()
-        };
-        Ok(BaseParams {
-            stiffness_scale: scale(model.alpha_parameters(), stiffness, "stiffness")?,
-            mass_scale: scale(model.beta_parameters(), mass, "mass")?,
-            xi,
-        })
-    }
-
-    /// The updating variables `alpha_r = scale_r - 1` and `beta_r`.
-    pub fn alpha_beta(&self) -> (Vec<f64>, Vec<f64>) {
-        let minus_one = |v: &[f64]| v.iter().map(|s| s - 1.0).collect::<Vec<_>>();
-        (
-            minus_one(&self.stiffness_scale),
-            minus_one(&self.mass_scale),
-        )
-    }
-}
-
-/// The nominal model as a [`LinearSystem`]: `K(alpha)`, `M(beta)` (paper Eqs. 20-21) and
-/// modal damping of its own modes (as the simulator's `damping.model = "modal"`; modes
-/// beyond `base.xi`, above the analysed band, take its last ratio). A model DOF `d`
-/// (0-based) is "floor" `d + 1` (the campaign format's convention).
-pub fn frame_system(model: &StructuralModel, base: &BaseParams) -> Result<LinearSystem> {
-    let n = model.n_dof();
-    if base.stiffness_scale.len() != model.n_alpha()
-        || base.mass_scale.len() != model.n_beta()
-        || base.xi.is_empty()
-        || base.xi.len() > n
-    {
-        return Err(Error::Usage(format!(
-            "the model needs {} stiffness scales, {} mass scales and 1..={n} damping ratios; got {}, {} and {}",
-            model.n_alpha(),
-            model.n_beta(),
-            base.stiffness_scale.len(),
-            base.mass_scale.len(),
-            base.xi.len()
-        )));
-    }
-    let (alpha, beta) = base.alpha_beta();
-    let k = model.stiffness(&alpha);
-    let m = model.mass(&beta);
-    let iota = model.ground_influence().clone();
-    let modes = Modes::solve(&k, &m, &iota, None)?;
-    let m_phi = &m * &modes.phi;
-    let mut scaled = m_phi.clone();
-    let last_xi = base.xi[base.xi.len() - 1];
-    for (j, w) in modes.omega_rad_s.iter().enumerate() {
-        let x = base.xi.get(j).copied().unwrap_or(last_xi);
-        scaled.column_mut(j).scale_mut(2.0 * x * w);
-    }
-    let c = scaled * m_phi.transpose();
-    let c = (&c + c.transpose()) * 0.5;
-    Ok(LinearSystem {
-        mass_kg: m,
-        stiffness_n_per_m: k,
-        damping_n_s_per_m: c,
-        floor_dof: (0..n).collect(),
-        ground_influence: iota,
-        base_dof: None,
-    })
-}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum Rhs {
@@ -183,6 +83,8 @@ pub struct ExtendedModel {
     slots: Vec<Slot>,
     points: Vec<Point>,
     n_solutions: usize,
+    /// Always the dense solve (the modal path's oracle, [`Self::dense`]).
+    force_dense: bool,
     /// Channels the hypothesis filters.
     sensors: Vec<Channel>,
     /// Per segment, per channel: range in the flat output.
@@ -312,7 +214,15 @@ impl ExtendedModel {
             sensors,
             layout,
             bias,
+            force_dense: false,
         })
+    }
+
+    /// The same model solved densely at every size (the oracle and baseline of the
+    /// modal fast path, [`super::forward_modal`]).
+    pub fn dense(mut self) -> Self {
+        self.force_dense = true;
+        self
     }
 
     /// The data.
@@ -398,16 +308,9 @@ impl ExtendedModel {
     /// The responses at the floors of every slot's right-hand sides (`slot.offset` +
     /// rhs-major, floors within): one factorisation of the dynamic stiffness per slot.
     fn solutions(&self, base: &BaseParams, effect: &[f64]) -> Result<Vec<Complex64>> {
-        let sys = self.system(base, effect)?;
-        let mut variants: Vec<LinearSystem> = vec![sys];
-        if let Some((h, loc)) = &self.hypothesis {
-            if h.amplitude_dependent() {
-                for seg in &self.data.segments {
-                    let mut s = variants[0].clone();
-                    h.modify_for_segment(loc, effect, seg, &mut s)?;
-                    variants.push(s);
-                }
-            }
+        let (nominal, modal, variants) = self.variants(base, effect)?;
+        if let Some(low_rank) = self.low_rank(&nominal, &modal, &variants) {
+            return self.modal_solutions(&variants, &low_rank);
         }
         let n = variants[0].n_dof();
         if n > MAX_DOF {
@@ -462,6 +365,109 @@ impl ExtendedModel {
                     sol[slot.offset + r * n_floors + f] = b[v.floor_dof[f] * nr + r];
                 }
             }
+        }
+        Ok(sol)
+    }
+
+    /// The nominal system and its modes, and the systems to solve: the hypothesis'
+    /// segment-independent change, then (amplitude dependent) each segment's own.
+    fn variants(
+        &self,
+        base: &BaseParams,
+        effect: &[f64],
+    ) -> Result<(LinearSystem, ModalDamping, Vec<LinearSystem>)> {
+        let (nominal, modal) = frame_system_modal(&self.data.model, base)?;
+        let mut sys = nominal.clone();
+        if let Some((h, loc)) = &self.hypothesis {
+            h.modify_system(loc, effect, &mut sys)?;
+        }
+        let mut variants: Vec<LinearSystem> = vec![sys];
+        if let Some((h, loc)) = &self.hypothesis {
+            if h.amplitude_dependent() {
+                for seg in &self.data.segments {
+                    let mut s = variants[0].clone();
+                    h.modify_for_segment(loc, effect, seg, &mut s)?;
+                    variants.push(s);
+                }
+            }
+        }
+        Ok((nominal, modal, variants))
+    }
+
+    /// Every variant as the nominal modal sum plus a change on at most a quarter of the
+    /// nominal DOFs, on models of [`MODAL_MIN_DOF`] DOFs or more; `None`: solve densely.
+    fn low_rank<'a>(
+        &self,
+        nominal: &LinearSystem,
+        modal: &'a ModalDamping,
+        variants: &[LinearSystem],
+    ) -> Option<Vec<LowRankModal<'a>>> {
+        if nominal.n_dof() < MODAL_MIN_DOF || self.force_dense {
+            return None;
+        }
+        let max_rank = nominal.n_dof() / 4;
+        variants
+            .iter()
+            .map(|v| LowRankModal::new(nominal, modal, v, max_rank))
+            .collect()
+    }
+
+    /// True when an evaluation at `(base, effect)` takes the modal fast path.
+    pub fn is_modal_at(&self, base: &BaseParams, effect: &[f64]) -> Result<bool> {
+        let (nominal, modal, variants) = self.variants(base, effect)?;
+        Ok(self.low_rank(&nominal, &modal, &variants).is_some())
+    }
+
+    /// The responses at the floors of every slot's right-hand sides (as the dense
+    /// solve's), each system (`variants`) solved as its low-rank form `low`.
+    fn modal_solutions(
+        &self,
+        variants: &[LinearSystem],
+        low: &[LowRankModal],
+    ) -> Result<Vec<Complex64>> {
+        let n_floors = self.data.n_floors();
+        let zero = Complex64::new(0.0, 0.0);
+        let mut sol = vec![zero; self.n_solutions];
+        // Each variant's right-hand sides and their modal coordinates.
+        let mut cache: Vec<HashMap<Rhs, (Vec<f64>, Vec<f64>)>> = vec![HashMap::new(); low.len()];
+        for slot in &self.slots {
+            let v = &variants[slot.variant];
+            for r in &slot.rhs {
+                cache[slot.variant].entry(*r).or_insert_with(|| {
+                    let b: Vec<f64> = match r {
+                        Rhs::Force(f) => {
+                            let mut b = vec![0.0; v.n_dof()];
+                            b[v.floor_dof[f - 1]] = 1.0;
+                            b
+                        }
+                        Rhs::Ground => (&v.mass_kg * &v.ground_influence)
+                            .iter()
+                            .map(|x| -x)
+                            .collect(),
+                    };
+                    let q = low[slot.variant].project(&b);
+                    (b, q)
+                });
+            }
+        }
+        for slot in &self.slots {
+            let v = &variants[slot.variant];
+            let rows = &v.floor_dof[..n_floors];
+            let cached = &cache[slot.variant];
+            let rhs: Vec<(&[f64], &[f64])> = slot
+                .rhs
+                .iter()
+                .map(|r| {
+                    let (b, q) = &cached[r];
+                    (b.as_slice(), q.as_slice())
+                })
+                .collect();
+            let out = &mut sol[slot.offset..slot.offset + rhs.len() * n_floors];
+            low[slot.variant]
+                .solve(slot.s, &rhs, rows, out)
+                .map_err(|_| {
+                    Error::Numerical(format!("dynamic stiffness singular at s = {}", slot.s))
+                })?;
         }
         Ok(sol)
     }
@@ -535,62 +541,4 @@ fn flat_bias(data: &DiagnosisData) -> Vec<Complex64> {
         }
     }
     out
-}
-
-/// Solves `A X = B` in place by Gaussian elimination with partial pivoting: `a` is
-/// `n x n` row-major (destroyed), `b` is `n x nr` row-major and receives `X`.
-pub(crate) fn solve_in_place(
-    n: usize,
-    a: &mut [Complex64],
-    b: &mut [Complex64],
-    nr: usize,
-) -> std::result::Result<(), ()> {
-    for c in 0..n {
-        let mut p = c;
-        let mut best = a[c * n + c].norm_sqr();
-        for r in c + 1..n {
-            let v = a[r * n + c].norm_sqr();
-            if v > best {
-                best = v;
-                p = r;
-            }
-        }
-        if best == 0.0 || !best.is_finite() {
-            return Err(());
-        }
-        if p != c {
-            for j in 0..n {
-                a.swap(c * n + j, p * n + j);
-            }
-            for j in 0..nr {
-                b.swap(c * nr + j, p * nr + j);
-            }
-        }
-        let inv = a[c * n + c].inv();
-        for r in c + 1..n {
-            let f = a[r * n + c] * inv;
-            if f == Complex64::new(0.0, 0.0) {
-                continue;
-            }
-            for j in c + 1..n {
-                let v = a[c * n + j];
-                a[r * n + j] -= f * v;
-            }
-            for j in 0..nr {
-                let v = b[c * nr + j];
-                b[r * nr + j] -= f * v;
-            }
-        }
-    }
-    for c in (0..n).rev() {
-        let inv = a[c * n + c].inv();
-        for j in 0..nr {
-            let mut v = b[c * nr + j];
-            for k in c + 1..n {
-                v -= a[c * n + k] * b[k * nr + j];
-            }
-            b[c * nr + j] = v * inv;
-        }
-    }
-    Ok(())
 }

@@ -17,6 +17,9 @@ pub mod extension;
 pub mod figures;
 pub mod fit;
 pub mod forward;
+mod forward_modal;
+#[cfg(test)]
+mod forward_modal_tests;
 mod frame_layout;
 mod gain_solve;
 pub mod heldout;
@@ -27,6 +30,7 @@ pub mod judge;
 pub mod locate;
 pub mod location;
 pub mod model_evidence;
+mod nominal_system;
 pub mod output;
 pub mod posterior;
 pub mod reduction;

@@ -6,7 +6,8 @@
 //! diagnosis they are numbered `1..=kept` (as floors), and [`Reduction`] maps them back
 //! to the model's DOFs for every location it reports.
 
-use super::data::{model_frequencies, DataOptions};
+use super::data::{model_frequencies, DataOptions, DiagnosisData};
+use super::forward::BaseParams;
 use super::posterior::MULTIPLIER_BOUNDS;
 use crate::error::{Error, Result};
 use crate::io::{Campaign, TestKind};
@@ -43,8 +44,10 @@ pub struct Reduction {
     pub connections: Vec<[usize; 2]>,
     /// Top of the analysed band, Hz.
     pub freq_max_hz: f64,
-    /// Where the basis is exact (the stiffness variables `alpha`).
+    /// Where the basis is exact: the stiffness variables `alpha`...
     pub anchor_alpha: Vec<f64>,
+    /// ... and the mass variables `beta`.
+    pub anchor_beta: Vec<f64>,
     /// Modes taken from each snapshot: those in the band and [`EXTRA_MODES`] more.
     pub modes_per_snapshot: usize,
     /// Modes of the anchor kept whole: those below [`ANCHOR_MODES_REL`] x the band's top
@@ -151,6 +154,7 @@ pub fn reduce_for_campaign(
         connections,
         freq_max_hz: top_hz,
         anchor_alpha: full.alpha_zero(),
+        anchor_beta: full.beta_zero(),
         modes_per_snapshot: (n_band + EXTRA_MODES).min(n_search),
         anchor_modes: modes
             .eigenvalues
@@ -207,8 +211,41 @@ impl Reduction {
         let reduced = self.reduce_at(alpha, beta)?;
         let mut r = self.clone();
         r.anchor_alpha = alpha.to_vec();
+        r.anchor_beta = beta.to_vec();
         r.n_generalised = reduced.n_generalised();
         Ok((reduced, r))
+    }
+}
+
+/// Re-anchoring stops when no stiffness or mass variable moved more than this between
+/// two anchors (a fifth of the snapshots' step, where the basis error is about 1e-3).
+pub const REANCHOR_TOL: f64 = 0.2 * ANCHOR_STEP;
+
+impl DiagnosisData {
+    /// On a reduced model, the same data on the reduction re-anchored at `base`'s
+    /// stiffness and mass variables ([`Reduction::reanchored`]), and the largest change
+    /// of a variable from the old anchor; `None` when the model is not reduced or no
+    /// variable moved more than [`REANCHOR_TOL`]. The hypotheses' priors keep the
+    /// nominal model's frequencies.
+    pub fn reanchored(&self, base: &BaseParams) -> Result<Option<(DiagnosisData, f64)>> {
+        let Some(reduction) = &self.reduction else {
+            return Ok(None);
+        };
+        let (alpha, beta) = base.alpha_beta();
+        let moved = alpha
+            .iter()
+            .zip(&reduction.anchor_alpha)
+            .chain(beta.iter().zip(&reduction.anchor_beta))
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        if moved <= REANCHOR_TOL {
+            return Ok(None);
+        }
+        let (reduced, r) = reduction.reanchored(&alpha, &beta)?;
+        let mut out = self.clone();
+        out.model = Arc::new(reduced.model);
+        out.reduction = Some(Arc::new(r));
+        Ok(Some((out, moved)))
     }
 }
 
