@@ -272,6 +272,9 @@ pub fn diagnose_resumable(
     let t0 = Instant::now();
     progress(DiagnoseStage::Data);
     let data = Arc::new(DiagnosisData::from_campaign(campaign, &opts.data)?);
+    // On a reduced model the tests are replayed, and checked, on the kept DOFs.
+    let renumbered = data.reduction.as_ref().map(|r| r.renumber(campaign));
+    let campaign = renumbered.as_ref().unwrap_or(campaign);
     let mut timings: Timings = Vec::new();
     let mut watch = Stopwatch::new(t0);
     watch.mark("data", &mut timings);

@@ -41,6 +41,9 @@ use std::sync::Arc;
 /// solve per frequency costs `n^3 / 3`; larger models need a reduced basis first.
 pub const MAX_DOF: usize = crate::predict::choice::DENSE_MAX_DOF;
 
+/// A right-hand side `b` and its modal coordinates `Phi^T b` (the modal fast path).
+type ModalRhs = (Vec<f64>, Vec<f64>);
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum Rhs {
     /// Unit force at floor (1-based).
@@ -429,7 +432,7 @@ impl ExtendedModel {
         let zero = Complex64::new(0.0, 0.0);
         let mut sol = vec![zero; self.n_solutions];
         // Each variant's right-hand sides and their modal coordinates.
-        let mut cache: Vec<HashMap<Rhs, (Vec<f64>, Vec<f64>)>> = vec![HashMap::new(); low.len()];
+        let mut cache: Vec<HashMap<Rhs, ModalRhs>> = vec![HashMap::new(); low.len()];
         for slot in &self.slots {
             let v = &variants[slot.variant];
             for r in &slot.rhs {

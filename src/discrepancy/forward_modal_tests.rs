@@ -1,14 +1,12 @@
 //! Oracle of the modal fast path ([`super::forward_modal`]): on a 20-story frame, every
 //! hypothesis at every location predicts what the dense solve predicts.
 
-use super::data::{
-    nominal_frequencies, ChannelData, DataOptions, DiagnosisData, SegmentData, SegmentSource,
-};
+use super::data::{nominal_frequencies, DataOptions, DiagnosisData, SegmentData};
 use super::forward::{BaseParams, ExtendedModel};
 use super::hypotheses::all_hypotheses;
 use super::hypothesis::Hypothesis;
-use crate::frf::FrfKind;
-use crate::io::{Channel, NominalModel, Quantity};
+use super::tests::segment_on;
+use crate::io::NominalModel;
 use crate::signal::InputKind;
 use num_complex::Complex64;
 use std::sync::Arc;
@@ -20,53 +18,9 @@ const N: usize = 20;
 const TOL: f64 = 1e-8;
 const FLOORS: [usize; 5] = [1, 5, 10, 17, 20];
 
-fn chan(name: &str, quantity: Quantity, floor: usize) -> Channel {
-    Channel {
-        name: name.into(),
-        quantity,
-        floor,
-        unit: quantity.unit().into(),
-    }
-}
-
 fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> SegmentData {
-    let input_channel = match &input {
-        InputKind::Force { floor, channel } => chan(channel, Quantity::Force, *floor),
-        InputKind::Ground { channel } => chan(channel, Quantity::GroundAcceleration, 0),
-    };
-    let n = freq_hz.len();
-    let mut channels = Vec::new();
-    for (q, prefix, kind) in [
-        (Quantity::Acceleration, "acc", FrfKind::Accelerance),
-        (Quantity::Displacement, "disp", FrfKind::Receptance),
-    ] {
-        for f in FLOORS {
-            channels.push(ChannelData {
-                channel: chan(&format!("{prefix}{f}"), q, f),
-                kind,
-                freq_index: (0..n).collect(),
-                band: vec![None; n],
-                h: vec![Complex64::new(1.0, 0.5); n],
-                rel_err: vec![0.01; n],
-                estimator_bias: Vec::new(),
-            });
-        }
-    }
-    SegmentData {
-        name: name.into(),
-        test: name.into(),
-        impact: None,
-        peak_force_n: None,
-        input,
-        input_channel,
-        exp_window_tau_s: tau,
-        freq_hz: freq_hz.to_vec(),
-        bands: Vec::new(),
-        channels,
-        story_drift_lin_sq_m2: (0..N).map(|s| Some(1e-6 * (1.0 + s as f64))).collect(),
-        input_gain: None,
-        source: SegmentSource::default(),
-    }
+    let drift = (0..N).map(|s| Some(1e-6 * (1.0 + s as f64))).collect();
+    segment_on(name, input, tau, freq_hz, &FLOORS, drift)
 }
 
 /// A 20-story frame with hammer tests at floors 5 and 17, a shake-table test and a

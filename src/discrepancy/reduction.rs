@@ -59,6 +59,13 @@ pub struct Reduction {
 }
 
 impl Reduction {
+    /// `campaign` with its channels and impacts renumbered onto the kept DOFs, as the
+    /// diagnosis's data and model number them (what a replay of its tests needs).
+    pub fn renumber(&self, campaign: &Campaign) -> Campaign {
+        let kept: Vec<usize> = self.kept_dof.iter().map(|d| d - 1).collect();
+        renumbered(campaign, &kept)
+    }
+
     /// The model's DOF (1-based) of the diagnosis's DOF `j` (1-based); `j` itself when
     /// out of range (the ground, 0).
     pub fn model_dof(&self, j: usize) -> usize {

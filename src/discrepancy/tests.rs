@@ -36,6 +36,21 @@ fn chan(name: &str, quantity: Quantity, floor: usize) -> Channel {
 
 /// A segment with acc1..4 and disp1..4 at `freq_hz`, measured values all 1 (unused).
 fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> SegmentData {
+    let drift = vec![Some(1e-6), Some(2e-6), Some(0.5e-6), Some(3e-6)];
+    segment_on(name, input, tau, freq_hz, &[1, 2, 3, 4], drift)
+}
+
+/// A segment with an accelerometer and a displacement sensor on each of `floors` at
+/// `freq_hz` (channels `acc<f>`, `disp<f>`), measured values all 1 (unused), and the
+/// stories' drift weights `drift`.
+pub(super) fn segment_on(
+    name: &str,
+    input: InputKind,
+    tau: Option<f64>,
+    freq_hz: &[f64],
+    floors: &[usize],
+    drift: Vec<Option<f64>>,
+) -> SegmentData {
     let input_channel = match &input {
         InputKind::Force { floor, channel } => chan(channel, Quantity::Force, *floor),
         InputKind::Ground { channel } => chan(channel, Quantity::GroundAcceleration, 0),
@@ -45,7 +60,7 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
         (Quantity::Acceleration, "acc", FrfKind::Accelerance),
         (Quantity::Displacement, "disp", FrfKind::Receptance),
     ] {
-        for f in 1..=4 {
+        for &f in floors {
             let n = freq_hz.len();
             channels.push(ChannelData {
                 channel: chan(&format!("{prefix}{f}"), q, f),
@@ -69,7 +84,7 @@ fn segment(name: &str, input: InputKind, tau: Option<f64>, freq_hz: &[f64]) -> S
         freq_hz: freq_hz.to_vec(),
         bands: Vec::new(),
         channels,
-        story_drift_lin_sq_m2: vec![Some(1e-6), Some(2e-6), Some(0.5e-6), Some(3e-6)],
+        story_drift_lin_sq_m2: drift,
         input_gain: None,
         source: SegmentSource::default(),
     }
