@@ -17,7 +17,10 @@
 //! - times `sensor(response, s) / sensor(input, s)` ([`Hypothesis::sensor_factor`]).
 //!
 //! Segments on the same grid with the same window (all hammer blocks of a campaign)
-//! share their factorisations unless the hypothesis is amplitude dependent.
+//! share their factorisations unless the hypothesis is amplitude dependent. Models of
+//! [`super::forward_modal::MODAL_MIN_DOF`] DOFs or more skip the factorisation: the
+//! nominal modal sum plus the hypothesis' change as a low-rank update gives the same
+//! responses ([`super::forward_modal`]).
 //!
 //! Output layout ("flat"): segment by segment, channel by channel, point by point, as in
 //! [`DiagnosisData`]; [`ExtendedModel::layout`] gives the ranges.
