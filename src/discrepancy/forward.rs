@@ -18,9 +18,9 @@
 //!
 //! Segments on the same grid with the same window (all hammer blocks of a campaign)
 //! share their factorisations unless the hypothesis is amplitude dependent. Models of
-//! [`super::forward_modal::MODAL_MIN_DOF`] DOFs or more skip the factorisation: the
+//! `forward_modal::MODAL_MIN_DOF` (16) DOFs or more skip the factorisation: the
 //! nominal modal sum plus the hypothesis' change as a low-rank update gives the same
-//! responses ([`super::forward_modal`]).
+//! responses (`forward_modal.rs`).
 //!
 //! Output layout ("flat"): segment by segment, channel by channel, point by point, as in
 //! [`DiagnosisData`]; [`ExtendedModel::layout`] gives the ranges.
@@ -225,7 +225,7 @@ impl ExtendedModel {
     }
 
     /// The same model solved densely at every size (the oracle and baseline of the
-    /// modal fast path, [`super::forward_modal`]).
+    /// modal fast path, `forward_modal.rs`).
     pub fn dense(mut self) -> Self {
         self.force_dense = true;
         self

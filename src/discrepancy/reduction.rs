@@ -48,9 +48,9 @@ pub struct Reduction {
     pub anchor_alpha: Vec<f64>,
     /// ... and the mass variables `beta`.
     pub anchor_beta: Vec<f64>,
-    /// Modes taken from each snapshot: those in the band and [`EXTRA_MODES`] more.
+    /// Modes taken from each snapshot: those in the band and `EXTRA_MODES` (4) more.
     pub modes_per_snapshot: usize,
-    /// Modes of the anchor kept whole: those below [`ANCHOR_MODES_REL`] x the band's top
+    /// Modes of the anchor kept whole: those below `ANCHOR_MODES_REL` (2.5) x the band's top
     /// (their dynamics above the static correction reach into the band).
     pub anchor_modes: usize,
     /// The full model.
