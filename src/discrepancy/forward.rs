@@ -261,15 +261,6 @@ impl ExtendedModel {
         self.slots.len()
     }
 
-    /// The system of the frame with the hypothesis' segment-independent change.
-    pub fn system(&self, base: &BaseParams, effect: &[f64]) -> Result<LinearSystem> {
-        let mut sys = frame_system(&self.data.model, base)?;
-        if let Some((h, loc)) = &self.hypothesis {
-            h.modify_system(loc, effect, &mut sys)?;
-        }
-        Ok(sys)
-    }
-
     /// Predicted ratios into `out` (flat layout, length [`Self::len`]); `effect` holds
     /// the hypothesis' physical values (empty for the nominal model).
     pub fn predict_into(

@@ -109,14 +109,7 @@ pub fn frame_system_modal(
     }
     let c = scaled * m_phi.transpose();
     let c = (&c + c.transpose()) * 0.5;
-    let sys = LinearSystem {
-        mass_kg: m,
-        stiffness_n_per_m: k,
-        damping_n_s_per_m: c,
-        floor_dof: (0..n).collect(),
-        ground_influence: iota,
-        base_dof: None,
-    };
+    let sys = LinearSystem::on_rigid_ground(m, k, c, iota);
     let modal = ModalDamping {
         omega_sq: modes.omega_rad_s.iter().map(|w| w * w).collect(),
         two_xi_omega,

@@ -190,14 +190,7 @@ mod tests {
             },
         )
         .unwrap();
-        LinearSystem {
-            mass_kg: m,
-            stiffness_n_per_m: k,
-            damping_n_s_per_m: c,
-            floor_dof: (0..n).collect(),
-            ground_influence: iota,
-            base_dof: None,
-        }
+        LinearSystem::on_rigid_ground(m, k, c, iota)
     }
 
     /// Oracle: with every mode kept, the modal simulation equals the physical one

@@ -61,17 +61,28 @@ impl LinearSystem {
         let k = model.stiffness(&alpha);
         let iota = model.ground_influence().clone();
         let c = damping_matrix(&m, &k, &iota, damping)?;
+        let system = LinearSystem::on_rigid_ground(m, k, c, iota);
+        system.validate()?;
+        Ok(system)
+    }
+
+    /// The system of matrices `m`, `k`, `c` on the rigid ground: DOF `d` (0-based) is
+    /// floor `d + 1`, ground motion enters through `iota`.
+    pub fn on_rigid_ground(
+        m: DMatrix<f64>,
+        k: DMatrix<f64>,
+        c: DMatrix<f64>,
+        iota: DVector<f64>,
+    ) -> Self {
         let n = m.nrows();
-        let system = LinearSystem {
+        LinearSystem {
             mass_kg: m,
             stiffness_n_per_m: k,
             damping_n_s_per_m: c,
             floor_dof: (0..n).collect(),
             ground_influence: iota,
             base_dof: None,
-        };
-        system.validate()?;
-        Ok(system)
+        }
     }
 
     /// Number of DOFs.
@@ -306,14 +317,7 @@ mod tests {
             },
         )
         .unwrap();
-        let s = LinearSystem {
-            mass_kg: m.clone(),
-            stiffness_n_per_m: k.clone(),
-            damping_n_s_per_m: c,
-            floor_dof: (0..12).collect(),
-            ground_influence: iota.clone(),
-            base_dof: None,
-        };
+        let s = LinearSystem::on_rigid_ground(m.clone(), k.clone(), c, iota.clone());
         s.validate().unwrap();
         let modes = s.modes().unwrap();
         assert_eq!(modes.n_modes(), 6);
