@@ -91,7 +91,10 @@ fn the_replayed_bias_explains_the_lightly_damped_second_impacts() {
     assert!(b2 > 3.0 * b1, "impact 2 {b2:.2e} against impact 1 {b1:.2e}");
     // With it, both meet the estimates at the replay's accuracy.
     assert!(a2 < b2 / 5.0 && a1 < b1, "{a1:.2e} {a2:.2e}");
-    assert!(a2 < 1e-4, "{a2:.2e}");
+    // The replay's own error is far below that (measured 4.5e-7 and 5.4e-9 since it
+    // steps 6 times finer and divides only the state part by the hold's gain; 2.7e-6
+    // and 8.3e-6 before).
+    assert!(a1 < 2e-6 && a2 < 1e-6, "{a1:.2e} {a2:.2e}");
 
     // First order where the data pin the modes: with every frequency 1e-4 higher
     // (stiffnesses x 1.0002) the bias measured at the truth misses the replay's bias

@@ -67,7 +67,7 @@ impl BaseParams {
 
 /// The nominal model as a [`LinearSystem`]: `K(alpha)`, `M(beta)` (paper Eqs. 20-21) and
 /// modal damping of its own modes (as the simulator's `damping.model = "modal"`; modes
-/// beyond `base.xi`, above the analysed band, take its last ratio). A model DOF `d`
+/// beyond `base.xi`, above the analysed band, take the ratios of [`OutOfBandDamping`]). A model DOF `d`
 /// (0-based) is "floor" `d + 1` (the campaign format's convention).
 pub fn frame_system(model: &StructuralModel, base: &BaseParams) -> Result<LinearSystem> {
     Ok(frame_system_modal(model, base)?.0)
@@ -100,10 +100,10 @@ pub fn frame_system_modal(
     let modes = Modes::solve(&k, &m, &iota, None)?;
     let m_phi = &m * &modes.phi;
     let mut scaled = m_phi.clone();
-    let last_xi = base.xi[base.xi.len() - 1];
+    let above = OutOfBandDamping::fit(&modes.omega_rad_s[..base.xi.len()], &base.xi);
     let mut two_xi_omega = Vec::with_capacity(n);
     for (j, w) in modes.omega_rad_s.iter().enumerate() {
-        let x = base.xi.get(j).copied().unwrap_or(last_xi);
+        let x = base.xi.get(j).copied().unwrap_or_else(|| above.ratio(*w));
         two_xi_omega.push(2.0 * x * w);
         scaled.column_mut(j).scale_mut(2.0 * x * w);
     }
@@ -116,4 +116,114 @@ pub fn frame_system_modal(
         phi: modes.phi,
     };
     Ok((sys, modal))
+}
+
+/// Damping ratios of the modes above the analysed band, which the data see only through
+/// their residual flexibility (at a light driving point, the accelerance's feedthrough
+/// is most of the response and their damping sets its phase): Rayleigh's law
+/// `xi(omega) = a / (2 omega) + b omega / 2` (`a, b >= 0`) fitted by least squares to the
+/// band's ratios when it fits them better than one constant ratio does, else that
+/// constant (the band's mean ratio).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OutOfBandDamping {
+    /// `a / (2 omega) + b omega / 2`, `a` in 1/s, `b` in s.
+    Rayleigh { a_per_s: f64, b_s: f64 },
+    /// One ratio for every mode above the band.
+    Constant(f64),
+}
+
+impl OutOfBandDamping {
+    /// The law for modes above the band from the band's modes' `omega_rad_s` and ratios
+    /// `xi` (module docs); a constant with fewer than two ratios.
+    pub fn fit(omega_rad_s: &[f64], xi: &[f64]) -> Self {
+        let n = xi.len().min(omega_rad_s.len());
+        let mean = xi[..n].iter().sum::<f64>() / n.max(1) as f64;
+        let constant = OutOfBandDamping::Constant(if n == 0 { 0.0 } else { mean });
+        if n < 2 {
+            return constant;
+        }
+        let (w, x) = (&omega_rad_s[..n], &xi[..n]);
+        let ssr = |law: &OutOfBandDamping| -> f64 {
+            w.iter()
+                .zip(x)
+                .map(|(w, x)| (law.ratio(*w) - x).powi(2))
+                .sum()
+        };
+        // Columns 1/(2 omega) and omega/2; normal equations of the 2-parameter fit.
+        let (p, q): (Vec<f64>, Vec<f64>) = w.iter().map(|w| (0.5 / w, 0.5 * w)).unzip();
+        let dot = |u: &[f64], v: &[f64]| u.iter().zip(v).map(|(a, b)| a * b).sum::<f64>();
+        let (pp, pq, qq, px, qx) = (
+            dot(&p, &p),
+            dot(&p, &q),
+            dot(&q, &q),
+            dot(&p, x),
+            dot(&q, x),
+        );
+        let det = pp * qq - pq * pq;
+        let mut candidates = vec![
+            OutOfBandDamping::Rayleigh {
+                a_per_s: (px / pp).max(0.0),
+                b_s: 0.0,
+            },
+            OutOfBandDamping::Rayleigh {
+                a_per_s: 0.0,
+                b_s: (qx / qq).max(0.0),
+            },
+        ];
+        if det > 1e-12 * pp * qq {
+            let (a, b) = ((qq * px - pq * qx) / det, (pp * qx - pq * px) / det);
+            if a >= 0.0 && b >= 0.0 {
+                candidates.push(OutOfBandDamping::Rayleigh { a_per_s: a, b_s: b });
+            }
+        }
+        let best = candidates
+            .into_iter()
+            .min_by(|l, r| ssr(l).total_cmp(&ssr(r)))
+            .unwrap_or(constant);
+        if best.ratio(w[n - 1]).is_finite() && ssr(&best) < ssr(&constant) {
+            best
+        } else {
+            constant
+        }
+    }
+
+    /// The damping ratio of a mode at `omega_rad_s`.
+    pub fn ratio(&self, omega_rad_s: f64) -> f64 {
+        match *self {
+            OutOfBandDamping::Rayleigh { a_per_s, b_s } => {
+                0.5 * a_per_s / omega_rad_s + 0.5 * b_s * omega_rad_s
+            }
+            OutOfBandDamping::Constant(xi) => xi,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::OutOfBandDamping;
+
+    #[test]
+    fn a_rayleigh_band_extrapolates_by_its_law_and_a_flat_one_stays_flat() {
+        let w = [10.0, 30.0, 55.0, 80.0];
+        let law = |w: f64| 0.5 * 0.4 / w + 0.5 * 6e-4 * w;
+        let xi: Vec<f64> = w.iter().map(|w| law(*w)).collect();
+        let fit = OutOfBandDamping::fit(&w, &xi);
+        for w in [200.0, 1000.0] {
+            assert!((fit.ratio(w) - law(w)).abs() < 1e-12 * law(w), "{fit:?}");
+        }
+        let flat = OutOfBandDamping::fit(&w, &[0.02; 4]);
+        assert_eq!(flat, OutOfBandDamping::Constant(0.02));
+        assert_eq!(
+            OutOfBandDamping::fit(&w[..1], &[0.03]),
+            OutOfBandDamping::Constant(0.03)
+        );
+        // Stiffness-proportional only: the mass term is clamped at zero.
+        let xi: Vec<f64> = w.iter().map(|w| 0.5 * 1e-3 * w).collect();
+        match OutOfBandDamping::fit(&w, &xi) {
+            OutOfBandDamping::Rayleigh { a_per_s, b_s } => {
+                assert!(a_per_s.abs() < 1e-12 && (b_s - 1e-3).abs() < 1e-12)
+            }
+            other => panic!("{other:?}"),
+        }
+    }
 }

@@ -15,6 +15,18 @@
 //!
 //! Outputs are linear read-outs `y = C z + D u`; accelerations use the acceleration rows
 //! of `A` and `B` (the state equation), which is exact at the sample instants.
+//!
+//! **Pre-emphasis.** A recording's samples stand for a band-limited signal, and the
+//! straight line between them is not one: its spectrum is the samples' times
+//! `sinc^2(omega h / 2)`, about `1 - (omega h)^2 / 12`. The read-out's feedthrough
+//! `D u_k` is exact, so the error falls on the state's part `G - D` of a transfer
+//! function `G`; at a light driving point the accelerance's `D = 1 / m` is 20-40 times
+//! `|G|` in band (a bridge deck DOF), and there the plain hold erred by up to 1.3 %.
+//! The state is therefore driven by the pre-emphasised samples
+//! [`pre_emphasised`] `p_k = u_k + (2 u_k - u_{k-1} - u_{k+1}) / 12`, whose straight line
+//! has the gain [`hold_gain`] `(1 + sin^2(x) / 3) sinc^2(x)`, `x = omega h / 2`, about
+//! `1 - (omega h)^4 / 90` (3e-5 at a tenth of the sample rate), while the read-out
+//! keeps the raw `D u_k`.
 
 use super::system::LinearSystem;
 use crate::error::{Error, Result};
@@ -235,9 +247,11 @@ impl Foh {
             }
             None => vec![0.0; ns],
         };
+        let drive: Vec<Vec<f64>> = inputs.iter().map(|u| pre_emphasised(u)).collect();
         let mut z_next = vec![0.0; ns];
         let mut u = vec![0.0; ni];
-        let mut u_next = vec![0.0; ni];
+        let mut p = vec![0.0; ni];
+        let mut p_next = vec![0.0; ni];
         let mut y: Vec<Vec<f64>> = (0..no).map(|_| Vec::with_capacity(n_steps)).collect();
         const CHUNK: usize = 1 << 14;
         let mut reported = 0;
@@ -251,13 +265,13 @@ impl Foh {
             if k + 1 == n_steps {
                 break;
             }
-            for (j, uj) in u_next.iter_mut().enumerate() {
-                *uj = inputs[j][k + 1];
+            for (j, (pj, pn)) in p.iter_mut().zip(p_next.iter_mut()).enumerate() {
+                (*pj, *pn) = (drive[j][k], drive[j][k + 1]);
             }
             for (i, zi) in z_next.iter_mut().enumerate() {
                 *zi = dot(&phi[i * ns..(i + 1) * ns], &z)
-                    + dot(&g0[i * ni..(i + 1) * ni], &u)
-                    + dot(&g1[i * ni..(i + 1) * ni], &u_next);
+                    + dot(&g0[i * ni..(i + 1) * ni], &p)
+                    + dot(&g1[i * ni..(i + 1) * ni], &p_next);
             }
             std::mem::swap(&mut z, &mut z_next);
             if (k + 1) % CHUNK == 0 {
@@ -271,6 +285,32 @@ impl Foh {
         }
         Ok(y)
     }
+}
+
+/// The samples `u` pre-emphasised for a straight-line hold (module docs):
+/// `p_k = u_k + (2 u_k - u_{k-1} - u_{k+1}) / 12`, the end samples kept.
+pub fn pre_emphasised(u: &[f64]) -> Vec<f64> {
+    let n = u.len();
+    (0..n)
+        .map(|k| {
+            if k == 0 || k + 1 == n {
+                u[k]
+            } else {
+                u[k] + (2.0 * u[k] - u[k - 1] - u[k + 1]) / 12.0
+            }
+        })
+        .collect()
+}
+
+/// Gain of the straight-line hold of pre-emphasised samples against the band-limited
+/// signal they stand for, at `omega_rad_s` for samples `h_s` apart (module docs):
+/// `(1 + sin^2(x) / 3) sinc^2(x)`, `x = omega h / 2`; about `1 - (omega h)^4 / 90`.
+pub fn hold_gain(omega_rad_s: f64, h_s: f64) -> f64 {
+    let x = 0.5 * omega_rad_s * h_s;
+    if x.abs() < 1e-8 {
+        return 1.0;
+    }
+    (1.0 + x.sin().powi(2) / 3.0) * (x.sin() / x).powi(2)
 }
 
 /// Exact step for inputs that are polynomials of degree `degree` over the step:

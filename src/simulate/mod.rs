@@ -165,7 +165,9 @@ pub use config::{
     ChirpSpec, DampingSpec, ImpactSpec, NoiseSpec, NominalSpec, SamplingSpec, SimModel,
     StructureSpec, TestSpec,
 };
-pub use discrete::{polynomial_hold, Drive, Foh, OutputMap, Response, StateSpace};
+pub use discrete::{
+    hold_gain, polynomial_hold, pre_emphasised, Drive, Foh, OutputMap, Response, StateSpace,
+};
 pub use effects::{BaseFlexibility, Dashpot, EffectSpec, Oscillator, StiffnessNonlinearity};
 pub use modal_basis::ModalBasis;
 pub use nonlinear::{CubicSpring, NonlinearFoh};

@@ -4,8 +4,9 @@
 //!
 //! The linear part is stepped exactly as in [`super::discrete`]: the spring forces
 //! `q_s = -k3_s d_s^3` are extra inputs (drives [`Drive::Pair`]). Over each step the
-//! external input is the straight line between its samples (as for the linear
-//! simulation, so `k3 = 0` reproduces it), and each spring force is the cubic Hermite
+//! external input is the straight line between its pre-emphasised samples (as for the
+//! linear simulation, [`super::discrete::pre_emphasised`], so `k3 = 0` reproduces it),
+//! and each spring force is the cubic Hermite
 //! interpolant of its end values and end derivatives `q' = -3 k3 d^2 v` (`v = d'`):
 //!
 //! `q(t_k + tau h) = c0 + c1 tau + c2 tau^2 + c3 tau^3`, `c0 = q_k`, `c1 = h q'_k`,
@@ -18,7 +19,7 @@
 //! globally (checked on a Duffing oscillator against the exact `cn` solution and by step
 //! halving), and exact for `k3 = 0`.
 
-use super::discrete::{dot, polynomial_hold, Drive, OutputMap, StateSpace};
+use super::discrete::{dot, polynomial_hold, pre_emphasised, Drive, OutputMap, StateSpace};
 use super::system::LinearSystem;
 use crate::error::{Error, Result};
 use nalgebra::{DMatrix, DVector};
@@ -112,6 +113,7 @@ impl NonlinearFoh {
             let (d, v) = spring_drift(sp, &z, n);
             (qk[2 * s], qk[2 * s + 1]) = sp.force(d, v);
         }
+        let drive: Vec<Vec<f64>> = inputs.iter().map(|u| pre_emphasised(u)).collect();
         let mut z_star = vec![0.0; ns];
         let mut a = vec![0.0; 2 * m];
         let mut u = vec![0.0; ni];
@@ -120,8 +122,8 @@ impl NonlinearFoh {
         const CHUNK: usize = 1 << 14;
         let mut reported = 0;
         for k in 0..n_steps {
-            for (j, uj) in u.iter_mut().take(ne).enumerate() {
-                *uj = inputs[j][k];
+            for (uj, series) in u.iter_mut().take(ne).zip(inputs) {
+                *uj = series[k];
             }
             for s in 0..m {
                 u[ne + s] = qk[2 * s];
@@ -132,7 +134,7 @@ impl NonlinearFoh {
             if k + 1 == n_steps {
                 break;
             }
-            ops.known_state(&z, inputs, k, &qk, &mut z_star);
+            ops.known_state(&z, &drive, k, &qk, &mut z_star);
             for (s, sp) in self.springs.iter().enumerate() {
                 (a[2 * s], a[2 * s + 1]) = spring_drift(sp, &z_star, n);
             }

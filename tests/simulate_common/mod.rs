@@ -20,23 +20,32 @@ pub fn spectrum(x: &[f64]) -> Vec<Complex64> {
     out
 }
 
-/// `sum_j (X(nu_j) - limit) sinc^2(nu_j h / 2) + limit` over the images
+/// `P(omega) sum_j (X(nu_j) - limit) sinc^2(nu_j h / 2) + limit` over the images
 /// `nu_j = omega + j 2 pi / h`: the FRF seen through samples of a response to an input
-/// joined by straight lines (the FOH), with `X(-nu) = conj X(nu)`.
+/// whose pre-emphasised samples are joined by straight lines (the FOH), with
+/// `X(-nu) = conj X(nu)`; `P = 1 + sin^2(omega h / 2) / 3` is the pre-emphasis' gain
+/// ([`pre_emphasis`]) and `limit` the read-out's feedthrough, from the raw samples.
 fn aliased(x: impl Fn(f64) -> Complex64, limit: f64, terms: i32, omega: f64) -> Complex64 {
     let h = 1.0 / INTERNAL_RATE_HZ;
     let ws = 2.0 * PI / h;
-    (-terms..=terms)
-        .map(|j| {
-            let nu = omega + j as f64 * ws;
-            let v = x(nu.abs());
-            let v = if nu < 0.0 { v.conj() } else { v };
-            let a = 0.5 * nu * h;
-            let l = if a == 0.0 { 1.0 } else { (a.sin() / a).powi(2) };
-            (v - limit) * l
-        })
-        .sum::<Complex64>()
+    pre_emphasis(omega)
+        * (-terms..=terms)
+            .map(|j| {
+                let nu = omega + j as f64 * ws;
+                let v = x(nu.abs());
+                let v = if nu < 0.0 { v.conj() } else { v };
+                let a = 0.5 * nu * h;
+                let l = if a == 0.0 { 1.0 } else { (a.sin() / a).powi(2) };
+                (v - limit) * l
+            })
+            .sum::<Complex64>()
         + limit
+}
+
+/// Gain `1 + sin^2(omega h / 2) / 3` of the simulator's pre-emphasis of its input
+/// samples at the internal rate (`frfbayes::simulate::pre_emphasised`).
+pub fn pre_emphasis(omega: f64) -> f64 {
+    1.0 + (0.5 * omega / INTERNAL_RATE_HZ).sin().powi(2) / 3.0
 }
 
 /// FOH-sampled FRF of DOF `r` to a force on DOF `e`: receptance, or absolute
