@@ -24,7 +24,7 @@ use super::adequacy::{assess, Adequacy};
 use super::consistency::{check_campaign, ConsistencyOptions};
 use super::data::{DataOptions, DiagnosisData};
 pub use super::effect_summary::effect_columns;
-use super::estimator_bias::replay_bias;
+use super::estimator_bias::{replay_bias, REPLAY_OVERSAMPLING};
 use super::fit::{fit_map, frame_starts, refit_at_map, MapFit, MapOptions};
 use super::forward::frame_system;
 use super::heldout::HeldOut;
@@ -381,9 +381,9 @@ fn nominal_model(
             timings,
         );
     }
-    // The replay is only as good as its straight-line hold: at coarse sampling it would
-    // add its own error, not the estimator's (the stage table says so).
-    let (hold_err, hold_f_hz) = hold_rel_err(campaign, &data);
+    // The replay is only as good as its straight-line hold: too coarse, it would add its
+    // own error, not the estimator's (the stage table says so).
+    let (hold_err, hold_f_hz) = hold_rel_err(campaign, &data, REPLAY_OVERSAMPLING);
     let replay_ok = hold_err <= HOLD_REL_ERR;
     if opts.estimator_bias && !replay_ok {
         watch.mark(
