@@ -12,9 +12,7 @@ use frfbayes::simulate::{
 };
 use nalgebra::DMatrix;
 use num_complex::Complex64;
-use simulate_common::{
-    decimation_tolerance, foh_frf, pre_emphasis, spectrum, stop_band_peak, INTERNAL_RATE_HZ,
-};
+use simulate_common::{decimation_tolerance, foh_frf, spectrum, stop_band_peak, INTERNAL_RATE_HZ};
 use std::f64::consts::PI;
 use std::path::Path;
 
@@ -163,19 +161,7 @@ fn sensor_effects_change_only_their_channels_by_their_transfer_function() {
             let expect = if kind == 0 {
                 Complex64::from_polar(1.0, -2.0 * PI * f * offset_s)
             } else {
-                pre_emphasis(2.0 * PI * f)
-                    * (-20..=20)
-                        .map(|j| {
-                            let nu = f + j as f64 * INTERNAL_RATE_HZ;
-                            let x = PI * nu / INTERNAL_RATE_HZ;
-                            let l = if nu == 0.0 {
-                                1.0
-                            } else {
-                                (x.sin() / x).powi(2)
-                            };
-                            lp.response(nu) * l
-                        })
-                        .sum::<Complex64>()
+                lp.sampled_response(f, INTERNAL_RATE_HZ, 20)
             };
             let err = (b[bin] / a[bin] - expect).norm();
             worst = worst.max(err);

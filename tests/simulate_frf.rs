@@ -85,6 +85,18 @@ fn limit(modes: &Modes, pair: &FrfPair) -> f64 {
     }
 }
 
+/// The system's modes and modal dashpot coefficients `2 xi_i omega_i`.
+fn modes_and_dashpots(sys: &LinearSystem) -> (Modes, Vec<f64>) {
+    let modes = sys.modes().unwrap();
+    let c = modes
+        .omega_rad_s
+        .iter()
+        .zip(sys.modal_damping_ratios().unwrap())
+        .map(|(w, x)| 2.0 * x * w)
+        .collect();
+    (modes, c)
+}
+
 /// Least-squares fit of `y = Im(G e^{j omega t})` over samples `k0..` but the last (whose
 /// step saw the raw, not the pre-emphasised, end sample); returns G.
 fn fit_phasor(y: &[f64], omega: f64, k0: usize, rate_hz: f64) -> Complex64 {
@@ -146,13 +158,7 @@ fn assert_close(got: Complex64, expect: Complex64, continuous: Complex64, what: 
 #[test]
 fn steady_state_force_response_matches_modal_frf() {
     let sys = LinearSystem::from_spec(&structure(), &damping()).unwrap();
-    let modes = sys.modes().unwrap();
-    let c: Vec<f64> = modes
-        .omega_rad_s
-        .iter()
-        .zip(sys.modal_damping_ratios().unwrap())
-        .map(|(w, x)| 2.0 * x * w)
-        .collect();
+    let (modes, c) = modes_and_dashpots(&sys);
     let e = 1;
     let responses: Vec<Response> = (0..3)
         .flat_map(|dof| {
@@ -195,13 +201,7 @@ fn steady_state_ground_response_matches_modal_frf() {
     // Relative displacement against Eq. (15); absolute acceleration = relative
     // accelerance + 1 (the ground's own acceleration, sampled exactly).
     let sys = LinearSystem::from_spec(&structure(), &damping()).unwrap();
-    let modes = sys.modes().unwrap();
-    let c: Vec<f64> = modes
-        .omega_rad_s
-        .iter()
-        .zip(sys.modal_damping_ratios().unwrap())
-        .map(|(w, x)| 2.0 * x * w)
-        .collect();
+    let (modes, c) = modes_and_dashpots(&sys);
     let responses: Vec<Response> = (0..3)
         .flat_map(|dof| {
             [
@@ -313,13 +313,7 @@ fn light_driving_point_accelerance_is_the_continuous_frf() {
         &damping(),
     )
     .unwrap();
-    let modes = sys.modes().unwrap();
-    let c: Vec<f64> = modes
-        .omega_rad_s
-        .iter()
-        .zip(sys.modal_damping_ratios().unwrap())
-        .map(|(w, x)| 2.0 * x * w)
-        .collect();
+    let (modes, c) = modes_and_dashpots(&sys);
     let pair = FrfPair {
         response: 2,
         excitation: Excitation::Dof(2),
@@ -421,13 +415,7 @@ fn anti_aliased_campaign_frfs_equal_analytic_frfs() {
     let sim = Simulator::new(model).unwrap();
     let campaign = sim.run(1, &|_| {}).unwrap();
     let sys = sim.system();
-    let modes = sys.modes().unwrap();
-    let c: Vec<f64> = modes
-        .omega_rad_s
-        .iter()
-        .zip(sys.modal_damping_ratios().unwrap())
-        .map(|(w, x)| 2.0 * x * w)
-        .collect();
+    let (modes, c) = modes_and_dashpots(sys);
     let delta = 1e-5;
     let step_s = 1.0 / RATE_HZ;
     for test in &campaign.tests {

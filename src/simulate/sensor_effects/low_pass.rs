@@ -50,6 +50,27 @@ impl LowPass {
         let s = Complex64::new(0.0, 2.0 * std::f64::consts::PI * freq_hz);
         w * w / (s * s + 2.0 * self.damping_ratio * w * s + w * w)
     }
+
+    /// What the stage does to a sinusoid at `freq_hz` sampled at `rate_hz` (the module
+    /// docs): `P(f) sum_m H(f + m fs) sinc^2(pi (f + m fs) / fs)` over `|m| <= images`,
+    /// `P = 1 + sin^2(pi f / fs) / 3` the pre-emphasis' gain (the images fall like
+    /// `1 / m^4`).
+    pub fn sampled_response(&self, freq_hz: f64, rate_hz: f64, images: i32) -> Complex64 {
+        let pi = std::f64::consts::PI;
+        let p = 1.0 + (pi * freq_hz / rate_hz).sin().powi(2) / 3.0;
+        p * (-images..=images)
+            .map(|m| {
+                let nu = freq_hz + m as f64 * rate_hz;
+                let x = pi * nu / rate_hz;
+                let l = if nu == 0.0 {
+                    1.0
+                } else {
+                    (x.sin() / x).powi(2)
+                };
+                self.response(nu) * l
+            })
+            .sum::<Complex64>()
+    }
 }
 
 impl SensorStage for LowPass {
@@ -108,20 +129,7 @@ mod tests {
             // is P = 1 + sin^2(pi f h) / 3 (the m != 0 terms are ~1e-8 here and fall like
             // 1/m^4). The transient decays like e^{-z w t}: gone (< 1e-30) after 1 s;
             // compare the last 2 s but the last sample (stepped to the raw end sample).
-            let p = 1.0 + (PI * f / rate).sin().powi(2) / 3.0;
-            let h: Complex64 = p
-                * (-50..=50)
-                    .map(|m| {
-                        let nu = f + m as f64 * rate;
-                        let x_h = PI * nu / rate;
-                        let l = if nu == 0.0 {
-                            1.0
-                        } else {
-                            (x_h.sin() / x_h).powi(2)
-                        };
-                        lp.response(nu) * l
-                    })
-                    .sum::<Complex64>();
+            let h = lp.sampled_response(f, rate, 50);
             for (k, v) in y.iter().enumerate().take(n - 1).skip(10_000) {
                 let ph = 2.0 * PI * f * k as f64 / rate + 0.4;
                 let expect = (h * Complex64::from_polar(1.0, ph)).re;
