@@ -67,8 +67,9 @@ impl BaseParams {
 
 /// The nominal model as a [`LinearSystem`]: `K(alpha)`, `M(beta)` (paper Eqs. 20-21) and
 /// modal damping of its own modes (as the simulator's `damping.model = "modal"`; modes
-/// beyond `base.xi`, above the analysed band, take the ratios of [`OutOfBandDamping`]). A model DOF `d`
-/// (0-based) is "floor" `d + 1` (the campaign format's convention).
+/// beyond `base.xi`, above the analysed band, take the ratios of `OutOfBandDamping`,
+/// below). A model DOF `d` (0-based) is "floor" `d + 1` (the campaign format's
+/// convention).
 pub fn frame_system(model: &StructuralModel, base: &BaseParams) -> Result<LinearSystem> {
     Ok(frame_system_modal(model, base)?.0)
 }
