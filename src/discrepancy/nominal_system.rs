@@ -181,7 +181,8 @@ impl OutOfBandDamping {
             .into_iter()
             .min_by(|l, r| ssr(l).total_cmp(&ssr(r)))
             .unwrap_or(constant);
-        if best.ratio(w[n - 1]).is_finite() && ssr(&best) < ssr(&constant) {
+        // (A NaN fit, as from a rigid-body mode at omega = 0, compares false.)
+        if ssr(&best) < ssr(&constant) {
             best
         } else {
             constant

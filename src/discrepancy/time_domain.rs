@@ -321,7 +321,7 @@ fn replay(
     let h_s = 1.0 / (test.sample_rate_hz * r as f64);
     let foh = NonlinearFoh::new(sys, &[drive], springs, h_s)?;
     let outputs = foh.state_space.output_map(&responses)?;
-    let input = if r > 1 { upsampled(&input, r) } else { input };
+    let input = upsampled(&input, r)?;
     let y = foh.simulate(&outputs, &[input], None, &|_| {})?;
     let mut record = test.clone();
     let mut feedthrough = vec![0.0; test.channels.len()];
@@ -337,16 +337,17 @@ fn replay(
 
 /// The band-limited interpolation of `u` at `r` times its rate: its spectrum (taken as
 /// periodic) zero-padded, so sample `k r` of the result is `u_k` to rounding.
-pub fn upsampled(u: &[f64], r: usize) -> Vec<f64> {
+pub fn upsampled(u: &[f64], r: usize) -> Result<Vec<f64>> {
     let n = u.len();
     if r <= 1 || n < 2 {
-        return u.to_vec();
+        return Ok(u.to_vec());
     }
+    let fft_err = |e: realfft::FftError| Error::Numerical(format!("upsampling the input: {e}"));
     let mut planner = RealFftPlanner::<f64>::new();
+    let forward = planner.plan_fft_forward(n);
     let mut x = u.to_vec();
-    let mut spec = planner.plan_fft_forward(n).make_output_vec();
-    // Lengths match by construction; the transform cannot fail.
-    let _ = planner.plan_fft_forward(n).process(&mut x, &mut spec);
+    let mut spec = forward.make_output_vec();
+    forward.process(&mut x, &mut spec).map_err(fft_err)?;
     let inverse = planner.plan_fft_inverse(n * r);
     let mut padded = inverse.make_input_vec();
     padded[..spec.len()].copy_from_slice(&spec);
@@ -355,8 +356,8 @@ pub fn upsampled(u: &[f64], r: usize) -> Vec<f64> {
         padded[n / 2] *= 0.5;
     }
     let mut out = inverse.make_output_vec();
-    let _ = inverse.process(&mut padded, &mut out);
-    out.iter().map(|v| v / n as f64).collect()
+    inverse.process(&mut padded, &mut out).map_err(fft_err)?;
+    Ok(out.iter().map(|v| v / n as f64).collect())
 }
 
 #[cfg(test)]
@@ -367,12 +368,15 @@ mod tests {
     fn upsampling_keeps_the_samples_and_interpolates_a_band_limited_signal() {
         let n = 64;
         let r = 4;
+        // A Nyquist-frequency term too (n even): its interpolant is cos(pi t).
+        let pi = std::f64::consts::PI;
         let f = |t: f64| {
-            (2.0 * std::f64::consts::PI * 3.0 * t / n as f64).sin() + 0.5
-                - 0.3 * (2.0 * std::f64::consts::PI * 7.0 * t / n as f64).cos()
+            (2.0 * pi * 3.0 * t / n as f64).sin() + 0.5
+                - 0.3 * (2.0 * pi * 7.0 * t / n as f64).cos()
+                + 0.2 * (pi * t).cos()
         };
         let u: Vec<f64> = (0..n).map(|k| f(k as f64)).collect();
-        let up = upsampled(&u, r);
+        let up = upsampled(&u, r).unwrap();
         assert_eq!(up.len(), n * r);
         for (m, v) in up.iter().enumerate() {
             let exact = f(m as f64 / r as f64);
