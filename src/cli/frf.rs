@@ -30,6 +30,10 @@ pub struct Args {
     /// anti-alias filter (its pre-ringing); the pretrigger is `max(0.1 s, this)`.
     #[arg(long, default_value_t = frfbayes::signal::MIN_PRETRIGGER_SAMPLES)]
     pub min_pretrigger_samples: usize,
+    /// Least half-width of the hammer force window beyond the pulse, samples: the same
+    /// filter's ringing after the impact; the margin is `max(0.03 s, this - taper)`.
+    #[arg(long, default_value_t = frfbayes::signal::MIN_FORCE_WINDOW_SAMPLES)]
+    pub min_force_window_samples: usize,
     /// Write `frf.uff` as binary dataset 58b (exact doubles) instead of ASCII 58.
     #[arg(long)]
     pub uff_binary: bool,
@@ -50,6 +54,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     opts.bands.band_factor = args.band_factor;
     opts.freq_max_hz = Some(args.freq_max_hz);
     opts.hammer.min_pretrigger_samples = args.min_pretrigger_samples;
+    opts.hammer.min_force_window_samples = args.min_force_window_samples;
     opts.hammer.exp_window = if args.exp_window_tau_s > 0.0 {
         ExpWindow::TauS(args.exp_window_tau_s)
     } else {

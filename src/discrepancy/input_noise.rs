@@ -59,7 +59,7 @@ pub(super) fn input_gain_basis(
         return None;
     }
     let span = support[support.len() - 1] - support[0];
-    let guard = ((est.hammer.force_margin_s + est.hammer.force_taper_s) * fs).ceil() as usize;
+    let guard = est.hammer.force_guard_samples(fs);
     let acov = quiet_autocovariance(f, base, &impacts, guard, span)?;
     let noise_factor = toeplitz_factor(&acov, &support)?;
     let m = freq_hz.len();
@@ -120,8 +120,7 @@ fn block_window(
     est: &EstimateOptions,
 ) -> Vec<f64> {
     use crate::signal::windows::{exponential_window, force_window};
-    let margin = (est.hammer.force_margin_s * fs).round() as usize;
-    let taper = (est.hammer.force_taper_s * fs).round() as usize;
+    let (margin, taper) = est.hammer.force_window_samples(fs);
     let lo = impact.trigger.saturating_sub(margin).max(start) - start;
     let hi = (impact.pulse_end + margin - start).min(len - 1);
     let mut w = if est.hammer.force_window {

@@ -66,7 +66,10 @@ pub use bands::{Band, BandOptions};
 pub use estimate::{
     estimate_campaign, estimate_h1, estimate_test, EstimateOptions, InputKind, ResponseFrf, TestFrf,
 };
-pub use hammer::{windowed_force, HammerEstimator, HammerOptions, MIN_PRETRIGGER_SAMPLES};
+pub use hammer::{
+    windowed_force, HammerEstimator, HammerOptions, MIN_FORCE_WINDOW_SAMPLES,
+    MIN_PRETRIGGER_SAMPLES,
+};
 pub use input_noise::{InputNoise, LowRank};
 pub use noise::{bendat_piersol_rel_std, pooled_rel_std, CoherenceMethod};
 pub use settings::{EstimateSection, SensorLowPass};

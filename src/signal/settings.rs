@@ -25,6 +25,9 @@ pub struct EstimateSection {
     /// Least hammer pretrigger, samples ([`super::HammerOptions::min_pretrigger_samples`]:
     /// at least the half-length of the recorder's anti-alias filter).
     pub min_pretrigger_samples: usize,
+    /// Least half-width of the hammer force window beyond the pulse, samples
+    /// ([`super::HammerOptions::min_force_window_samples`]: the same filter's ringing).
+    pub min_force_window_samples: usize,
     /// Transducer filters to take out of the estimates (e.g. the low-pass `frfbayes
     /// diagnose` identified in a campaign's accelerometers); none by default.
     pub sensor_low_pass: Vec<SensorLowPass>,
@@ -49,6 +52,7 @@ impl Default for EstimateSection {
             band_factor: 1.0,
             freq_max_hz: Some(25.0),
             min_pretrigger_samples: super::MIN_PRETRIGGER_SAMPLES,
+            min_force_window_samples: super::MIN_FORCE_WINDOW_SAMPLES,
             sensor_low_pass: Vec::new(),
         }
     }
@@ -66,6 +70,7 @@ impl EstimateSection {
         o.bands.band_factor = self.band_factor;
         o.freq_max_hz = self.freq_max_hz;
         o.hammer.min_pretrigger_samples = self.min_pretrigger_samples;
+        o.hammer.min_force_window_samples = self.min_force_window_samples;
         o
     }
 }
