@@ -202,28 +202,45 @@ fn low_rate_sim() -> String {
         .replace("pulse_duration_s = 0.003", "pulse_duration_s = 0.01")
 }
 
-/// Worst `|ln |H1 / H|| / sd` over 0.05-18 Hz of a hammer estimate whose only noise is
-/// the force channel's (`sd`: the force noise's predicted relative error,
-/// [`frfbayes::signal::InputNoise`]), and the largest `|ln |H1 / H||`.
-fn worst_force_noise_error(e: &TestFrf, modes: &Modes, c: &[f64]) -> (f64, f64) {
+/// The simulator of `sim_toml`, beside the six-DOF model's files in a temporary directory
+/// (kept: a run reads the nominal model from it).
+fn simulator(sim_toml: &str) -> (tempfile::TempDir, Simulator) {
+    let dir = tempfile::tempdir().unwrap();
+    write_model(dir.path());
+    std::fs::write(dir.path().join("sim.toml"), sim_toml).unwrap();
+    let model = SimModel::from_path(&dir.path().join("sim.toml")).unwrap();
+    (dir, Simulator::new(model).unwrap())
+}
+
+/// Per bin of 0.05-18 Hz, `ln |H1 / H|` of response `r` of a hammer estimate whose only
+/// noise is the force channel's, and its predicted variance (the force noise's relative
+/// error, [`frfbayes::signal::InputNoise`]).
+fn force_noise_errors(e: &TestFrf, modes: &Modes, c: &[f64], r: usize) -> Vec<(f64, f64)> {
     let bins: Vec<usize> = (0..e.freq_hz.len())
         .filter(|&k| (0.05..=18.0).contains(&e.freq_hz[k]))
         .collect();
     let noise = e.input_noise.as_ref().expect("force window: input noise");
     let a = noise.relative_loadings(&bins).unwrap();
     let n_cols = noise.n_samples();
-    let (mut worst_z, mut worst_rel) = (0.0f64, 0.0f64);
-    for r in &e.responses {
-        let pair = r.pair(&e.input).unwrap();
-        for (i, &k) in bins.iter().enumerate() {
-            let sd = a[i * n_cols..(i + 1) * n_cols]
-                .iter()
-                .map(|v| v * v)
-                .sum::<f64>()
-                .sqrt();
+    let resp = &e.responses[r];
+    let pair = resp.pair(&e.input).unwrap();
+    bins.iter()
+        .enumerate()
+        .map(|(i, &k)| {
+            let var = a[i * n_cols..(i + 1) * n_cols].iter().map(|v| v * v).sum();
             let h = analytic(e, modes, c, &pair, e.freq_hz[k]);
-            let rel = (r.h1[k].norm() / h.norm()).ln();
-            worst_z = worst_z.max(rel.abs() / sd);
+            ((resp.h1[k].norm() / h.norm()).ln(), var)
+        })
+        .collect()
+}
+
+/// Worst `|ln |H1 / H|| / sd` over 0.05-18 Hz and every response ([`force_noise_errors`]),
+/// and the largest `|ln |H1 / H||`.
+fn worst_force_noise_error(e: &TestFrf, modes: &Modes, c: &[f64]) -> (f64, f64) {
+    let (mut worst_z, mut worst_rel) = (0.0f64, 0.0f64);
+    for r in 0..e.responses.len() {
+        for (rel, var) in force_noise_errors(e, modes, c, r) {
+            worst_z = worst_z.max(rel.abs() / var.sqrt());
             worst_rel = worst_rel.max(rel.abs());
         }
     }
@@ -242,11 +259,7 @@ fn worst_force_noise_error(e: &TestFrf, modes: &Modes, c: &[f64]) -> (f64, f64) 
 /// both, so it cannot pass without the effect it guards against.
 #[test]
 fn force_noise_only_low_rate_h1_matches_the_analytic_frf() {
-    let dir = tempfile::tempdir().unwrap();
-    write_model(dir.path());
-    std::fs::write(dir.path().join("sim.toml"), low_rate_sim()).unwrap();
-    let model = SimModel::from_path(&dir.path().join("sim.toml")).unwrap();
-    let sim = Simulator::new(model).unwrap();
+    let (_dir, sim) = simulator(&low_rate_sim());
     let campaign = sim.run(11, &|_| {}).unwrap();
     let (modes, c) = true_modes(&sim);
     let mut opts = EstimateOptions {
@@ -270,33 +283,18 @@ fn force_noise_only_low_rate_h1_matches_the_analytic_frf() {
 /// bins: about 1 for an unbiased estimator whose noise model is right, however the bins
 /// correlate; a bias `b` adds `b^2 / (sd^2 / S)`.
 fn mean_error_chi2(sim_toml: &str, seeds: std::ops::Range<u64>, opts: &EstimateOptions) -> f64 {
-    let dir = tempfile::tempdir().unwrap();
-    write_model(dir.path());
-    std::fs::write(dir.path().join("sim.toml"), sim_toml).unwrap();
-    let model = SimModel::from_path(&dir.path().join("sim.toml")).unwrap();
-    let sim = Simulator::new(model).unwrap();
+    let (_dir, sim) = simulator(sim_toml);
     let (modes, c) = true_modes(&sim);
     let n_seeds = (seeds.end - seeds.start) as f64;
     let (mut sum, mut var) = (Vec::new(), Vec::new());
     for seed in seeds {
         let e = &estimate_campaign(&sim.run(seed, &|_| {}).unwrap(), opts).unwrap()[0];
-        let bins: Vec<usize> = (0..e.freq_hz.len())
-            .filter(|&k| (0.05..=18.0).contains(&e.freq_hz[k]))
-            .collect();
-        let noise = e.input_noise.as_ref().expect("force window: input noise");
-        let a = noise.relative_loadings(&bins).unwrap();
-        let n_cols = noise.n_samples();
-        let r = &e.responses[0];
-        let pair = r.pair(&e.input).unwrap();
-        sum.resize(bins.len(), 0.0);
-        var.resize(bins.len(), 0.0);
-        for (i, &k) in bins.iter().enumerate() {
-            let h = analytic(e, &modes, &c, &pair, e.freq_hz[k]);
-            sum[i] += (r.h1[k].norm() / h.norm()).ln();
-            var[i] += a[i * n_cols..(i + 1) * n_cols]
-                .iter()
-                .map(|v| v * v)
-                .sum::<f64>();
+        let errors = force_noise_errors(e, &modes, &c, 0);
+        sum.resize(errors.len(), 0.0);
+        var.resize(errors.len(), 0.0);
+        for (i, (rel, v)) in errors.into_iter().enumerate() {
+            sum[i] += rel;
+            var[i] += v;
         }
     }
     // mean m = sum / S has variance (var / S) / S
