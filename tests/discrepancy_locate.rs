@@ -337,6 +337,47 @@ fn residual_map_locates_a_scaled_channel_and_writes_outputs() {
     assert_eq!(json["consistency"]["correction"], "holm");
 }
 
+/// The checks of a diagnosis keep to its analysed band: with the band capped at 3 Hz
+/// (between the two-story frame's modes, about 1.6 and 4.1 Hz) no check compares a band
+/// above the cap, while the uncapped checks do (so the test sees the cap's effect).
+#[test]
+fn checks_keep_to_the_analysed_band() {
+    use frfbayes::discrepancy::data::DiagnosisData;
+    use frfbayes::discrepancy::DataOptions;
+    let camp = simulate(&small_model(""), 6);
+    let options = DataOptions {
+        freq_max_hz: Some(3.0),
+        ..DataOptions::default()
+    };
+    let data = DiagnosisData::from_campaign(&camp, &options).unwrap();
+    assert_eq!(data.band_cap_hz(), Some(3.0));
+    let top = |rep: &ConsistencyReport| {
+        rep.checks
+            .iter()
+            .flat_map(|c| c.compared.bands_hz.iter().map(|b| b.1))
+            .fold(0.0, f64::max)
+    };
+    let capped =
+        check_campaign(&camp, &ConsistencyOptions::for_band(1, data.band_cap_hz())).unwrap();
+    let whole = check_campaign(&camp, &ConsistencyOptions::for_band(2, None)).unwrap();
+    println!(
+        "highest band compared: capped {:.2} Hz, whole {:.2} Hz",
+        top(&capped),
+        top(&whole)
+    );
+    assert!(!capped.checks.is_empty());
+    assert!(
+        top(&capped) <= 3.0,
+        "capped checks reach {} Hz",
+        top(&capped)
+    );
+    assert!(
+        top(&whole) > 3.0,
+        "uncapped checks stop at {} Hz",
+        top(&whole)
+    );
+}
+
 /// False-positive rate on the four-story benchmark model with nothing missing, over 20
 /// noise seeds: family-wise rejections (Holm at 1 %) at most 2 of 20 (binomial(20, 0.01):
 /// P(X >= 3) = 0.001), and individual p-values below 5 % no more often than

@@ -154,6 +154,15 @@ pub struct DiagnosisData {
 }
 
 impl DiagnosisData {
+    /// Top of the analysed band, Hz, where it has one: the reduction's (`freq_max_hz`, or
+    /// the anti-aliasing pass band), else [`DataOptions::freq_max_hz`].
+    pub fn band_cap_hz(&self) -> Option<f64> {
+        self.reduction
+            .as_ref()
+            .map(|r| r.freq_max_hz)
+            .or(self.options.freq_max_hz)
+    }
+
     /// Estimates and selects the data of `campaign` (see the module docs).
     pub fn from_campaign(campaign: &Campaign, options: &DataOptions) -> Result<Self> {
         options.check()?;

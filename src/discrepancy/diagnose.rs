@@ -421,9 +421,10 @@ fn locate_and_assess(
     last: &ModelResult,
 ) -> Result<(std::result::Result<LocateReport, String>, Adequacy)> {
     // Peaks searched: the modes of the analysed band (every mode of a model that is not
-    // reduced, as the checks' default; on a reduced model not its thousand DOFs).
-    let mut check_opts = ConsistencyOptions::default();
-    check_opts.estimate.bands.n_peaks = Some(nominal.posterior.data().nominal_freq_hz.len());
+    // reduced, as the checks' default; on a reduced model not its thousand DOFs), below
+    // the band's top where it has one.
+    let data = nominal.posterior.data();
+    let check_opts = ConsistencyOptions::for_band(data.nominal_freq_hz.len(), data.band_cap_hz());
     let locate = check_campaign(campaign, &check_opts)
         .map_err(|e| e.to_string())
         .and_then(|c| {

@@ -97,6 +97,21 @@ impl Default for ConsistencyOptions {
     }
 }
 
+impl ConsistencyOptions {
+    /// The defaults, looking for `n_peaks` modes below `cap_hz` (none: the whole
+    /// estimate): the checks of a diagnosis keep to its analysed band, so that a mode above
+    /// it (at the anti-aliasing filter's pass-band edge, say) neither takes the place of
+    /// one inside it nor fails a check the likelihood never sees.
+    pub fn for_band(n_peaks: usize, cap_hz: Option<f64>) -> Self {
+        let mut o = ConsistencyOptions::default();
+        o.estimate.bands.n_peaks = Some(n_peaks);
+        if cap_hz.is_some() {
+            o.estimate.freq_max_hz = cap_hz;
+        }
+        o
+    }
+}
+
 /// Which check.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
