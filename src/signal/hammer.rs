@@ -72,9 +72,8 @@
 //! still holds 1 % of its energy beyond 3 samples of the peak and changes the force
 //! spectrum by 3-4 % (0.2 % at 16 samples, 1.6e-4 at 25). One record's worst bin hides
 //! this bias; the mean over noise seeds shows it (`tests/simulate_general.rs`, 50 Hz: a
-//! standardised mean-error statistic of 5.9 where 1 is unbiased), and on the simulated
-//! bridge at 60 Hz `diagnose` named it `sensor_dynamics` at the force. So margin plus
-//! taper has a floor in samples too, [`HammerOptions::min_force_window_samples`] (25, met
+//! standardised mean-error statistic of 5.9 where 1 is unbiased). So margin plus taper
+//! has a floor in samples too, [`HammerOptions::min_force_window_samples`] (25, met
 //! by the defaults in seconds at 500 Hz and above; statistic 1.2), paid for with more
 //! force noise, which the noise model counts.
 //!

@@ -105,9 +105,7 @@ impl ConsistencyOptions {
     pub fn for_band(n_peaks: usize, cap_hz: Option<f64>) -> Self {
         let mut o = ConsistencyOptions::default();
         o.estimate.bands.n_peaks = Some(n_peaks);
-        if cap_hz.is_some() {
-            o.estimate.freq_max_hz = cap_hz;
-        }
+        o.estimate.freq_max_hz = cap_hz;
         o
     }
 }
