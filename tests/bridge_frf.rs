@@ -453,8 +453,10 @@ fn noise_free_bridge_phase_is_the_analytic_frf_at_60_and_400_hz() {
         };
         let c: Vec<f64> = (0..b.n_modes()).map(|i| b.modal_damping[(i, i)]).collect();
         let campaign = sim.run(5, &|_| {}).unwrap();
-        let mut opts = frfbayes::signal::EstimateOptions::default();
-        opts.freq_max_hz = Some(FREQ_MAX_HZ);
+        let opts = frfbayes::signal::EstimateOptions {
+            freq_max_hz: Some(FREQ_MAX_HZ),
+            ..Default::default()
+        };
         for e in estimate_campaign(&campaign, &opts).unwrap() {
             let tau = e.exp_window_tau_s.expect("exponential window");
             let (mut delay_s, mut ln_mag, mut n) = (0.0, 0.0, 0.0);
