@@ -41,15 +41,19 @@ pub struct NoiseModelArgs {
     /// see README, "Why the structural sizes are biased").
     #[arg(long)]
     pub weight_bias_correction: bool,
-    /// The input-gain error multiplies the model's H (exact) instead of the measured h
-    /// (a plug-in; experimental: see README, "Why the structural sizes are biased").
-    #[arg(long, conflicts_with = "gain_at_map")]
-    pub gain_on_model: bool,
-    /// The input-gain error multiplies each model's own H at its MAP, fixed while that
-    /// model is sampled and its evidence computed (experimental: see README, "Why the
-    /// structural sizes are biased").
-    #[arg(long)]
+    /// What the input-gain error of a hammer segment multiplies in the likelihood's
+    /// covariance (README, "Why the structural sizes are biased"): `model-at-map`, each
+    /// model's own H at its MAP (the default); `measured`, the measured h (the former
+    /// default: its noise is correlated with the residual it weighs); `model`, the
+    /// model's H at every evaluation.
+    #[arg(long, value_enum)]
+    pub gain_carrier: Option<GainCarrierArg>,
+    /// Same as `--gain-carrier model-at-map` (kept for earlier scripts).
+    #[arg(long, hide = true, conflicts_with_all = ["gain_carrier", "gain_on_model"])]
     pub gain_at_map: bool,
+    /// Same as `--gain-carrier model` (kept for earlier scripts).
+    #[arg(long, hide = true, conflicts_with = "gain_carrier")]
+    pub gain_on_model: bool,
     /// Top of the analysed band, Hz (default: 4 x the nominal model's highest mode; a
     /// model of more than 200 DOFs, reduced for the diagnosis, 0.4 x the sample rate).
     /// In `diagnose-benchmark` a case's own `freq_max_hz` comes first.
@@ -57,18 +61,32 @@ pub struct NoiseModelArgs {
     pub freq_max_hz: Option<f64>,
 }
 
+/// The `--gain-carrier` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum GainCarrierArg {
+    Measured,
+    Model,
+    ModelAtMap,
+}
+
 impl NoiseModelArgs {
+    /// The carrier the flags ask for; the library's default without them.
+    fn carrier(self) -> GainCarrier {
+        match (self.gain_carrier, self.gain_on_model, self.gain_at_map) {
+            (Some(GainCarrierArg::Measured), _, _) => GainCarrier::Measured,
+            (Some(GainCarrierArg::Model), _, _) | (None, true, _) => GainCarrier::Model,
+            (Some(GainCarrierArg::ModelAtMap), _, _) | (None, _, true) => GainCarrier::ModelAtMap,
+            (None, false, false) => DataOptions::default().gain_carrier,
+        }
+    }
+
     /// Default diagnosis options with these flags applied.
     fn options(self) -> DiagnoseOptions {
         DiagnoseOptions {
             estimator_bias: !self.no_estimator_bias,
             data: DataOptions {
                 weight_bias_correction: self.weight_bias_correction,
-                gain_carrier: match (self.gain_on_model, self.gain_at_map) {
-                    (true, _) => GainCarrier::Model,
-                    (false, true) => GainCarrier::ModelAtMap,
-                    (false, false) => GainCarrier::Measured,
-                },
+                gain_carrier: self.carrier(),
                 freq_max_hz: self.freq_max_hz,
                 ..DataOptions::default()
             },

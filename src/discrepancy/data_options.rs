@@ -29,7 +29,8 @@ pub struct DataOptions {
     /// Compare the models with `h (1 + v)`, `v = min(2 eps^2, MAX_WEIGHT_BIAS)`, instead
     /// of the measured `h` ([`weight_bias`]; default false).
     pub weight_bias_correction: bool,
-    /// What the input-gain error multiplies ([`GainCarrier`]; default the measured `h`).
+    /// What the input-gain error multiplies ([`GainCarrier`]; default each model's own
+    /// `H` at its MAP).
     pub gain_carrier: GainCarrier,
     /// Top of the analysed band, Hz (default none: `freq_range_rel` alone; a model
     /// reduced for the diagnosis then uses 0.4 of the slowest sample rate, the
@@ -44,8 +45,9 @@ pub struct DataOptions {
 #[serde(rename_all = "snake_case")]
 pub enum GainCarrier {
     /// The measured `h` (a plug-in whose noise is correlated with the residual it
-    /// weighs, which biases effect sizes; see the README).
-    #[default]
+    /// weighs: `h = H (1 + delta)` carries the very gain error `delta` whose variance it
+    /// scales, which biases effect sizes and, where `delta` is a few percent, as at a low
+    /// sample rate for the pulse, adds a false sensor filter; see the README).
     Measured,
     /// The model's `H(theta)` at every evaluation (exact for that noise model, but
     /// `ln det` then depends on `theta` and rewards a smaller `|H|`).
@@ -53,7 +55,8 @@ pub enum GainCarrier {
     /// Each model's own `H` at its MAP, fixed while it is sampled, its evidence computed
     /// and its held-out segments scored (the two-stage plug-in of `sample`): free of the
     /// measured noise, and `ln det` does not depend on `theta`. The MAP is refitted once
-    /// with it ([`super::fit::refit_at_map`]).
+    /// with it ([`super::fit::refit_at_map`]). The default.
+    #[default]
     ModelAtMap,
 }
 
@@ -84,7 +87,7 @@ impl Default for DataOptions {
             min_coherence: 0.5,
             extra_peaks: 2,
             weight_bias_correction: false,
-            gain_carrier: GainCarrier::Measured,
+            gain_carrier: GainCarrier::ModelAtMap,
             freq_max_hz: None,
         }
     }
