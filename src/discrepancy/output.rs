@@ -96,7 +96,9 @@ fn open_world_section(d: &Diagnosis) -> String {
     let _ = writeln!(
         s,
         "Adequacy of the final model (Bendat-Piersol errors plus a {:.1} % floor for all \
-         points and the cells, 0.3 % where the inconsistent checks point; level {:.0} %, Holm \
+         points and the cells; where the inconsistent checks point, 0.3 % per point and a \
+         smooth 0.3 % gain and phase error per estimate and band, the checks' own null; \
+         level {:.0} %, Holm \
          over the cells and over the checks; cells locate, they do not decide): **{}**.\n",
         100.0 * super::adequacy::ADEQUACY_FLOOR,
         100.0 * super::adequacy::ADEQUACY_LEVEL,
