@@ -1,7 +1,8 @@
 //! The input-gain term of `diagnose` on a hammer campaign recorded at a low rate for its
 //! pulse (the bridge's 60 Hz case in miniature): the six-DOF spring network of
 //! `experiments/models/six-dof-hammer.toml` recorded at 100 Hz with 6 ms pulses (0.6
-//! samples) and 2 N of force noise against 500 N peaks, so the force noise inside each
+//! samples) and 2 N of force noise against 500 N peaks (`six-dof-low-rate.toml` of the
+//! general benchmark), so the force noise inside each
 //! force window is a gain error of about 4 % per impact, shared by every channel.
 //!
 //! Carried by the *measured* ratios (`V = diag(h) U`), that term's covariance holds the
@@ -24,23 +25,16 @@ use frfbayes::discrepancy::{
     MapOptions, ModelPosterior,
 };
 use frfbayes::io::{Campaign, Quantity};
-use frfbayes::simulate::{SimModel, Simulator, TestSpec};
+use frfbayes::simulate::{SimModel, Simulator};
 use std::path::Path;
 use std::sync::Arc;
 
-/// The six-DOF campaign at 100 Hz with 6 ms pulses and 2 N of force noise, seeded.
+/// The campaign of `experiments/models/discrepancy/general/six-dof-low-rate.toml` (the
+/// six-DOF network at 100 Hz, 6 ms pulses, 2 N of force noise), noise seed `seed`.
 fn low_rate_campaign(seed: u64) -> Campaign {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("experiments/models/six-dof-hammer.toml");
-    let mut model = SimModel::from_path(&path).unwrap();
-    model.noise.force_n = 2.0;
-    for t in &mut model.tests {
-        if let TestSpec::Hammer {
-            pulse_duration_s, ..
-        } = t
-        {
-            *pulse_duration_s = 0.006;
-        }
-    }
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("experiments/models/discrepancy/general/six-dof-low-rate.toml");
+    let model = SimModel::from_path(&path).unwrap();
     Simulator::new(model).unwrap().run(seed, &|_| {}).unwrap()
 }
 

@@ -140,10 +140,10 @@ struct Point {
     test: String,
     channel: Channel,
     freq_hz: f64,
-    chi2: f64,
     ln_ratio: f64,
     phase_rad: f64,
-    /// Whitened residual (real and imaginary parts of unit variance under the model).
+    /// Whitened residual (real and imaginary parts of unit variance under the model);
+    /// its squared modulus is the point's chi^2.
     r: Complex64,
     /// What a relative error `delta` of the estimate adds to `r`, per unit `delta`:
     /// `h = H (1 + delta)` moves `r` by `-delta h / sd`, so `a = (h / |h|) / sd_rel`.
@@ -179,7 +179,6 @@ fn points(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> Result<(Vec<Po
                     test: sd.test.clone(),
                     channel: ch.channel.clone(),
                     freq_hz: sd.freq_hz[ch.freq_index[j]],
-                    chi2: r[2 * i].powi(2) + r[2 * i + 1].powi(2),
                     ln_ratio: ratio.norm().ln(),
                     phase_rad: ratio.arg(),
                     r: Complex64::new(r[2 * i], r[2 * i + 1]),
@@ -190,7 +189,7 @@ fn points(post: &ModelPosterior, pred: &[Complex64], eta: f64) -> Result<(Vec<Po
     }
     // The correlated input-gain terms follow the points' residuals.
     let gains: f64 = r[2 * h.len()..].iter().map(|v| v * v).sum();
-    let total = out.iter().map(|p| p.chi2).sum::<f64>() + gains;
+    let total = out.iter().map(|p| p.r.norm_sqr()).sum::<f64>() + gains;
     Ok((out, total))
 }
 
@@ -208,7 +207,7 @@ fn unique<T: PartialEq + Clone>(v: impl Iterator<Item = T>) -> Vec<T> {
 /// includes the correlated-gain terms).
 fn place(source: &str, pts: &[Point], idx: &[usize], total: Option<f64>) -> PlaceTest {
     let n = idx.len();
-    let chi2 = total.unwrap_or_else(|| idx.iter().map(|&i| pts[i].chi2).sum());
+    let chi2 = total.unwrap_or_else(|| idx.iter().map(|&i| pts[i].r.norm_sqr()).sum());
     let dof = 2 * n;
     let p_value = ChiSquared::new(dof.max(1) as f64).map_or(f64::NAN, |law| law.sf(chi2));
     let mean =
