@@ -166,6 +166,10 @@ fn an_oscillator_on_a_general_model_is_found_on_its_dof() {
     );
     let m = &r.effect_parameters["oscillator_mass"];
     assert!((m.mean / 6.0 - 1.0).abs() < 0.05, "{m:?}");
+    // The words quote the final model's size, as `effect_parameters` and `effects` do
+    // (not the first round's posterior, before the estimator's bias was measured again).
+    let words = format!("oscillator_mass = {:.3} kg", m.mean);
+    assert!(r.explanation.contains(&words), "{words}: {}", r.explanation);
 }
 
 /// A damper across a connection of the general model (about 60 s; ignored to keep the

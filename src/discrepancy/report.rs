@@ -107,8 +107,14 @@ pub fn explanation(d: &Diagnosis) -> String {
             } else {
                 s.push_str(". ");
             }
-            let effects: Vec<String> = f
-                .effect
+            // The size in the final model (the estimator's bias measured again at its
+            // fit, and any later effects beside it), as in `diagnosis.json`'s `effects`;
+            // the first round's own posterior when nothing was accepted.
+            let sized = match d.effects.first() {
+                Some(a) if a.hypothesis == f.name => &a.effect_parameters,
+                _ => &f.effect,
+            };
+            let effects: Vec<String> = sized
                 .iter()
                 .map(|(n, e)| {
                     format!(
