@@ -191,6 +191,7 @@ mod tests {
                 q2_5,
                 q97_5,
                 unit: "1".into(),
+                sd_inflation: 1.0,
             }),
         }
     }

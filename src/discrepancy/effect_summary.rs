@@ -1,6 +1,7 @@
 //! Posterior summaries of a hypothesis' effect parameters, and the plausibility rule
 //! of [`super::verdict`] applied to them.
 
+use super::bin_correlation::{inflation, widened};
 use super::hypothesis::Coordinate;
 use super::posterior::ModelPosterior;
 use super::verdict::EffectSummary;
@@ -27,12 +28,19 @@ pub fn effect_columns<'a>(
 /// a no-effect value) excludes that value and stays clear of the box's ends by more than
 /// its own width (a posterior piled at the end of the physically plausible range is not
 /// an identified effect).
+///
+/// The reported mean and interval come from the draws widened for the correlation of
+/// neighbouring bins ([`super::bin_correlation`]; the factor is each summary's
+/// `sd_inflation`); plausibility is judged on the draws as sampled, so the decision is
+/// the one the benchmark measured before the widening existed.
 pub fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<EffectVerdict> {
     let ie = post.eta_index();
     let (lo, hi) = post.bounds();
     let mut out = Vec::new();
     let mut reasons = Vec::new();
-    let columns = effect_columns(post, draws.iter().map(Vec::as_slice))?;
+    let factors = inflation(post, draws)?;
+    let wide = widened(draws, &factors, lo, hi);
+    let columns = effect_columns(post, wide.iter().map(Vec::as_slice))?;
     for ((k, p), mut phys) in post.effect_params().iter().enumerate().zip(columns) {
         let i = ie + 1 + k;
         let mut zs: Vec<f64> = draws.iter().map(|d| d[i]).collect();
@@ -45,6 +53,7 @@ pub fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<Eff
             q2_5: quantile(&phys, 0.025),
             q97_5: quantile(&phys, 0.975),
             unit: p.unit.to_string(),
+            sd_inflation: factors[i],
         };
         // The posterior "reaches" a box end when its 95 % interval comes closer to that
         // end than its own width (or than 0.1 % of the box): its mass runs into the

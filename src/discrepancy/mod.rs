@@ -5,6 +5,7 @@
 pub mod adequacy;
 mod amplitude;
 pub mod benchmark;
+pub mod bin_correlation;
 mod bins;
 pub mod consistency;
 pub mod data;

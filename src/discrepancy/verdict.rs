@@ -52,6 +52,14 @@ pub struct EffectSummary {
     #[serde(rename = "q97.5")]
     pub q97_5: f64,
     pub unit: String,
+    /// How much the posterior's spread was widened for the correlation of neighbouring
+    /// bins ([`super::bin_correlation`]; 1: not widened, as in files written before it).
+    #[serde(default = "one")]
+    pub sd_inflation: f64,
+}
+
+fn one() -> f64 {
+    1.0
 }
 
 /// Goodness of fit of one model to all the data.
@@ -398,6 +406,7 @@ mod tests {
                 q2_5: 0.017,
                 q97_5: 0.019,
                 unit: "s".into(),
+                sd_inflation: 1.0,
             },
         );
         let r = DiagnosisRecord {
