@@ -1,6 +1,7 @@
 //! Figures of a diagnosis: hypothesis ranking, measured / nominal / extended FRFs at the
 //! channels where the verdict changes the fit most, and the effect's posterior.
 
+use super::bin_correlation::widened;
 use super::diagnose::{effect_columns, Diagnosis, ModelResult};
 use super::report::hypothesis_evidence;
 use crate::error::Result;
@@ -195,7 +196,24 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> Result<Vec<String>> {
             .and_then(|e| e.run.as_ref())
             .and_then(|r| r.posterior.as_ref())
         {
-            let columns = effect_columns(&f.posterior, p.draws.values.chunks_exact(p.draws.dim))?;
+            // Spread as the reported intervals are (each effect coordinate by its
+            // `sd_inflation`, [`super::bin_correlation`]).
+            let draws: Vec<Vec<f64>> = p
+                .draws
+                .values
+                .chunks_exact(p.draws.dim)
+                .map(<[f64]>::to_vec)
+                .collect();
+            let mut factors = vec![1.0; p.draws.dim];
+            let first = f.posterior.eta_index() + 1;
+            for (k, (_, e)) in f.effect.iter().enumerate() {
+                if let Some(x) = factors.get_mut(first + k) {
+                    *x = e.sd_inflation;
+                }
+            }
+            let (lo, hi) = f.posterior.bounds();
+            let draws = widened(&draws, &factors, lo, hi);
+            let columns = effect_columns(&f.posterior, draws.iter().map(Vec::as_slice))?;
             let mut params = Vec::new();
             for (ep, values) in f.posterior.effect_params().iter().zip(columns) {
                 params.push(CornerParam {
