@@ -30,7 +30,8 @@ pub fn effect_columns<'a>(
 /// an identified effect).
 ///
 /// The reported mean and interval come from the draws widened for the correlation of
-/// neighbouring bins ([`super::bin_correlation`]; the factor is each summary's
+/// neighbouring bins and to at least the sandwich sd ([`super::bin_correlation`]; the
+/// factor is each summary's
 /// `sd_inflation`); plausibility is judged on the draws as sampled, so the decision is
 /// the one the benchmark measured before the widening existed.
 pub fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<EffectVerdict> {

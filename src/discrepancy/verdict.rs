@@ -53,7 +53,8 @@ pub struct EffectSummary {
     pub q97_5: f64,
     pub unit: String,
     /// How much the posterior's spread was widened for the correlation of neighbouring
-    /// bins ([`super::bin_correlation`]; 1: not widened, as in files written before it).
+    /// bins, and to at least the sandwich sd ([`super::bin_correlation`]; 1: not
+    /// widened, as in files written before it).
     #[serde(default = "one")]
     pub sd_inflation: f64,
 }
