@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Coverage of the effect intervals of a coverage-study work folder, as reported (widened
-for neighbouring bins) and as sampled (each interval shrunk about its mean by its
+for neighbouring bins and to at least the sandwich sd) and as sampled (each interval shrunk about its mean by its
 sd_inflation, which undoes the widening up to the coordinate transform).
 
     python3 experiments/models/discrepancy/coverage_table.py <DIR>   # <DIR>: --work of the study
