@@ -26,12 +26,7 @@ impl Block {
                 sd.len()
             )));
         }
-        if let Some(i) = sd.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(Error::Usage(format!(
-                "{name}: standard deviation {i} is {}",
-                sd[i]
-            )));
-        }
+        check_positive(name, sd)?;
         let observed: Vec<f64> = observed.iter().map(|&v| transform.apply(v)).collect();
         check_finite(name, "observed (transformed)", &observed)?;
         Self::checked(
@@ -212,12 +207,7 @@ impl Block {
                 observed.len()
             )));
         }
-        if let Some(i) = sd_complex.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
-            return Err(Error::Usage(format!(
-                "{name}: standard deviation {i} is {}; it must be positive",
-                sd_complex[i]
-            )));
-        }
+        check_positive(name, sd_complex)?;
         let inv_sd: Vec<f64> = sd_complex
             .iter()
             .flat_map(|s| [2f64.sqrt() / s; 2])
@@ -259,6 +249,16 @@ fn check_finite(name: &str, what: &str, v: &[f64]) -> Result<()> {
         Some(i) => Err(Error::Usage(format!(
             "{name}: {what} entry {i} is {}",
             v[i]
+        ))),
+        None => Ok(()),
+    }
+}
+
+fn check_positive(name: &str, sd: &[f64]) -> Result<()> {
+    match sd.iter().position(|s| !(s.is_finite() && *s > 0.0)) {
+        Some(i) => Err(Error::Usage(format!(
+            "{name}: standard deviation {i} is {}; it must be positive",
+            sd[i]
         ))),
         None => Ok(()),
     }
