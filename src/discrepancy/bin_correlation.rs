@@ -420,7 +420,11 @@ mod tests {
         // Spread over [0, 0.2] of a [0, 1] box: 5 % of it from the lower end.
         let at_end: Vec<f64> = (0..101).map(|k| 0.002 * k as f64).collect();
         assert!(reaches_box(&at_end, 0.0, 1.0));
-        assert!(reaches_box(&at_end.iter().map(|v| 1.0 - v).collect::<Vec<_>>(), 0.0, 1.0));
+        assert!(reaches_box(
+            &at_end.iter().map(|v| 1.0 - v).collect::<Vec<_>>(),
+            0.0,
+            1.0
+        ));
     }
 
     #[test]
