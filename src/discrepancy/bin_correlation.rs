@@ -132,37 +132,18 @@ pub fn bin_correlation(runs: &[Run], r: &[Complex64], max_d: usize) -> Vec<Compl
     c
 }
 
-/// One correlated pair of flat points `k != l` of whitened residuals of unit power:
-/// `E[r_k conj(r_l)] = v`. For circular complex residuals the real pairs `(Re, Im)` of
-/// the two points have covariance `[[Re v, -Im v], [Im v, Re v]]`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CorrelatedPair {
-    pub k: usize,
-    pub l: usize,
-    pub v: Complex64,
-}
-
-/// The pairs of neighbouring bins of one run with their correlation `c(d)` (zero
-/// distances of `c` left out).
-pub fn within_run_pairs(runs: &[Run], c: &[Complex64]) -> Vec<CorrelatedPair> {
-    let max_d = c.len().saturating_sub(1);
-    pairs(runs, max_d)
-        .into_iter()
-        .filter(|&(_, _, d)| c[d].norm() > 0.0)
-        .map(|(k, l, d)| CorrelatedPair { k, l, v: c[d] })
-        .collect()
-}
-
 /// `B = J^T R J` for real residual rows `2 i` (Re) and `2 i + 1` (Im) of point `i`,
-/// `R` the identity plus the blocks of `pairs` (and their transposes); further rows are
-/// independent. Formed as `J^T J + J^T (R - I) J` with `(R - I) J` accumulated pair by
-/// pair, so its cost is linear in the pairs.
-pub fn sandwich_meat(jac: &DMatrix<f64>, pairs: &[CorrelatedPair]) -> DMatrix<f64> {
+/// further rows independent (module docs). Formed as `J^T J + J^T (R - I) J` with
+/// `(R - I) J` accumulated pair by pair, so its cost is linear in the pairs.
+pub fn sandwich_meat(jac: &DMatrix<f64>, runs: &[Run], c: &[Complex64]) -> DMatrix<f64> {
     let p = jac.ncols();
     let mut rj = DMatrix::<f64>::zeros(jac.nrows(), p);
-    for pair in pairs {
-        let (re, im) = (pair.v.re, pair.v.im);
-        let (k, l) = (2 * pair.k, 2 * pair.l);
+    for (k, l, d) in pairs(runs, c.len().saturating_sub(1)) {
+        let (re, im) = (c[d].re, c[d].im);
+        if re == 0.0 && im == 0.0 {
+            continue;
+        }
+        let (k, l) = (2 * k, 2 * l);
         for j in 0..p {
             let (a, b) = (jac[(k, j)], jac[(k + 1, j)]);
             let (x, y) = (jac[(l, j)], jac[(l + 1, j)]);
@@ -212,16 +193,17 @@ pub fn inflation(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<Vec<f64>> 
         .map(|i| Complex64::new(r[2 * i], r[2 * i + 1]))
         .collect();
     let c = bin_correlation(&runs, &rc, MAX_BIN_DISTANCE);
-    let Some((sandwich, independent)) = sandwich_variances(&jac, &within_run_pairs(&runs, &c))
-    else {
+    let Some((sandwich, independent)) = sandwich_variances(&jac, &runs, &c) else {
         return Ok(out);
     };
     for (j, &i) in free.iter().enumerate() {
-        let column: Vec<f64> = draws.iter().map(|z| z[i]).collect();
+        let mut column: Vec<f64> = draws.iter().map(|z| z[i]).collect();
+        column.sort_by(f64::total_cmp);
+        let (q_lo, q_hi) = (quantile(&column, 0.025), quantile(&column, 0.975));
         // A coordinate that its box bounds is not one whose likelihood dominates: its
         // sampled sd is the box's doing, and the sandwich sd would spread it over the
         // box; it keeps the ratio only.
-        let sampled = if reaches_box(&column, lo[i], hi[i]) {
+        let sampled = if interval_reaches_box(q_lo, q_hi, lo[i], hi[i]) {
             f64::INFINITY
         } else {
             draws_sd(draws, i, mean[i])
@@ -231,15 +213,14 @@ pub fn inflation(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<Vec<f64>> 
     Ok(out)
 }
 
-/// Whether the central 95 % of `values` comes closer to `lo` or `hi` than its own
-/// width (the rule by which [`super::effect_summary`] finds an effect piled at the end
-/// of its range).
-fn reaches_box(values: &[f64], lo: f64, hi: f64) -> bool {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let (a, b) = (quantile(&v, 0.025), quantile(&v, 0.975));
-    let width = b - a;
-    a - lo < width || hi - b < width
+/// Whether the interval `[q_lo, q_hi]` comes closer to `lo` or `hi` than its own width
+/// (or than 0.1 % of the box): its mass runs into the box's end instead of being
+/// identified inside it. The rule by which [`super::effect_summary`] finds an effect
+/// piled at the end of its plausible range, and by which the widening leaves a
+/// prior-bounded coordinate alone.
+pub(super) fn interval_reaches_box(q_lo: f64, q_hi: f64, lo: f64, hi: f64) -> bool {
+    let margin = (q_hi - q_lo).max(1e-3 * (hi - lo));
+    q_lo < lo + margin || q_hi > hi - margin
 }
 
 /// The widening of one coordinate (module docs): the larger of `sqrt(S_jj / (A^-1)_jj)`
@@ -254,30 +235,18 @@ fn factor(sandwich: f64, independent: f64, sampled_sd: f64) -> f64 {
 }
 
 /// The diagonals of the sandwich covariance `A^-1 B A^-1` and of `A^-1`, `A = J^T J`,
-/// `B = J^T R J` with `R` from `pairs`; `None` where `A` is singular.
+/// `B = J^T R J` with `R` from `c(d)` along `runs`; `None` where `A` is singular.
 pub fn sandwich_variances(
     jac: &DMatrix<f64>,
-    pairs: &[CorrelatedPair],
+    runs: &[Run],
+    c: &[Complex64],
 ) -> Option<(Vec<f64>, Vec<f64>)> {
     let a_inv = jac.tr_mul(jac).cholesky().map(|ch| ch.inverse())?;
-    let s = &a_inv * sandwich_meat(jac, pairs) * &a_inv;
+    let s = &a_inv * sandwich_meat(jac, runs, c) * &a_inv;
     Some((
         s.diagonal().iter().copied().collect(),
         a_inv.diagonal().iter().copied().collect(),
     ))
-}
-
-/// `sqrt(max(1, (A^-1 B A^-1)_jj / (A^-1)_jj))` per column of `jac`; all 1 where `A` is
-/// singular.
-pub fn widening(jac: &DMatrix<f64>, pairs: &[CorrelatedPair]) -> Vec<f64> {
-    match sandwich_variances(jac, pairs) {
-        Some((s, a)) => s
-            .iter()
-            .zip(&a)
-            .map(|(s, a)| factor(*s, *a, f64::INFINITY))
-            .collect(),
-        None => vec![1.0; jac.ncols()],
-    }
 }
 
 /// The sample sd of coordinate `i` of `draws` about `mean`.
@@ -414,17 +383,13 @@ mod tests {
     }
 
     #[test]
-    fn a_coordinate_piled_at_its_box_is_not_spread_to_the_sandwich_sd() {
-        let inside: Vec<f64> = (0..101).map(|k| 0.5 + 0.001 * (k as f64 - 50.0)).collect();
-        assert!(!reaches_box(&inside, 0.0, 1.0));
-        // Spread over [0, 0.2] of a [0, 1] box: 5 % of it from the lower end.
-        let at_end: Vec<f64> = (0..101).map(|k| 0.002 * k as f64).collect();
-        assert!(reaches_box(&at_end, 0.0, 1.0));
-        assert!(reaches_box(
-            &at_end.iter().map(|v| 1.0 - v).collect::<Vec<_>>(),
-            0.0,
-            1.0
-        ));
+    fn an_interval_within_its_width_of_the_box_reaches_it() {
+        assert!(!interval_reaches_box(0.45, 0.55, 0.0, 1.0));
+        // [0.005, 0.195] of a [0, 1] box: closer to the lower end than its width.
+        assert!(interval_reaches_box(0.005, 0.195, 0.0, 1.0));
+        assert!(interval_reaches_box(0.805, 0.995, 0.0, 1.0));
+        // A point-like interval still needs 0.1 % of the box.
+        assert!(interval_reaches_box(0.9995, 0.9995, 0.0, 1.0));
     }
 
     #[test]
@@ -472,7 +437,7 @@ mod tests {
             }
         }
         let want = jac.transpose() * dense * &jac;
-        let got = sandwich_meat(&jac, &within_run_pairs(&runs, &c));
+        let got = sandwich_meat(&jac, &runs, &c);
         assert!(
             (&got - &want).norm() < 1e-12 * want.norm(),
             "{got} vs {want}"
@@ -495,7 +460,10 @@ mod tests {
         });
         let phi = Complex64::new(0.7, 0.0);
         let c: Vec<Complex64> = (0..=MAX_BIN_DISTANCE).map(|d| phi.powi(d as i32)).collect();
-        let f = widening(&jac, &within_run_pairs(&runs, &c));
+        let (sandwich, independent) = sandwich_variances(&jac, &runs, &c).unwrap();
+        let f: Vec<f64> = (0..2)
+            .map(|j| factor(sandwich[j], independent[j], f64::INFINITY))
+            .collect();
         // Independent-noise sd times the widening against the seeded scatter of the fit.
         let a_inv = jac.tr_mul(&jac).try_inverse().unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(11);

@@ -1,7 +1,7 @@
 //! Posterior summaries of a hypothesis' effect parameters, and the plausibility rule
 //! of [`super::verdict`] applied to them.
 
-use super::bin_correlation::{inflation, widened};
+use super::bin_correlation::{inflation, interval_reaches_box, widened};
 use super::hypothesis::Coordinate;
 use super::posterior::ModelPosterior;
 use super::verdict::EffectSummary;
@@ -56,10 +56,6 @@ pub fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<Eff
             unit: p.unit.to_string(),
             sd_inflation: factors[i],
         };
-        // The posterior "reaches" a box end when its 95 % interval comes closer to that
-        // end than its own width (or than 0.1 % of the box): its mass runs into the
-        // prior's edge instead of being identified inside it.
-        let margin = (z_hi - z_lo).max(1e-3 * (hi[i] - lo[i]));
         if let Some(v) = p.no_effect {
             let zv = match p.coordinate {
                 Coordinate::Log if v <= 0.0 => f64::NEG_INFINITY,
@@ -74,7 +70,7 @@ pub fn effect_summaries(post: &ModelPosterior, draws: &[Vec<f64>]) -> Result<Eff
         }
         // Shape parameters (no_effect None, e.g. a damping ratio) may be weakly
         // identified and rest on a prior end without making the effect implausible.
-        if p.no_effect.is_some() && (z_lo < lo[i] + margin || z_hi > hi[i] - margin) {
+        if p.no_effect.is_some() && interval_reaches_box(z_lo, z_hi, lo[i], hi[i]) {
             reasons.push(format!(
                 "{} [{:.3e}, {:.3e}] {} reaches the end of its plausible range [{:.3e}, {:.3e}]",
                 p.name,
