@@ -19,7 +19,7 @@ log-uniform on [0.5, 2]. Sizes (uniform unless said):
 
 The cubic spring (stiffness_nonlinearity) is left out: one diagnosis takes about 20 min.
 The draws come from Python's Mersenne Twister seeded with 20261128; the simulation
-seeds are 9001.. . Diagnose each family with only its own hypothesis (the interval, not
+seeds are 9001.. (c1-c6 of the five families, then c7-c12). Diagnose each family with only its own hypothesis (the interval, not
 the verdict, is measured here), e.g.
 
     frfbayes diagnose-benchmark --cases experiments/models/discrepancy/coverage/cases.toml \
@@ -32,7 +32,9 @@ import random
 
 from make_cases import TRUTH, case_entry, effect_truth, model_toml
 
-PER_FAMILY = 6
+# Cases c1-c6 of every family came first (2026-11-28); c7-c12 were added (2026-12-01)
+# as a second batch drawn after them, so the first 30 cases stay as they were.
+BATCHES = [range(1, 7), range(7, 13)]
 ACCS = ["acc1", "acc2", "acc3", "acc4"]
 
 
@@ -133,18 +135,19 @@ def main():
     ]
     os.makedirs("coverage", exist_ok=True)
     seed = 9000
-    for family in FAMILIES:
-        for j in range(1, PER_FAMILY + 1):
-            seed += 1
-            cid = f"{family.__name__}-c{j}"
-            loc, effects, size = family(rng)
-            scale = round(2.0 ** rng.uniform(-1.0, 1.0), 3)
-            text = model_toml(cid, family.__name__, scale, seed, effects,
-                              writer="make_coverage.py", folder="coverage/")
-            with open(os.path.join("coverage", f"{cid}.toml"), "w") as f:
-                f.write(text)
-            index += case_entry(cid, family.__name__, loc, size, scale, seed,
-                                effect_truth(effects))
+    for batch in BATCHES:
+        for family in FAMILIES:
+            for j in batch:
+                seed += 1
+                cid = f"{family.__name__}-c{j}"
+                loc, effects, size = family(rng)
+                scale = round(2.0 ** rng.uniform(-1.0, 1.0), 3)
+                text = model_toml(cid, family.__name__, scale, seed, effects,
+                                  writer="make_coverage.py", folder="coverage/")
+                with open(os.path.join("coverage", f"{cid}.toml"), "w") as f:
+                    f.write(text)
+                index += case_entry(cid, family.__name__, loc, size, scale, seed,
+                                    effect_truth(effects))
     with open(os.path.join("coverage", "cases.toml"), "w") as f:
         f.write("\n".join(index) + "\n")
 
