@@ -243,6 +243,8 @@ fn group_points(r: &[Complex64], a: &[Complex64]) -> Vec<Point> {
             ln_ratio: 0.0,
             phase_rad: 0.0,
             r,
+            bin: Some(100 + i),
+            noise_share: 1.0,
             a,
         })
         .collect()
@@ -314,4 +316,79 @@ fn smooth_error_chi2_has_two_dof_per_point_when_the_error_is_there() {
         (plain - inflated).abs() < 0.1 * inflated,
         "{plain} against {inflated}"
     );
+}
+
+#[test]
+fn correlated_p_value_is_uniform_for_exponentially_windowed_noise() {
+    // Oracle: white noise over T = 4 s at 250 Hz under exp(-t / tau), T / tau = ln 20
+    // (the default hammer window), transformed directly at 60 neighbouring bins; each bin
+    // scaled to unit variance per component. 400 seeded draws: the chi^2 test with
+    // the window's bin correlation rejects at 5 % in 20 +- 4.4 draws (bound 3 sd,
+    // 7-33); as independent points it rejects far more often (the variance of the sum
+    // is about 2.9 times 4n, so about 17 %, 66 draws; asserted above 40).
+    let (fs_hz, record_s) = (250.0, 4.0);
+    let n_samples = (fs_hz * record_s) as usize;
+    let tau_s = record_s / 20f64.ln();
+    let w: Vec<f64> = (0..n_samples)
+        .map(|i| (-(i as f64 / fs_hz) / tau_s).exp())
+        .collect();
+    let w2: f64 = w.iter().map(|v| v * v).sum();
+    let (first_bin, n) = (20, 60);
+    let df_hz = 1.0 / record_s;
+    let corr: Vec<Vec<f64>> = vec![(0..=MAX_CORRELATED_BINS)
+        .map(|d| exp_window_bin_correlation(Some(tau_s), record_s, df_hz, d).powi(2))
+        .collect()];
+    let independent: Vec<Vec<f64>> = vec![vec![1.0]];
+    let twiddle: Vec<Vec<Complex64>> = (0..n)
+        .map(|k| {
+            let omega = 2.0 * std::f64::consts::PI * (first_bin + k) as f64 / n_samples as f64;
+            (0..n_samples)
+                .map(|t| Complex64::from_polar(w[t], -omega * t as f64))
+                .collect()
+        })
+        .collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(20261201);
+    let unit = Normal::new(0.0, 1.0).unwrap();
+    let a = vec![Complex64::new(1.0, 0.0); n];
+    let idx: Vec<usize> = (0..n).collect();
+    let (mut rejected, mut rejected_independent) = (0, 0);
+    let draws = 400;
+    for _ in 0..draws {
+        let x: Vec<f64> = (0..n_samples).map(|_| unit.sample(&mut rng)).collect();
+        // E|N_k|^2 = w2 for unit white noise: real and imaginary parts of variance w2 / 2.
+        let r: Vec<Complex64> = twiddle
+            .iter()
+            .map(|tw| tw.iter().zip(&x).map(|(t, x)| t * x).sum::<Complex64>() / (w2 / 2.0).sqrt())
+            .collect();
+        let pts = group_points(&r, &a);
+        let with = place("run", &pts, &idx, None, &corr);
+        let without = place("run", &pts, &idx, None, &independent);
+        rejected += usize::from(with.p_value < 0.05);
+        rejected_independent += usize::from(without.p_value < 0.05);
+        assert!(with.effective_dof < without.effective_dof);
+    }
+    assert!((7..=33).contains(&rejected), "{rejected} of {draws}");
+    assert!(
+        rejected_independent > 40,
+        "{rejected_independent} of {draws}"
+    );
+}
+
+#[test]
+fn the_chi2_variance_counts_only_the_noise_share_of_neighbours() {
+    // Two points one bin apart with |c(1)|^2 = 0.5: variance 4 x 2 + 8 x 0.5 s1 s2.
+    let r = vec![Complex64::new(0.0, 0.0); 2];
+    let a = r.clone();
+    let mut pts = group_points(&r, &a);
+    let corr = vec![vec![1.0, 0.5]];
+    let idx = [0, 1];
+    assert!((chi2_variance(&pts, &idx, &corr) - 12.0).abs() < 1e-12);
+    pts[1].noise_share = 0.25;
+    assert!((chi2_variance(&pts, &idx, &corr) - 9.0).abs() < 1e-12);
+    pts[1].bin = None;
+    assert!((chi2_variance(&pts, &idx, &corr) - 8.0).abs() < 1e-12);
+    // Independent points: the plain chi^2 test.
+    let (p, dof) = correlated_p_value(50.0, 40.0, 80.0);
+    let plain = ChiSquared::new(40.0).unwrap().sf(50.0);
+    assert!((p - plain).abs() < 1e-12 && (dof - 40.0).abs() < 1e-12);
 }

@@ -98,7 +98,8 @@ fn open_world_section(d: &Diagnosis) -> String {
         "Adequacy of the final model (Bendat-Piersol errors plus a {:.1} % floor for all \
          points and the cells; where the inconsistent checks point, 0.3 % per point and a \
          smooth 0.3 % gain and phase error per estimate and band, the checks' own null; \
-         level {:.0} %, Holm \
+         each sum referred to a chi^2 of the effective dof that the noise's correlation \
+         between neighbouring bins leaves; level {:.0} %, Holm \
          over the cells and over the checks; cells locate, they do not decide): **{}**.\n",
         100.0 * super::adequacy::ADEQUACY_FLOOR,
         100.0 * super::adequacy::ADEQUACY_LEVEL,
@@ -110,9 +111,9 @@ fn open_world_section(d: &Diagnosis) -> String {
     );
     let _ = writeln!(
         s,
-        "| place | tests | channels | bands (Hz) | points | chi2 per point | p (Holm) | fails |"
+        "| place | tests | channels | bands (Hz) | points | chi2 per point | effective dof | p (Holm) | fails |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|");
     for t in std::iter::once(&q.global)
         .chain(&q.failed_cells)
         .chain(&q.checks)
@@ -124,7 +125,7 @@ fn open_world_section(d: &Diagnosis) -> String {
             .collect();
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {:.2} | {:.2e} | {} |",
+            "| {} | {} | {} | {} | {} | {:.2} | {:.0} | {:.2e} | {} |",
             t.source,
             if t.tests.len() > 4 {
                 format!("{} tests", t.tests.len())
@@ -143,6 +144,7 @@ fn open_world_section(d: &Diagnosis) -> String {
             },
             t.n_points,
             t.chi2_per_point,
+            t.effective_dof,
             t.p_adjusted,
             if t.failed { "yes" } else { "no" }
         );
