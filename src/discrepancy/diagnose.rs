@@ -169,6 +169,9 @@ pub struct Diagnosis {
     /// The accepted effects in the order they were added, with their parameters in the
     /// final model.
     pub effects: Vec<AcceptedEffect>,
+    /// The final model, every accepted effect in it (`None` without accepted effects):
+    /// the model `effects` summarises.
+    pub final_model: Option<ModelResult>,
     /// Two passing explanations within a decisive Bayes factor: the diagnosis stopped
     /// there.
     pub ambiguity: Option<Ambiguity>,
@@ -332,6 +335,7 @@ pub fn diagnose_resumable(
             .collect(),
         decision: first.decision,
         later: steps.later,
+        final_model: (!effects.is_empty()).then(|| steps.last.result.clone()),
         effects,
         ambiguity: steps.ambiguity,
         adequacy,

@@ -187,24 +187,24 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> Result<Vec<String>> {
         written.push(format!("phase_{k}"));
     }
 
-    // The effect's posterior (the verdict's, or the best finalist's).
-    let shown_model = winner.or(d.finalists.first());
-    if let Some(f) = shown_model {
-        if let Some(p) = f
-            .evidence
-            .as_ref()
-            .and_then(|e| e.run.as_ref())
-            .and_then(|r| r.posterior.as_ref())
+    // The effect's posterior: the final model's, whose summaries the report gives, else
+    // the first round's verdict's or best finalist's; from the draws its summaries came
+    // from (the importance sample or the tempered run's; none when Laplace alone gave
+    // the evidence).
+    let shown = [d.final_model.as_ref(), winner, d.finalists.first()]
+        .into_iter()
+        .flatten()
+        .find_map(|f| Some((f, f.evidence.as_ref()?.posterior_draws()?)));
+    if let Some((f, draws)) = shown {
+        let round = match d.final_model.as_ref() {
+            Some(m) if std::ptr::eq(m, f) => "final model",
+            _ => "first round",
+        };
         {
             // Spread as the reported intervals are (each effect coordinate by its
             // `sd_inflation`, [`super::bin_correlation`]).
-            let draws: Vec<Vec<f64>> = p
-                .draws
-                .values
-                .chunks_exact(p.draws.dim)
-                .map(<[f64]>::to_vec)
-                .collect();
-            let mut factors = vec![1.0; p.draws.dim];
+            let dim = draws.first().map_or(0, Vec::len);
+            let mut factors = vec![1.0; dim];
             let first = f.posterior.eta_index() + 1;
             for (k, (_, e)) in f.effect.iter().enumerate() {
                 if let Some(x) = factors.get_mut(first + k) {
@@ -226,7 +226,10 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> Result<Vec<String>> {
             if !params.is_empty() {
                 corner(
                     &CornerSpec {
-                        title: format!("Posterior of the effect: {} at {}", f.name, f.location),
+                        title: format!(
+                            "Posterior of the effect ({round}): {} at {}",
+                            f.name, f.location
+                        ),
                         params,
                         bins: 30,
                         density: Density2d::Binned,

@@ -176,18 +176,8 @@ pub fn completion(
             Some(&mut cb),
         )?;
         evidence.laplace_failure = laplace.as_ref().err().cloned();
-        let sampled = evidence.run.as_ref().and_then(|r| r.posterior.as_ref());
-        let weighted = (evidence.estimator == Estimator::ImportanceSampling)
-            .then(|| evidence.importance.as_ref().map(|is| is.draws.clone()))
-            .flatten();
-        let draws: Vec<Vec<f64>> = match (sampled, lap) {
-            _ if weighted.is_some() => weighted.unwrap_or_default(),
-            (Some(p), _) => p
-                .draws
-                .values
-                .chunks_exact(p.draws.dim)
-                .map(<[f64]>::to_vec)
-                .collect(),
+        let draws: Vec<Vec<f64>> = match (evidence.posterior_draws(), lap) {
+            (Some(d), _) => d,
             (None, Some(l)) => {
                 laplace_draws(post, l, screen.evidence.seed).unwrap_or_else(|| vec![map.z.clone()])
             }

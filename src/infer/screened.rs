@@ -201,6 +201,25 @@ pub struct ScreenedEvidence {
 }
 
 impl ScreenedEvidence {
+    /// The posterior draws behind the estimate, in box coordinates: the importance
+    /// sample (resampled by weight) when importance sampling gave `ln Z`, else the
+    /// tempered run's last rung; `None` when neither was run (Laplace, a bound).
+    pub fn posterior_draws(&self) -> Option<Vec<Vec<f64>>> {
+        if self.estimator == Estimator::ImportanceSampling {
+            if let Some(is) = &self.importance {
+                return Some(is.draws.clone());
+            }
+        }
+        let p = self.run.as_ref()?.posterior.as_ref()?;
+        Some(
+            p.draws
+                .values
+                .chunks_exact(p.draws.dim)
+                .map(<[f64]>::to_vec)
+                .collect(),
+        )
+    }
+
     /// The thermodynamic-integration cross-check of a stepping-stone from the prior.
     /// `None` for the generalised stepping-stone: its path starts at a heavy-tailed
     /// reference, where `Var_g[ln q/g]` is huge, and the derivative-corrected trapezoid
