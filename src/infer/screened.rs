@@ -388,6 +388,36 @@ mod tests {
     }
 
     #[test]
+    fn posterior_draws_are_those_of_the_estimator_that_gave_ln_z() {
+        let draws = vec![vec![0.1, 0.2], vec![0.3, 0.4]];
+        let importance = ImportanceEvidence {
+            ln_z: -1.0,
+            ln_z_se: 0.1,
+            pareto_k: 0.3,
+            ess: 2.0,
+            n_draws: 2,
+            adapted: false,
+            n_likelihood_evaluations: 2,
+            draws: draws.clone(),
+        };
+        let mut e = ScreenedEvidence {
+            estimator: Estimator::ImportanceSampling,
+            ln_z: -1.0,
+            ln_z_sd: 0.1,
+            ln_z_laplace: None,
+            gain_bound_nats: None,
+            run: None,
+            importance: Some(importance),
+            n_likelihood_evaluations: 2,
+            laplace_failure: None,
+        };
+        assert_eq!(e.posterior_draws(), Some(draws));
+        // An importance rung that was tried and not kept does not stand for the posterior.
+        e.estimator = Estimator::Laplace;
+        assert_eq!(e.posterior_draws(), None);
+    }
+
+    #[test]
     fn laplace_decides_only_far_from_the_threshold() {
         let o = options();
         let pick = |g, d| choose_estimator(g, d, &o);
