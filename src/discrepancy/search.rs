@@ -7,10 +7,15 @@
 //! quantity, channels are added one at a time (greedy forward selection) while the
 //! maximum log-likelihood rises by more than `ln C` per added channel, `C` the number of
 //! channels: the log prior odds of one particular channel joining the set when every
-//! subset size is equally likely a priori. A set that covers every channel of one
-//! quantity is reported as that quantity. A grown set is fitted from the fit of the set
-//! it grew from (its effect parameters are the same ones, acting on one more channel),
-//! not from a fresh Latin hypercube: one start instead of `n_effect_starts + 1`.
+//! subset size is equally likely a priori. When a whole quantity fits best the growth
+//! also starts from the best single channel, since growing only adds channels and would
+//! never reach a subset of that quantity (coverage case sensor_dynamics-c10: a filter on
+//! acc2 and acc3 was put on every accelerometer); of the two grown sets the one with the
+//! higher log-likelihood less `ln C` per added channel is kept. A set that covers every
+//! channel of one quantity is reported as that quantity. A grown set is fitted from the
+//! fit of the set it grew from (its effect parameters are the same ones, acting on one
+//! more channel), not from a fresh Latin hypercube: one start instead of
+//! `n_effect_starts + 1`.
 
 use super::data::DiagnosisData;
 use super::fit::{effect_starts, fit_map, refit_at_map, MapFit, MapOptions};
@@ -140,44 +145,31 @@ pub fn search(
     if channel_hypothesis {
         let all: Vec<String> = data.channels().into_iter().map(|c| c.name).collect();
         let penalty = (all.len().max(2) as f64).ln();
-        let mut best = tried[0].clone();
-        loop {
-            let set = channel_set(data, &best.location).unwrap_or_default();
-            let mut improved: Option<LocationFit> = None;
-            for c in all.iter().filter(|c| !set.contains(c)) {
-                let mut grown = set.clone();
-                grown.push(c.clone());
-                let loc = as_location(data, grown);
-                if tried.iter().any(|f| f.location == loc) {
-                    continue;
-                }
-                // One more channel under the same effect parameters: the set's own fit
-                // is the start (a fresh search of the effect's box would only find it
-                // again; see the module docs).
-                let warm = fit_location(data, hypothesis, &loc, &best.map.z, opts);
-                let fresh = || {
-                    let from = &best.map.z[..nominal_z.len()];
-                    fit_location(data, hypothesis, &loc, from, opts)
-                };
-                let Ok(f) = warm.or_else(|_| fresh()) else {
-                    continue;
-                };
-                progress(hypothesis.name(), &loc);
-                let gain = f.map.ln_likelihood - best.map.ln_likelihood;
-                if gain > penalty
-                    && improved
-                        .as_ref()
-                        .is_none_or(|i| f.map.ln_likelihood > i.map.ln_likelihood)
-                {
-                    improved = Some(f.clone());
-                }
-                tried.push(f);
-            }
-            match improved {
-                Some(f) => best = f,
-                None => break,
+        let mut starts = vec![tried[0].clone()];
+        if matches!(tried[0].location, Location::Quantity(_)) {
+            let single =
+                |f: &&LocationFit| matches!(&f.location, Location::Channels(c) if c.len() == 1);
+            starts.extend(tried.iter().find(single).cloned());
+        }
+        let grow = Growth {
+            data,
+            hypothesis,
+            nominal_z,
+            opts,
+            all: &all,
+            penalty,
+        };
+        let mut best: Option<(f64, LocationFit)> = None;
+        for start in starts {
+            let (grown, added) = grow.from(start, &mut tried, progress);
+            let score = grown.map.ln_likelihood - added as f64 * penalty;
+            if best.as_ref().is_none_or(|(s, _)| score > *s) {
+                best = Some((score, grown));
             }
         }
+        let Some((_, best)) = best else {
+            unreachable!("at least one start")
+        };
         // The accepted set goes first even when a larger, rejected set fitted a little
         // better (it did not pay its prior odds).
         tried.retain(|f| f.location != best.location);
@@ -189,6 +181,73 @@ pub fn search(
         tried,
         failed,
     })
+}
+
+/// Greedy forward selection of a channel set (see the module docs).
+struct Growth<'a> {
+    data: &'a Arc<DiagnosisData>,
+    hypothesis: &'a Arc<dyn Hypothesis>,
+    nominal_z: &'a [f64],
+    opts: &'a SearchOptions,
+    all: &'a [String],
+    /// `ln C`: what one added channel must gain in maximum log-likelihood.
+    penalty: f64,
+}
+
+impl Growth<'_> {
+    /// Grows `start` one channel at a time while that pays its penalty; every fit is
+    /// added to `tried`. Returns the grown set and the number of channels added.
+    fn from(
+        &self,
+        start: LocationFit,
+        tried: &mut Vec<LocationFit>,
+        progress: &mut dyn FnMut(&str, &Location),
+    ) -> (LocationFit, usize) {
+        let (data, hypothesis, opts) = (self.data, self.hypothesis, self.opts);
+        let mut best = start;
+        let mut added = 0;
+        loop {
+            let set = channel_set(data, &best.location).unwrap_or_default();
+            let mut improved: Option<LocationFit> = None;
+            for c in self.all.iter().filter(|c| !set.contains(c)) {
+                let mut grown = set.clone();
+                grown.push(c.clone());
+                let loc = as_location(data, grown);
+                // A set already fitted (a candidate of its own) is not grown into.
+                if tried.iter().any(|f| f.location == loc) {
+                    continue;
+                }
+                // One more channel under the same effect parameters: the set's own fit
+                // is the start (a fresh search of the effect's box would only find it
+                // again; see the module docs).
+                let warm = fit_location(data, hypothesis, &loc, &best.map.z, opts);
+                let fresh = || {
+                    let from = &best.map.z[..self.nominal_z.len()];
+                    fit_location(data, hypothesis, &loc, from, opts)
+                };
+                let Ok(f) = warm.or_else(|_| fresh()) else {
+                    continue;
+                };
+                progress(hypothesis.name(), &loc);
+                tried.push(f.clone());
+                let gain = f.map.ln_likelihood - best.map.ln_likelihood;
+                if gain > self.penalty
+                    && improved
+                        .as_ref()
+                        .is_none_or(|i| f.map.ln_likelihood > i.map.ln_likelihood)
+                {
+                    improved = Some(f);
+                }
+            }
+            match improved {
+                Some(f) => {
+                    best = f;
+                    added += 1;
+                }
+                None => return (best, added),
+            }
+        }
+    }
 }
 
 fn sort_best_first(fits: &mut [LocationFit]) {
