@@ -8,10 +8,11 @@
 //! maximum log-likelihood rises by more than `ln C` per added channel, `C` the number of
 //! channels: the log prior odds of one particular channel joining the set when every
 //! subset size is equally likely a priori. When a whole quantity fits best the growth
-//! also starts from the best single channel, since growing only adds channels and would
-//! never reach a subset of that quantity (coverage case sensor_dynamics-c10: a filter on
-//! acc2 and acc3 was put on every accelerometer); of the two grown sets the one with the
-//! higher log-likelihood less `ln C` per added channel is kept. A set that covers every
+//! also starts from that quantity's best single channel and grows within the quantity,
+//! since growing only adds channels and would never reach a subset of it (coverage case
+//! sensor_dynamics-c10: a filter on acc2 and acc3 was put on every accelerometer); of
+//! the two grown sets the one with the higher log-likelihood less `ln C` per added
+//! channel is kept. A set that covers every
 //! channel of one quantity is reported as that quantity. A grown set is fitted from the
 //! fit of the set it grew from (its effect parameters are the same ones, acting on one
 //! more channel), not from a fresh Latin hypercube: one start instead of
@@ -145,22 +146,25 @@ pub fn search(
     if channel_hypothesis {
         let all: Vec<String> = data.channels().into_iter().map(|c| c.name).collect();
         let penalty = (all.len().max(2) as f64).ln();
-        let mut starts = vec![tried[0].clone()];
-        if matches!(tried[0].location, Location::Quantity(_)) {
-            let single =
-                |f: &&LocationFit| matches!(&f.location, Location::Channels(c) if c.len() == 1);
-            starts.extend(tried.iter().find(single).cloned());
+        // (start, the channels it may grow by)
+        let mut starts = vec![(tried[0].clone(), all.clone())];
+        if let Location::Quantity(q) = tried[0].location {
+            let within = channels_of(data, q);
+            let single = |f: &&LocationFit| matches!(&f.location, Location::Channels(c) if c.len() == 1 && within.contains(&c[0]));
+            if let Some(f) = tried.iter().find(single) {
+                starts.push((f.clone(), within.clone()));
+            }
         }
-        let grow = Growth {
-            data,
-            hypothesis,
-            nominal_z,
-            opts,
-            all: &all,
-            penalty,
-        };
         let mut best: Option<(f64, LocationFit)> = None;
-        for start in starts {
+        for (start, candidates) in starts {
+            let grow = Growth {
+                data,
+                hypothesis,
+                nominal_z,
+                opts,
+                all: &candidates,
+                penalty,
+            };
             let (grown, added) = grow.from(start, &mut tried, progress);
             let score = grown.map.ln_likelihood - added as f64 * penalty;
             if best.as_ref().is_none_or(|(s, _)| score > *s) {
@@ -189,6 +193,7 @@ struct Growth<'a> {
     hypothesis: &'a Arc<dyn Hypothesis>,
     nominal_z: &'a [f64],
     opts: &'a SearchOptions,
+    /// The channels a set may grow by.
     all: &'a [String],
     /// `ln C`: what one added channel must gain in maximum log-likelihood.
     penalty: f64,
