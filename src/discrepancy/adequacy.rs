@@ -288,10 +288,16 @@ fn bin_correlation_sq(data: &DiagnosisData) -> Vec<Vec<f64>> {
                 return vec![1.0];
             };
             let record_s = 1.0 / (df_hz * s.source.estimate.zero_pad_factor.max(1) as f64);
-            (0..=MAX_CORRELATED_BINS)
-                .map(|d| exp_window_bin_correlation(s.exp_window_tau_s, record_s, df_hz, d).powi(2))
-                .collect()
+            window_correlation_sq(s.exp_window_tau_s, record_s, df_hz)
         })
+        .collect()
+}
+
+/// `|c(d)|^2`, `d = 0..=MAX_CORRELATED_BINS`, of a record of `record_s` s under the
+/// exponential window `tau_s` (`None`: rectangular) on a grid of `df_hz`.
+fn window_correlation_sq(tau_s: Option<f64>, record_s: f64, df_hz: f64) -> Vec<f64> {
+    (0..=MAX_CORRELATED_BINS)
+        .map(|d| exp_window_bin_correlation(tau_s, record_s, df_hz, d).powi(2))
         .collect()
 }
 

@@ -200,46 +200,44 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> Result<Vec<String>> {
             Some(m) if std::ptr::eq(m, f) => "final model",
             _ => "first round",
         };
-        {
-            // Spread as the reported intervals are (each effect coordinate by its
-            // `sd_inflation`, [`super::bin_correlation`]).
-            let dim = draws.first().map_or(0, Vec::len);
-            let mut factors = vec![1.0; dim];
-            let first = f.posterior.eta_index() + 1;
-            for (k, (_, e)) in f.effect.iter().enumerate() {
-                if let Some(x) = factors.get_mut(first + k) {
-                    *x = e.sd_inflation;
-                }
+        // Spread as the reported intervals are (each effect coordinate by its
+        // `sd_inflation`, [`super::bin_correlation`]).
+        let dim = draws.first().map_or(0, Vec::len);
+        let mut factors = vec![1.0; dim];
+        let first = f.posterior.eta_index() + 1;
+        for (k, (_, e)) in f.effect.iter().enumerate() {
+            if let Some(x) = factors.get_mut(first + k) {
+                *x = e.sd_inflation;
             }
-            let (lo, hi) = f.posterior.bounds();
-            let draws = widened(&draws, &factors, lo, hi);
-            let columns = effect_columns(&f.posterior, draws.iter().map(Vec::as_slice))?;
-            let mut params = Vec::new();
-            for (ep, values) in f.posterior.effect_params().iter().zip(columns) {
-                params.push(CornerParam {
-                    name: ep.name.clone(),
-                    unit: ep.unit.to_string(),
-                    values,
-                    reference: None,
-                });
-            }
-            if !params.is_empty() {
-                corner(
-                    &CornerSpec {
-                        title: format!(
-                            "Posterior of the effect ({round}): {} at {}",
-                            f.name, f.location
-                        ),
-                        params,
-                        bins: 30,
-                        density: Density2d::Binned,
-                        reference_label: String::new(),
-                        size_px: None,
-                    },
-                    &dir.join("effect_posterior"),
-                )?;
-                written.push("effect_posterior".to_string());
-            }
+        }
+        let (lo, hi) = f.posterior.bounds();
+        let draws = widened(&draws, &factors, lo, hi);
+        let columns = effect_columns(&f.posterior, draws.iter().map(Vec::as_slice))?;
+        let mut params = Vec::new();
+        for (ep, values) in f.posterior.effect_params().iter().zip(columns) {
+            params.push(CornerParam {
+                name: ep.name.clone(),
+                unit: ep.unit.to_string(),
+                values,
+                reference: None,
+            });
+        }
+        if !params.is_empty() {
+            corner(
+                &CornerSpec {
+                    title: format!(
+                        "Posterior of the effect ({round}): {} at {}",
+                        f.name, f.location
+                    ),
+                    params,
+                    bins: 30,
+                    density: Density2d::Binned,
+                    reference_label: String::new(),
+                    size_px: None,
+                },
+                &dir.join("effect_posterior"),
+            )?;
+            written.push("effect_posterior".to_string());
         }
     }
     Ok(written)

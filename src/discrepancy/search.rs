@@ -12,11 +12,10 @@
 //! since growing only adds channels and would never reach a subset of it (coverage case
 //! sensor_dynamics-c10: a filter on acc2 and acc3 was put on every accelerometer); of
 //! the two grown sets the one with the higher log-likelihood less `ln C` per added
-//! channel is kept. A set that covers every
-//! channel of one quantity is reported as that quantity. A grown set is fitted from the
-//! fit of the set it grew from (its effect parameters are the same ones, acting on one
-//! more channel), not from a fresh Latin hypercube: one start instead of
-//! `n_effect_starts + 1`.
+//! channel is kept. A set that covers every channel of one quantity is reported as that
+//! quantity. A grown set is fitted from the fit of the set it grew from (its effect
+//! parameters are the same ones, acting on one more channel), not from a fresh Latin
+//! hypercube: one start instead of `n_effect_starts + 1`.
 
 use super::data::DiagnosisData;
 use super::fit::{effect_starts, fit_map, refit_at_map, MapFit, MapOptions};
@@ -150,12 +149,17 @@ pub fn search(
         let mut starts = vec![(tried[0].clone(), all.clone())];
         if let Location::Quantity(q) = tried[0].location {
             let within = channels_of(data, q);
-            let single = |f: &&LocationFit| matches!(&f.location, Location::Channels(c) if c.len() == 1 && within.contains(&c[0]));
-            if let Some(f) = tried.iter().find(single) {
+            let single_within = |f: &&LocationFit| match &f.location {
+                Location::Channels(c) => c.len() == 1 && within.contains(&c[0]),
+                _ => false,
+            };
+            if let Some(f) = tried.iter().find(single_within) {
                 starts.push((f.clone(), within.clone()));
             }
         }
-        let mut best: Option<(f64, LocationFit)> = None;
+        // Each start grown; kept: the highest log-likelihood less its added channels'
+        // penalty (the first start on a tie).
+        let mut best: (f64, LocationFit) = (f64::NEG_INFINITY, tried[0].clone());
         for (start, candidates) in starts {
             let grow = Growth {
                 data,
@@ -167,13 +171,11 @@ pub fn search(
             };
             let (grown, added) = grow.from(start, &mut tried, progress);
             let score = grown.map.ln_likelihood - added as f64 * penalty;
-            if best.as_ref().is_none_or(|(s, _)| score > *s) {
-                best = Some((score, grown));
+            if score > best.0 {
+                best = (score, grown);
             }
         }
-        let Some((_, best)) = best else {
-            unreachable!("at least one start")
-        };
+        let best = best.1;
         // The accepted set goes first even when a larger, rejected set fitted a little
         // better (it did not pay its prior odds).
         tried.retain(|f| f.location != best.location);
