@@ -167,6 +167,45 @@ fn benchmark_table() {
     }
 }
 
+/// Every campaign in the folder `$FRFBAYES_CHECK_DIR` (for example a benchmark's
+/// `campaigns`), checked with the defaults (those of `diagnose` on a four-story frame):
+/// the inconsistent checks of each, and how many campaigns have any. A measurement, not
+/// a pass/fail test: on a folder of null campaigns every flagged check is a false alarm
+/// of the checks (the diagnosis then tests that place for adequacy).
+#[test]
+#[ignore = "needs a folder of campaigns in FRFBAYES_CHECK_DIR; about 3 s per campaign"]
+fn consistency_over_a_folder_of_campaigns() {
+    let Ok(root) = std::env::var("FRFBAYES_CHECK_DIR") else {
+        println!("FRFBAYES_CHECK_DIR not set: nothing measured");
+        return;
+    };
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(&root)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir())
+        .collect();
+    dirs.sort();
+    let (mut n_checks, mut n_flagged, mut n_campaigns_flagged) = (0, 0, 0);
+    for dir in &dirs {
+        let campaign = read_campaign(dir).unwrap();
+        let rep = check_campaign(&campaign, &ConsistencyOptions::default()).unwrap();
+        let names: Vec<&str> = rep.inconsistent().iter().map(|c| c.name.as_str()).collect();
+        println!(
+            "{}: {} checks, {} inconsistent {names:?}",
+            dir.file_name().unwrap().to_string_lossy(),
+            rep.checks.len(),
+            names.len()
+        );
+        n_checks += rep.checks.len();
+        n_flagged += names.len();
+        n_campaigns_flagged += usize::from(!names.is_empty());
+    }
+    println!(
+        "{} campaigns: {n_campaigns_flagged} with an inconsistent check; {n_flagged} of {n_checks} checks inconsistent",
+        dirs.len()
+    );
+}
+
 /// Nothing missing: no check may reject at the family-wise level, and over all checks of
 /// 6 noise seeds the individual p-values may not fall below 5 % more often than a
 /// binomial(n, 0.05) allows at +3 standard deviations (the checks are conservative by

@@ -2,12 +2,13 @@
 //! check appends its results (verdicts are set by the caller
 //! after the Holm adjustment) or a reason why it could not run.
 
-use super::fit::fit_ratio;
+use super::fit::{fit_ratio, RatioPoints};
 use super::segment::{band_window, SegmentFrf};
 use super::{
     CheckDetails, CheckKind, CheckResult, Compared, ConsistencyOptions, NullDistribution, Verdict,
 };
 use crate::io::Quantity;
+use crate::signal::correlation::exp_window_bin_correlation_complex;
 use crate::signal::InputKind;
 use num_complex::Complex64;
 use std::f64::consts::PI;
@@ -50,6 +51,29 @@ fn window_bins(seg: &SegmentFrf, opts: &ConsistencyOptions) -> (Vec<usize>, Vec<
     (bins, edges)
 }
 
+/// Farthest bin lag whose noise correlation a ratio fit takes into account.
+const MAX_CORRELATED_BINS: usize = 256;
+
+/// `c(d)`, `d = 0..=MAX_CORRELATED_BINS`, of the noise of neighbouring bins of a
+/// segment's estimates: its exponential window (none for the shake-table records) over
+/// the transformed record, `1 / (df x zero padding)` s
+/// ([`exp_window_bin_correlation_complex`]). `[1]` (independent) where there is no
+/// window and no padding, or the grid is too short to tell.
+fn bin_correlation(seg: &SegmentFrf, opts: &ConsistencyOptions) -> Vec<Complex64> {
+    let pad = opts.estimate.zero_pad_factor.max(1);
+    let df_hz = match seg.freq_hz.as_slice() {
+        [f0, f1, ..] if f1 > f0 => f1 - f0,
+        _ => return vec![Complex64::new(1.0, 0.0)],
+    };
+    if seg.exp_window_tau_s.is_none() && pad == 1 {
+        return vec![Complex64::new(1.0, 0.0)];
+    }
+    let record_s = 1.0 / (df_hz * pad as f64);
+    (0..=MAX_CORRELATED_BINS)
+        .map(|d| exp_window_bin_correlation_complex(seg.exp_window_tau_s, record_s, df_hz, d))
+        .collect()
+}
+
 fn ms(x: f64) -> f64 {
     1e3 * x
 }
@@ -86,6 +110,7 @@ pub fn acc_vs_disp(
 ) {
     for seg in segments {
         let (bins, edges) = window_bins(seg, opts);
+        let corr = bin_correlation(seg, opts);
         let mut floors: Vec<usize> = seg.channels.iter().map(|c| c.channel.floor).collect();
         floors.sort_unstable();
         floors.dedup();
@@ -96,9 +121,7 @@ pub fn acc_vs_disp(
             ) else {
                 continue;
             };
-            let mut om = Vec::new();
-            let mut r = Vec::new();
-            let mut s = Vec::new();
+            let mut pts = RatioPoints::default();
             for &k in &bins {
                 let (ea, ed) = (a.rel_std[k], d.rel_std[k]);
                 if !(ea < opts.max_rel_std && ed < opts.max_rel_std) {
@@ -119,18 +142,15 @@ pub fn acc_vs_disp(
                     (a.h[k], jw2 * d.h[k], ea, ed)
                 };
                 let ratio = num / den;
-                let sigma = (sn * sn + sd * sd).sqrt();
+                let sigma = sn.hypot(sd);
                 if ratio.is_finite() && ratio.norm() > 0.0 && sigma > 0.0 && sigma.is_finite() {
-                    om.push(w.re);
-                    r.push(ratio);
-                    s.push(sigma);
+                    pts.push(w.re, k, (num, sn), (den, sd));
                 }
             }
             let what = format!("{} floor {floor}", seg.label);
             match fit_ratio(
-                &om,
-                &r,
-                &s,
+                &pts,
+                &corr,
                 std::f64::consts::SQRT_2 * opts.estimator_rel_error,
             ) {
                 Ok(f) => out.push(result(
@@ -201,24 +221,21 @@ pub fn reciprocity(
                     continue;
                 };
                 let (bins, edges) = window_bins(se, opts);
-                let (mut om, mut rr, mut ss) = (Vec::new(), Vec::new(), Vec::new());
+                let mut pts = RatioPoints::default();
                 for k in bins {
                     let (h1, e1) = (se.channels[ci].h[k], se.channels[ci].rel_std[k]);
                     let Some((h2, e2)) = interp(sr, cj, se.freq_hz[k]) else {
                         continue;
                     };
                     if e1 < opts.max_rel_std && e2 < opts.max_rel_std && h2.norm() > 0.0 {
-                        om.push(2.0 * PI * se.freq_hz[k]);
-                        rr.push(h1 / h2);
-                        ss.push((e1 * e1 + e2 * e2).sqrt());
+                        pts.push(2.0 * PI * se.freq_hz[k], k, (h1, e1), (h2, e2));
                     }
                 }
                 let (n1, n2) = (&se.channels[ci].channel.name, &sr.channels[cj].channel.name);
                 let what = format!("{} {n1} / {} {n2}", se.label, sr.label);
                 match fit_ratio(
-                    &om,
-                    &rr,
-                    &ss,
+                    &pts,
+                    &bin_correlation(se, opts),
                     std::f64::consts::SQRT_2 * opts.estimator_rel_error,
                 ) {
                     Ok(f) => out.push(result(
