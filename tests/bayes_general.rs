@@ -12,7 +12,7 @@
 //! estimator's exponential window correlates their noise (residuals 0.79 at one bin):
 //! the posterior was about 3.5 times too narrow. With the correlated bins
 //! ([`frfbayes::bayes::BinCorrelation::Window`]), two-stage band selection and pooled
-//! noise estimates it passes (worst |z| 0.80, k10, 49.1 s; README, "Fixed: noisy
+//! noise estimates it passes (worst |z| 0.80, k10, 49.1 s; docs/calibration.md, "Fixed: noisy
 //! per-point noise estimates").
 //!
 //! Tolerance: with the posterior calibrated, `(truth - mean) / sd` is about standard
@@ -175,7 +175,7 @@ fn six_dof_network_recovers_the_truth() {
 /// the bias of the mass-stiffness scale), each point's sd from the output noise pooled
 /// over +-8 bins (without it: m2 at -3.36 sd, fails). Passes: worst |z| 0.80 (k10),
 /// 49.1 s. Over 10 noise draws it errs on the wide side, chi2 of the alphas and betas
-/// 11.1 against 20 (README, "Fixed: noisy per-point noise estimates"). Slow (a minute):
+/// 11.1 against 20 (docs/calibration.md, "Fixed: noisy per-point noise estimates"). Slow (a minute):
 ///
 /// ```sh
 /// nice -n 10 cargo test --release --test bayes_general -- --ignored --nocapture

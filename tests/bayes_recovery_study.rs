@@ -806,7 +806,7 @@ fn residuals_at_the_truth() {
 }
 
 /// The posterior of `frfbayes sample`'s data and noise model (correlated bins as the
-/// settings say), with the oracles of the ten-story study (README, "Fixed: the ten-story
+/// settings say), with the oracles of the ten-story study (docs/calibration.md, "Fixed: the ten-story
 /// check"): `select` = `truth`, the bands and selected bins of `model`'s noise-free
 /// campaign of the same seed, mapped to the nearest bin (`measured`: the estimator's
 /// own; `ml_offset_over_noise_draws` also takes `fit`: `truth` of the fitted model);

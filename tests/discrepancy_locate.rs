@@ -172,6 +172,8 @@ fn benchmark_table() {
 /// the inconsistent checks of each, and how many campaigns have any. A measurement, not
 /// a pass/fail test: on a folder of null campaigns every flagged check is a false alarm
 /// of the checks (the diagnosis then tests that place for adequacy).
+/// `$FRFBAYES_CHECK_ESTIMATOR_REL_ERROR` replaces the checks' smooth-error allowance
+/// (default 0.003) to measure what it does.
 #[test]
 #[ignore = "needs a folder of campaigns in FRFBAYES_CHECK_DIR; about 3 s per campaign"]
 fn consistency_over_a_folder_of_campaigns() {
@@ -188,7 +190,11 @@ fn consistency_over_a_folder_of_campaigns() {
     let (mut n_checks, mut n_flagged, mut n_campaigns_flagged) = (0, 0, 0);
     for dir in &dirs {
         let campaign = read_campaign(dir).unwrap();
-        let rep = check_campaign(&campaign, &ConsistencyOptions::default()).unwrap();
+        let mut opts = ConsistencyOptions::default();
+        if let Ok(v) = std::env::var("FRFBAYES_CHECK_ESTIMATOR_REL_ERROR") {
+            opts.estimator_rel_error = v.parse().unwrap();
+        }
+        let rep = check_campaign(&campaign, &opts).unwrap();
         let names: Vec<&str> = rep.inconsistent().iter().map(|c| c.name.as_str()).collect();
         println!(
             "{}: {} checks, {} inconsistent {names:?}",

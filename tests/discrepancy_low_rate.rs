@@ -10,7 +10,7 @@
 //! by an amount of order `var(delta)` that repeats in every segment. The fitted model is
 //! far more precise than that (thousands of points), so a sensor low-pass absorbs it: on
 //! these two seeds its gain in maximum log-likelihood over the nominal model is 92 and
-//! 83 nats, a false `sensor_dynamics` at every response channel (README, "The bridge's
+//! 83 nats, a false `sensor_dynamics` at every response channel (docs/diagnose.md, "The bridge's
 //! size in diagnose"). Carried by each model's own `H` at its MAP
 //! (`GainCarrier::ModelAtMap`) it is 0.0 and 0.3 nats, as a null's should be (below
 //! `ln 150`, which bounds what the evidence could make of it).

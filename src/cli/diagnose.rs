@@ -32,17 +32,17 @@ use std::time::Instant;
 pub struct NoiseModelArgs {
     /// Do not correct the hammer estimates' own systematic error (the previous impact's
     /// ringing, the cut before the next one), which is otherwise measured by replaying
-    /// the tests at the nominal fit and again at each accepted model's (see README,
-    /// "False alarms").
+    /// the tests at the nominal fit and again at each accepted model's (see
+    /// docs/diagnose.md, "False alarms").
     #[arg(long)]
     pub no_estimator_bias: bool,
     /// Compare the models with the measured ratios times 1 + 2 eps^2 (capped at 1.1), which
     /// removes to second order the bias of errors scaled by the measured |h| (experimental:
-    /// see README, "Why the structural sizes are biased").
+    /// see docs/diagnose.md, "Why the structural sizes are biased").
     #[arg(long)]
     pub weight_bias_correction: bool,
     /// What the input-gain error of a hammer segment multiplies in the likelihood's
-    /// covariance (README, "Why the structural sizes are biased"): `model-at-map`, each
+    /// covariance (docs/diagnose.md, "Why the structural sizes are biased"): `model-at-map`, each
     /// model's own H at its MAP (the default); `measured`, the measured h (the former
     /// default: its noise is correlated with the residual it weighs); `model`, the
     /// model's H at every evaluation.

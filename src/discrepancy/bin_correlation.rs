@@ -13,7 +13,7 @@
 //! shake-table records, pooled noise estimates) and the residual carries all of them;
 //! for one window the two agree (the test
 //! `the_measured_correlation_of_windowed_noise_is_the_windows`).
-//! Measured on the coverage case sensor_dynamics-c6 over 8 noise seeds (README, "Effect
+//! Measured on the coverage case sensor_dynamics-c6 over 8 noise seeds (docs/diagnose.md, "Effect
 //! intervals and neighbouring bins"): the estimates scattered 1.65 (frequency) and 1.69
 //! (damping) times the posterior sd, their mean within 0.4 standard errors of the truth.
 //!
