@@ -327,38 +327,21 @@ fn correlated_p_value_is_uniform_for_exponentially_windowed_noise() {
     // 7-33; 20 measured); as independent points it rejects far more often (the variance
     // of the sum is about 2.9 times 4n, so roughly 14-17 %; 55 measured, asserted above
     // 40, which is 4.6 sd above 20).
-    let (fs_hz, record_s) = (250.0, 4.0);
-    let n_samples = (fs_hz * record_s) as usize;
-    let tau_s = record_s / 20f64.ln();
-    let w: Vec<f64> = (0..n_samples)
-        .map(|i| (-(i as f64 / fs_hz) / tau_s).exp())
-        .collect();
-    let w2: f64 = w.iter().map(|v| v * v).sum();
     let (first_bin, n) = (20, 60);
-    let df_hz = 1.0 / record_s;
-    let corr = vec![window_correlation_sq(Some(tau_s), record_s, df_hz)];
+    let noise = crate::signal::correlation::WindowedNoise::new(250.0, 4.0, first_bin, n);
+    let corr = vec![window_correlation_sq(
+        Some(noise.tau_s),
+        1.0 / noise.df_hz,
+        noise.df_hz,
+    )];
     let independent: Vec<Vec<f64>> = vec![vec![1.0]];
-    let twiddle: Vec<Vec<Complex64>> = (0..n)
-        .map(|k| {
-            let omega = 2.0 * std::f64::consts::PI * (first_bin + k) as f64 / n_samples as f64;
-            (0..n_samples)
-                .map(|t| Complex64::from_polar(w[t], -omega * t as f64))
-                .collect()
-        })
-        .collect();
     let mut rng = ChaCha8Rng::seed_from_u64(20261201);
-    let unit = Normal::new(0.0, 1.0).unwrap();
     let a = vec![Complex64::new(1.0, 0.0); n];
     let idx: Vec<usize> = (0..n).collect();
     let (mut rejected, mut rejected_independent) = (0, 0);
     let draws = 400;
     for _ in 0..draws {
-        let x: Vec<f64> = (0..n_samples).map(|_| unit.sample(&mut rng)).collect();
-        // E|N_k|^2 = w2 for unit white noise: real and imaginary parts of variance w2 / 2.
-        let r: Vec<Complex64> = twiddle
-            .iter()
-            .map(|tw| tw.iter().zip(&x).map(|(t, x)| t * x).sum::<Complex64>() / (w2 / 2.0).sqrt())
-            .collect();
+        let r = noise.draw(&mut rng);
         let pts = group_points(&r, &a);
         let with = place("run", &pts, &idx, None, &corr);
         let without = place("run", &pts, &idx, None, &independent);

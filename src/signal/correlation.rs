@@ -212,6 +212,59 @@ fn projected_traces(c: &DMatrix<Complex64>, m: usize, p: usize) -> Result<(f64, 
     Ok((mm.trace().re, (&mm * &mm).trace().re))
 }
 
+/// Seeded oracle noise for the tests of correlated bins: white noise of unit variance
+/// over a record of `record_s` s at `fs_hz`, under the default whole-record hammer
+/// window `exp(-t / tau)` with `T / tau = ln 20`, transformed directly at `n_bins`
+/// neighbouring bins from `first_bin`; each bin scaled to unit variance per component.
+#[cfg(test)]
+pub(crate) struct WindowedNoise {
+    pub tau_s: f64,
+    pub df_hz: f64,
+    twiddle: Vec<Vec<Complex64>>,
+    scale: f64,
+    n_samples: usize,
+}
+
+#[cfg(test)]
+impl WindowedNoise {
+    pub fn new(fs_hz: f64, record_s: f64, first_bin: usize, n_bins: usize) -> Self {
+        let n_samples = (fs_hz * record_s) as usize;
+        let tau_s = record_s / 20f64.ln();
+        let w: Vec<f64> = (0..n_samples)
+            .map(|i| (-(i as f64 / fs_hz) / tau_s).exp())
+            .collect();
+        let w2: f64 = w.iter().map(|v| v * v).sum();
+        let twiddle = (0..n_bins)
+            .map(|k| {
+                let omega = 2.0 * std::f64::consts::PI * (first_bin + k) as f64 / n_samples as f64;
+                (0..n_samples)
+                    .map(|t| Complex64::from_polar(w[t], -omega * t as f64))
+                    .collect()
+            })
+            .collect();
+        WindowedNoise {
+            tau_s,
+            df_hz: 1.0 / record_s,
+            twiddle,
+            // E|N_k|^2 = w2 for unit white noise: parts of variance w2 / 2
+            scale: (w2 / 2.0).sqrt(),
+            n_samples,
+        }
+    }
+
+    /// One draw of the `n_bins` spectra.
+    pub fn draw(&self, rng: &mut impl rand::Rng) -> Vec<Complex64> {
+        use rand_distr::{Distribution, StandardNormal};
+        let x: Vec<f64> = (0..self.n_samples)
+            .map(|_| StandardNormal.sample(rng))
+            .collect();
+        self.twiddle
+            .iter()
+            .map(|tw| tw.iter().zip(&x).map(|(t, x)| t * x).sum::<Complex64>() / self.scale)
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -553,19 +553,13 @@ mod tests {
     /// weigh most, the phase turns between neighbouring bins and `Re rho` follows it.
     #[test]
     fn ratio_wald_test_holds_its_level_over_windowed_noise() {
-        use crate::signal::correlation::exp_window_bin_correlation_complex;
+        use crate::signal::correlation::{exp_window_bin_correlation_complex, WindowedNoise};
         use statrs::distribution::{ChiSquared, ContinuousCDF};
-        let (fs_hz, record_s) = (250.0, 4.0);
-        let n_samples = (fs_hz * record_s) as usize;
-        let tau_s = record_s / 20f64.ln();
-        let w: Vec<f64> = (0..n_samples)
-            .map(|i| (-(i as f64 / fs_hz) / tau_s).exp())
-            .collect();
-        let w2: f64 = w.iter().map(|v| v * v).sum();
         let (first_bin, n) = (20, 60);
-        let df_hz = 1.0 / record_s;
+        let noise = WindowedNoise::new(250.0, 4.0, first_bin, n);
+        let (tau_s, df_hz) = (noise.tau_s, noise.df_hz);
         let corr: Vec<Complex64> = (0..=256)
-            .map(|d| exp_window_bin_correlation_complex(Some(tau_s), record_s, df_hz, d))
+            .map(|d| exp_window_bin_correlation_complex(Some(tau_s), 1.0 / df_hz, df_hz, d))
             .collect();
         let two_pi = 2.0 * std::f64::consts::PI;
         let (wn, xi) = (two_pi * 12.5, 0.01);
@@ -581,33 +575,15 @@ mod tests {
                     / (wn * wn - s * s + Complex64::new(0.0, 2.0 * xi * wn) * s)
             })
             .collect();
-        let twiddle: Vec<Vec<Complex64>> = (0..n)
-            .map(|k| {
-                let om = two_pi * (first_bin + k) as f64 / n_samples as f64;
-                (0..n_samples)
-                    .map(|t| Complex64::from_polar(w[t], -om * t as f64))
-                    .collect()
-            })
-            .collect();
         let mut rng = ChaCha8Rng::seed_from_u64(20261202);
-        let unit = Normal::new(0.0, 1.0).unwrap();
         // each part's sd is 0.01 / |y| of the relative error
         let gain = 0.01;
-        let mut spectrum = || -> Vec<Complex64> {
-            let x: Vec<f64> = (0..n_samples).map(|_| unit.sample(&mut rng)).collect();
-            twiddle
-                .iter()
-                .map(|tw| {
-                    tw.iter().zip(&x).map(|(t, x)| t * x).sum::<Complex64>() / (w2 / 2.0).sqrt()
-                })
-                .collect()
-        };
         let critical = ChiSquared::new(4.0).unwrap().inverse_cdf(0.95);
         let one = [Complex64::new(1.0, 0.0)];
         let (mut rejected, mut rejected_independent) = (0, 0);
         let draws = 400;
         for _ in 0..draws {
-            let (n1, n2) = (spectrum(), spectrum());
+            let (n1, n2) = (noise.draw(&mut rng), noise.draw(&mut rng));
             let mut pts = RatioPoints::default();
             for k in 0..n {
                 let (a, b) = (y[k] + gain * n1[k], y[k] + gain * n2[k]);
