@@ -171,9 +171,15 @@ pub fn fit_ratio(
 ) -> Result<RatioFit> {
     let n = points.len();
     let (omega_rad_s, ratio, sigma) = (&points.omega_rad_s, &points.ratio, &points.sigma);
-    if n < 4 || omega_rad_s.len() != n || sigma.len() != n || points.bin.len() != n {
+    let lengths = [
+        omega_rad_s.len(),
+        sigma.len(),
+        points.bin.len(),
+        points.parts.len(),
+    ];
+    if n < 4 || lengths.iter().any(|&l| l != n) {
         return Err(Error::Numerical(format!(
-            "ratio fit needs at least 4 points, got {n}"
+            "ratio fit needs at least 4 points, each with its frequency, sigma, bin and parts; got {n} ratios and {lengths:?}"
         )));
     }
     // mean direction, then phases relative to it (no wrap for spreads below pi)
