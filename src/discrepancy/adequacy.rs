@@ -44,7 +44,7 @@
 //!
 //! **Neighbouring bins.** The points of one estimate are not independent: the hammer
 //! blocks' exponential window spreads each bin's noise over its neighbours (`|c(1)| =
-//! 0.69` for the default window, [`exp_window_bin_correlation`]). That leaves the mean of
+//! 0.69` for the default window, [`crate::signal::correlation::exp_window_bin_correlation`]). That leaves the mean of
 //! a sum of squared residuals at two per point but multiplies its variance by `1 + 2
 //! sum_d |c(d)|^2` (about 2.9 for that window) where the noise outweighs the floor, so
 //! each test refers its sum to Satterthwaite's scaled chi^2 with that mean and variance
@@ -68,7 +68,7 @@ use super::data::DiagnosisData;
 use super::posterior::ModelPosterior;
 use crate::error::Result;
 use crate::io::Channel;
-use crate::signal::correlation::exp_window_bin_correlation;
+use crate::signal::correlation::exp_window_bin_correlations;
 use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 use statrs::distribution::{ChiSquared, ContinuousCDF};
@@ -86,11 +86,6 @@ pub const ADEQUACY_FLOOR: f64 = 0.009;
 /// inflated by `E[1 / |1 + e|^2] = 1 + 2 eps^2` to second order: 2 % at 0.1, 18 % at
 /// 0.3, which a test over thousands of points would call a misfit.
 pub const MAX_TESTED_REL_ERROR: f64 = 0.1;
-
-/// Largest bin distance whose noise correlation enters a test's variance. The exponential
-/// window's `|c(d)|^2` falls as `1 / d^2`: beyond 256 bins the part of `sum |c(d)|^2`
-/// left out is below 0.5 % of it.
-const MAX_CORRELATED_BINS: usize = 256;
 
 /// One tested place: some points of the data.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -269,7 +264,7 @@ fn place(
 }
 
 /// `|c(d)|^2`, `d = 0..=MAX_CORRELATED_BINS`, of the noise of neighbouring bins of each
-/// segment's estimates ([`exp_window_bin_correlation`]: the hammer blocks' exponential
+/// segment's estimates ([`crate::signal::correlation::exp_window_bin_correlation`]: the hammer blocks' exponential
 /// window, or none for the shake-table records, over the transformed record, `1 / (df x
 /// zero padding)` s), one table per segment. A segment whose bins are not known gets
 /// `[1]`: its points are taken as independent.
@@ -296,8 +291,9 @@ fn bin_correlation_sq(data: &DiagnosisData) -> Vec<Vec<f64>> {
 /// `|c(d)|^2`, `d = 0..=MAX_CORRELATED_BINS`, of a record of `record_s` s under the
 /// exponential window `tau_s` (`None`: rectangular) on a grid of `df_hz`.
 fn window_correlation_sq(tau_s: Option<f64>, record_s: f64, df_hz: f64) -> Vec<f64> {
-    (0..=MAX_CORRELATED_BINS)
-        .map(|d| exp_window_bin_correlation(tau_s, record_s, df_hz, d).powi(2))
+    exp_window_bin_correlations(tau_s, record_s, df_hz)
+        .iter()
+        .map(|c| c.norm_sqr())
         .collect()
 }
 

@@ -139,6 +139,23 @@ pub fn exp_window_bin_correlation_complex(
     }
 }
 
+/// Farthest bin lag of [`exp_window_bin_correlations`]. The exponential window's
+/// `|c(d)|^2` falls as `1 / d^2`: beyond 256 bins the part of `sum |c(d)|^2` left out is
+/// below 0.5 % of it.
+pub const MAX_CORRELATED_BINS: usize = 256;
+
+/// `c(d)`, `d = 0..=MAX_CORRELATED_BINS`, of [`exp_window_bin_correlation_complex`]: the
+/// table the adequacy tests and the consistency checks use.
+pub fn exp_window_bin_correlations(
+    tau_s: Option<f64>,
+    record_s: f64,
+    df_hz: f64,
+) -> Vec<Complex64> {
+    (0..=MAX_CORRELATED_BINS)
+        .map(|d| exp_window_bin_correlation_complex(tau_s, record_s, df_hz, d))
+        .collect()
+}
+
 /// `|c(d)|` of [`exp_window_bin_correlation_complex`].
 pub fn exp_window_bin_correlation(tau_s: Option<f64>, record_s: f64, df_hz: f64, d: usize) -> f64 {
     exp_window_bin_correlation_complex(tau_s, record_s, df_hz, d).norm()

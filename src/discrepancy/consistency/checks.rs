@@ -8,7 +8,7 @@ use super::{
     CheckDetails, CheckKind, CheckResult, Compared, ConsistencyOptions, NullDistribution, Verdict,
 };
 use crate::io::Quantity;
-use crate::signal::correlation::exp_window_bin_correlation_complex;
+use crate::signal::correlation::exp_window_bin_correlations;
 use crate::signal::InputKind;
 use num_complex::Complex64;
 use std::f64::consts::PI;
@@ -51,13 +51,10 @@ fn window_bins(seg: &SegmentFrf, opts: &ConsistencyOptions) -> (Vec<usize>, Vec<
     (bins, edges)
 }
 
-/// Farthest bin lag whose noise correlation a ratio fit takes into account.
-const MAX_CORRELATED_BINS: usize = 256;
-
 /// `c(d)`, `d = 0..=MAX_CORRELATED_BINS`, of the noise of neighbouring bins of a
 /// segment's estimates: its exponential window (none for the shake-table records) over
 /// the transformed record, `1 / (df x zero padding)` s
-/// ([`exp_window_bin_correlation_complex`]). `[1]` (independent) where there is no
+/// ([`exp_window_bin_correlations`]). `[1]` (independent) where there is no
 /// window and no padding, or the grid is too short to tell.
 fn bin_correlation(seg: &SegmentFrf, opts: &ConsistencyOptions) -> Vec<Complex64> {
     let pad = opts.estimate.zero_pad_factor.max(1);
@@ -68,10 +65,7 @@ fn bin_correlation(seg: &SegmentFrf, opts: &ConsistencyOptions) -> Vec<Complex64
     if seg.exp_window_tau_s.is_none() && pad == 1 {
         return vec![Complex64::new(1.0, 0.0)];
     }
-    let record_s = 1.0 / (df_hz * pad as f64);
-    (0..=MAX_CORRELATED_BINS)
-        .map(|d| exp_window_bin_correlation_complex(seg.exp_window_tau_s, record_s, df_hz, d))
-        .collect()
+    exp_window_bin_correlations(seg.exp_window_tau_s, 1.0 / (df_hz * pad as f64), df_hz)
 }
 
 fn ms(x: f64) -> f64 {
@@ -205,6 +199,7 @@ pub fn reciprocity(
     };
     for (i, se) in segments.iter().enumerate() {
         let Some(e) = force_floor(se) else { continue };
+        let corr = bin_correlation(se, opts);
         for sr in &segments[i + 1..] {
             let Some(r) = force_floor(sr) else { continue };
             if r == e {
@@ -237,7 +232,7 @@ pub fn reciprocity(
                 let what = format!("{} {n1} / {} {n2}", se.label, sr.label);
                 match fit_ratio(
                     &pts,
-                    &bin_correlation(se, opts),
+                    &corr,
                     std::f64::consts::SQRT_2 * opts.estimator_rel_error,
                 ) {
                     Ok(f) => out.push(result(
