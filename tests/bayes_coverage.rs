@@ -12,13 +12,14 @@
 //! (default 1), `FRFBAYES_COVERAGE_INPUT_NOISE` (`shared`, the default of `sample`, or
 //! `per_point`, the model before), `FRFBAYES_COVERAGE_BAND_SELECTION` (`measured`, the
 //! default, or `model`, as `sample`'s `--band-selection`), `FRFBAYES_COVERAGE_NOISE_POOL_BINS`
-//! (as `sample`'s `--noise-pool-bins`, default 0), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
+//! (as `sample`'s `--noise-pool-bins`, default 0), `FRFBAYES_COVERAGE_BINS` (`independent`,
+//! the default, `window` or `phase`, as `sample`'s `--bin-correlation`), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
 //! `FRFBAYES_COVERAGE_OUT` (default `results/coverage`). Writes `<label>_<noise>.md` and
 //! `.csv` there.
 
 use frfbayes::bayes::coverage::{binomial_bounds, run_coverage, CoverageOptions, NoiseSources};
 use frfbayes::bayes::run::{SampleSettings, TestSelection};
-use frfbayes::bayes::{BandSelection, InputNoiseModel};
+use frfbayes::bayes::{BandSelection, BinCorrelation, InputNoiseModel};
 use frfbayes::frf::FrfKind;
 use frfbayes::io::write_atomic;
 use frfbayes::simulate::SimModel;
@@ -71,6 +72,12 @@ fn coverage_of_ninety_percent_intervals() {
         "measured" => BandSelection::Measured,
         "model" => BandSelection::Model,
         other => panic!("FRFBAYES_COVERAGE_BAND_SELECTION={other}: use measured or model"),
+    };
+    settings.bin_correlation = match env_or("FRFBAYES_COVERAGE_BINS", "independent").as_str() {
+        "independent" => BinCorrelation::Independent,
+        "window" => BinCorrelation::Window,
+        "phase" => BinCorrelation::Phase,
+        other => panic!("FRFBAYES_COVERAGE_BINS={other}: use independent, window or phase"),
     };
     let opts = CoverageOptions {
         base,

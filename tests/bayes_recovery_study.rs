@@ -28,7 +28,8 @@
 //! `FRFBAYES_STUDY_N_MODES`, `FRFBAYES_STUDY_FREQ_MAX_HZ` and `FRFBAYES_STUDY_MODE_SOLVER=exact`
 //! (as `sample`'s `--n-modes`, `--freq-max-hz`, `--mode-solver`; the bridge needs them),
 //! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone),
-//! `FRFBAYES_STUDY_BINS=window` (neighbouring bins correlated, as the ten-story check),
+//! `FRFBAYES_STUDY_BINS=window` (neighbouring bins correlated, as the ten-story check) or
+//! `phase` (`sample`'s `--bin-correlation phase`),
 //! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals), `FRFBAYES_STUDY_RHO` (with
 //! window bins, the chain's correlation at one bin; `ml_offset_over_noise_draws`
 //! without `FRFBAYES_STUDY_BAND_SELECTION`, which takes `sample`'s own path and none of
@@ -577,8 +578,10 @@ fn study_settings(model_file: &str) -> SampleSettings {
     if std::env::var("FRFBAYES_STUDY_RESIDUAL").as_deref() == Ok("log") {
         s.residual = frfbayes::update::ResidualForm::LogMagnitude;
     }
-    if std::env::var("FRFBAYES_STUDY_BINS").as_deref() == Ok("window") {
-        s.bin_correlation = frfbayes::bayes::BinCorrelation::Window;
+    match std::env::var("FRFBAYES_STUDY_BINS").as_deref() {
+        Ok("window") => s.bin_correlation = frfbayes::bayes::BinCorrelation::Window,
+        Ok("phase") => s.bin_correlation = frfbayes::bayes::BinCorrelation::Phase,
+        _ => {}
     }
     if let Ok(v) = std::env::var("FRFBAYES_STUDY_NOISE_POOL_BINS") {
         s.noise_pool_bins = v.parse().expect("FRFBAYES_STUDY_NOISE_POOL_BINS: bins");

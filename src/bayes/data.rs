@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use crate::frf::{FrfBlock, FrfKind};
-use crate::signal::correlation::exp_window_bin_correlation;
+use crate::signal::correlation::{exp_window_bin_correlation_complex, magnitude_bin_correlation};
 use crate::signal::TestFrf;
 use crate::update::ResidualForm;
 use serde::{Deserialize, Serialize};
@@ -66,6 +66,18 @@ pub enum BinCorrelation {
     /// consecutive points the window's `|c(d)|` at their bin distance `d`
     /// ([`crate::signal::correlation::exp_window_bin_correlation`]).
     Window,
+    /// Each response's points a Gauss-Markov chain along frequency, the correlation of
+    /// consecutive points `Re(c(d) g exp(-j (theta_k - theta_(k-1))))`: the window's
+    /// complex `c(d)` turned by the estimate's phase `theta` between them and by the
+    /// input's (`g`, [`crate::signal::TestFrf::input_turn`]). A magnitude's relative error
+    /// is `Re(N_k / Y_k)`, the real part of the response noise over the response
+    /// spectrum `Y = F H`, so its correlation between bins is the real part of the complex
+    /// noise's correlation turned by the response's phase
+    /// ([`crate::signal::correlation::magnitude_bin_correlation`]). The input's phase
+    /// wobbles from bin to bin where a record holds two impacts. `|c(d)|`
+    /// ([`Self::Window`]) is an upper bound, reached only where the turns cancel the
+    /// window's own phase.
+    Phase,
 }
 
 /// Relative eigenvalue below which components of the shared force noise are dropped
@@ -211,8 +223,8 @@ impl FrfData {
         };
         for frf in frfs {
             data.push_test(frf, kind, rel_sigma_floor, input_noise, noise_pool_bins)?;
-            if bins == BinCorrelation::Window {
-                data.push_bin_correlation(frf);
+            if bins != BinCorrelation::Independent {
+                data.push_bin_correlation(frf, bins);
             }
         }
         if data.blocks.is_empty() {
@@ -320,8 +332,9 @@ impl FrfData {
 
     /// Appends [`Self::bin_correlation`] of the test just pushed (its last block; no
     /// block was pushed when the test has no points of the kind): per response, 0 at
-    /// its first bin, then the window's `|c(d)|` of each bin to the previous one.
-    fn push_bin_correlation(&mut self, frf: &TestFrf) {
+    /// its first bin, then the correlation of each bin with the previous one that `bins`
+    /// says.
+    fn push_bin_correlation(&mut self, frf: &TestFrf, bins: BinCorrelation) {
         let start = self.bin_correlation.len();
         let Some(block) = self.blocks.last().filter(|_| start < self.magnitude.len()) else {
             return;
@@ -330,24 +343,38 @@ impl FrfData {
             [f0, f1, ..] => f1 - f0,
             _ => 0.0,
         };
-        let bin = |w: f64| (w / (2.0 * std::f64::consts::PI * df)).round() as i64;
-        let per_response: Vec<f64> = (0..block.omega_rad_s.len())
-            .map(|q| match q {
-                0 => 0.0,
-                _ if df <= 0.0 => 0.0,
-                _ => {
-                    let d = bin(block.omega_rad_s[q]) - bin(block.omega_rad_s[q - 1]);
-                    exp_window_bin_correlation(
-                        frf.exp_window_tau_s,
-                        frf.block_s,
-                        df,
-                        d.unsigned_abs() as usize,
+        let bin_of = |w: f64| (w / (2.0 * std::f64::consts::PI * df)).round() as usize;
+        let bin: Vec<usize> = match df > 0.0 {
+            true => block.omega_rad_s.iter().map(|&w| bin_of(w)).collect(),
+            false => Vec::new(),
+        };
+        let c = |q: usize| {
+            let d = bin[q].abs_diff(bin[q - 1]);
+            exp_window_bin_correlation_complex(frf.exp_window_tau_s, frf.block_s, df, d)
+        };
+        // the responses behind the block's pairs, in order (a subsequence of the test's)
+        let pairs = frf.pairs().unwrap_or_default();
+        let mut next = 0;
+        for pair in &block.pairs {
+            let j = pairs[next..]
+                .iter()
+                .position(|p| p == pair)
+                .map(|i| next + i);
+            next = j.map_or(next, |j| j + 1);
+            let h1 = j.map(|j| &frf.responses[j].h1);
+            let per_response = (0..block.omega_rad_s.len()).map(|q| match (q, bins, h1) {
+                (0, ..) => 0.0,
+                _ if bin.is_empty() => 0.0,
+                (_, BinCorrelation::Phase, Some(h1)) => {
+                    let (k, l) = (bin[q], bin[q - 1]);
+                    magnitude_bin_correlation(
+                        c(q) * frf.input_turn(k, l),
+                        h1[k].arg() - h1[l].arg(),
                     )
                 }
-            })
-            .collect();
-        for _ in &block.pairs {
-            self.bin_correlation.extend(&per_response);
+                _ => c(q).norm(),
+            });
+            self.bin_correlation.extend(per_response);
         }
     }
 
@@ -355,12 +382,10 @@ impl FrfData {
     fn validate_bin_correlation(&self, n: usize) -> Result<()> {
         let rho = &self.bin_correlation;
         if !(rho.is_empty() || rho.len() == n)
-            || rho
-                .iter()
-                .any(|r| !(r.is_finite() && (0.0..1.0).contains(r)))
+            || rho.iter().any(|r| !(r.is_finite() && r.abs() < 1.0))
         {
             return Err(Error::Usage(format!(
-                "{} bin correlations for {n} points, each in [0, 1)",
+                "{} bin correlations for {n} points, each in (-1, 1)",
                 rho.len()
             )));
         }

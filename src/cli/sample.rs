@@ -38,6 +38,7 @@ pub enum TestsArg {
 pub enum BinCorrelationArg {
     Independent,
     Window,
+    Phase,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -113,8 +114,11 @@ pub struct Args {
     /// Residuals on magnitudes (default) or log-magnitudes.
     #[arg(long, value_enum)]
     pub residual: Option<ResidualArg>,
-    /// Output noise of neighbouring bins: independent (default) or correlated as the
-    /// estimator's exponential window makes it (`window`; see the README).
+    /// Output noise of neighbouring bins: independent (default), or correlated as the
+    /// estimator's exponential window makes it: `phase`, the window's complex bin
+    /// correlation turned by the estimate's phase (what a magnitude's error has), or
+    /// `window`, its modulus (an upper bound; the former option). See
+    /// docs/calibration.md.
     #[arg(long, value_enum)]
     pub bin_correlation: Option<BinCorrelationArg>,
     /// Where each test's bins are selected: on its estimate (`measured`, default) or,
@@ -285,6 +289,7 @@ impl Args {
             s.bin_correlation = match b {
                 BinCorrelationArg::Independent => BinCorrelation::Independent,
                 BinCorrelationArg::Window => BinCorrelation::Window,
+                BinCorrelationArg::Phase => BinCorrelation::Phase,
             };
         }
         if let Some(w) = self.noise_pool_bins {

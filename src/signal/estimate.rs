@@ -127,6 +127,10 @@ pub struct TestFrf {
     pub impacts_s: Vec<f64>,
     /// Input auto-spectrum summed over blocks (unnormalised, windowed), per bin.
     pub input_power: Vec<f64>,
+    /// The input's windowed spectrum of each block at every bin (empty for estimates read
+    /// from files): what the correlation of the estimate's errors between bins needs
+    /// besides the window ([`Self::input_turn`]).
+    pub input_spectra: Vec<Vec<Complex64>>,
     /// Resonance bands, ascending in frequency.
     pub bands: Vec<Band>,
     /// Selected bins (indices into `freq_hz`, ascending).
@@ -138,6 +142,28 @@ pub struct TestFrf {
 }
 
 impl TestFrf {
+    /// `g_kl = sum_b conj(F_bk) F_bl / sqrt(P_k P_l)` over the blocks' input spectra `F_b`
+    /// (`P` the input power): what the input adds to the correlation of the H1 errors of
+    /// bins `k` and `l`, `E[e_k conj(e_l)] / (sd_k sd_l) = c(k - l) g_kl / (H_k conj(H_l))`
+    /// (`|e| / |H|`) for output noise of window correlation `c`. One block gives
+    /// `exp(-j (phi_k - phi_l))`, the turn of the input's phase: a hammer record with two
+    /// impacts `t` s apart wobbles by up to `2 asin(a)` between bins (`a` the second
+    /// impact's windowed amplitude relative to the first). 1 without the spectra.
+    pub fn input_turn(&self, k: usize, l: usize) -> Complex64 {
+        let g: Complex64 = self
+            .input_spectra
+            .iter()
+            .filter_map(|f| Some(f.get(k)?.conj() * f.get(l)?))
+            .sum();
+        let p = (self.input_power.get(k).copied().unwrap_or(0.0)
+            * self.input_power.get(l).copied().unwrap_or(0.0))
+        .sqrt();
+        match self.input_spectra.is_empty() || !(p > 0.0 && g.is_finite()) {
+            true => Complex64::new(1.0, 0.0),
+            false => g / p,
+        }
+    }
+
     /// The response called `name`.
     pub fn response(&self, name: &str) -> Option<&ResponseFrf> {
         self.responses.iter().find(|r| r.channel.name == name)
@@ -432,6 +458,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         .transpose()
         .map_err(|e| Error::invalid(&path, e.to_string()))?;
     let (bands, selected) = test_bands(&freq_hz, &responses, &input_power, opts)?;
+    let input_spectra = f_blocks.iter().map(|f| f[..n_keep].to_vec()).collect();
     Ok(TestFrf {
         test: test.name.clone(),
         freq_hz,
@@ -443,6 +470,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         block_s: block_len as f64 / fs,
         impacts_s: impacts.iter().map(|p| p.trigger as f64 / fs).collect(),
         input_power,
+        input_spectra,
         bands,
         selected,
         input_noise,

@@ -184,6 +184,7 @@ mod tests {
             block_s: 10.0,
             impacts_s: vec![],
             input_power: vec![1.0; 5],
+            input_spectra: vec![],
             bands: vec![],
             selected: vec![],
             input_noise: None,

@@ -458,6 +458,7 @@ fn finish_test(
         block_s: 1.0 / df,
         impacts_s: Vec::new(),
         input_power,
+        input_spectra: Vec::new(),
         bands,
         selected,
         input_noise: None,
