@@ -13,7 +13,8 @@
 //! `per_point`, the model before), `FRFBAYES_COVERAGE_BAND_SELECTION` (`measured`, the
 //! default, or `model`, as `sample`'s `--band-selection`), `FRFBAYES_COVERAGE_NOISE_POOL_BINS`
 //! (as `sample`'s `--noise-pool-bins`, default 0), `FRFBAYES_COVERAGE_BINS` (`independent`,
-//! the default, `window` or `phase`, as `sample`'s `--bin-correlation`), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
+//! the default, `window` or `phase`, as `sample`'s `--bin-correlation`),
+//! `FRFBAYES_COVERAGE_REL_SIGMA_FLOOR` (as `--rel-sigma-floor`), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
 //! `FRFBAYES_COVERAGE_OUT` (default `results/coverage`). Writes `<label>_<noise>.md` and
 //! `.csv` there.
 
@@ -79,6 +80,9 @@ fn coverage_of_ninety_percent_intervals() {
         "phase" => BinCorrelation::Phase,
         other => panic!("FRFBAYES_COVERAGE_BINS={other}: use independent, window or phase"),
     };
+    if let Ok(v) = std::env::var("FRFBAYES_COVERAGE_REL_SIGMA_FLOOR") {
+        settings.rel_sigma_floor = v.parse().expect("FRFBAYES_COVERAGE_REL_SIGMA_FLOOR");
+    }
     let opts = CoverageOptions {
         base,
         n_campaigns: n,

@@ -86,7 +86,7 @@ mod tests;
 
 pub use data::{
     BinCorrelation, CorrelatedNoise, FrfData, InputNoiseModel, LoadingMagnitude,
-    DEFAULT_REL_SIGMA_FLOOR, SHARED_NOISE_REL_TOL,
+    DEFAULT_REL_SIGMA_FLOOR, SHARED_NOISE_REL_TOL, SHARED_NOISE_REL_TOL_CHAINED,
 };
 pub use posterior::{FrfPosterior, PosteriorOptions};
 pub use prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};

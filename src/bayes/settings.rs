@@ -67,9 +67,12 @@ pub struct SampleSettings {
     #[serde(default)]
     pub loading_magnitude: LoadingMagnitude,
     /// Whether the output noise of neighbouring bins is correlated as the estimator's
-    /// window makes it (default and a settings file without the key: independent;
-    /// `Window` fixes the ten-story check but worsens the four-story coverage study:
-    /// masses and stiffnesses rms z 2.0-2.3, 4 of 20 campaigns beyond 2 sd; README).
+    /// window makes it (default and a settings file without the key: independent).
+    /// `Phase` (the window's correlation turned by the estimate's and the input's phase,
+    /// shared force noise at full rank) is calibrated on the four-story coverage study
+    /// (227/240), the six-DOF and the ten-story studies; `Window` (the modulus) fixes the
+    /// ten-story check but worsens the four-story coverage study (masses and stiffnesses
+    /// rms z 2.0-2.3; docs/calibration.md).
     #[serde(default)]
     pub bin_correlation: BinCorrelation,
     /// Where each test's bins are selected: on the estimate, or again on the
