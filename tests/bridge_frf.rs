@@ -12,6 +12,7 @@
 //!
 //! ```sh
 //! nice -n 10 cargo test --release --test bridge_frf -- --ignored --nocapture
+//! FRFBAYES_BRIDGE_BINS=phase nice -n 10 cargo test --release --test bridge_frf bridge_frf_recovers -- --ignored --nocapture
 //! ```
 
 use frfbayes::bayes::run::{
@@ -227,10 +228,14 @@ fn simulated_campaign(edit: impl FnOnce(&mut SimModel)) -> (Vec<f64>, frfbayes::
     (truth, campaign)
 }
 
-/// [`settings`] with neighbouring bins correlated by the window.
+/// [`settings`] with neighbouring bins correlated by the window (`FRFBAYES_BRIDGE_BINS=phase`:
+/// as `--bin-correlation phase` correlates them).
 fn window_settings(walkers_per_dim: usize) -> SampleSettings {
     let mut s = settings(walkers_per_dim);
-    s.bin_correlation = BinCorrelation::Window;
+    s.bin_correlation = match std::env::var("FRFBAYES_BRIDGE_BINS").as_deref() {
+        Ok("phase") => BinCorrelation::Phase,
+        _ => BinCorrelation::Window,
+    };
     s
 }
 
