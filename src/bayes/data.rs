@@ -6,6 +6,7 @@ use crate::frf::{FrfBlock, FrfKind};
 use crate::signal::correlation::{exp_window_bin_correlation_complex, magnitude_bin_correlation};
 use crate::signal::TestFrf;
 use crate::update::ResidualForm;
+use num_complex::Complex64;
 use serde::{Deserialize, Serialize};
 
 /// Default floor on the relative standard deviation of a measured magnitude (0.1 %).
@@ -78,6 +79,20 @@ pub enum BinCorrelation {
     /// ([`Self::Window`]) is an upper bound, reached only where the turns cancel the
     /// window's own phase.
     Phase,
+}
+
+impl BinCorrelation {
+    /// Relative eigenvalue below which components of the shared force noise are dropped
+    /// from its low-rank term (their variance joins each point's own): with
+    /// [`Self::Phase`] none that the eigen-solver resolves
+    /// ([`SHARED_NOISE_REL_TOL_CHAINED`]); [`Self::Window`] keeps the tolerance its runs
+    /// had, so that they resume unchanged.
+    pub fn shared_noise_rel_tol(self) -> f64 {
+        match self {
+            BinCorrelation::Phase => SHARED_NOISE_REL_TOL_CHAINED,
+            BinCorrelation::Independent | BinCorrelation::Window => SHARED_NOISE_REL_TOL,
+        }
+    }
 }
 
 /// Relative eigenvalue below which components of the shared force noise are dropped
@@ -239,9 +254,6 @@ impl FrfData {
                 noise_pool_bins,
                 bins,
             )?;
-            if bins != BinCorrelation::Independent {
-                data.push_bin_correlation(frf, bins);
-            }
         }
         if data.blocks.is_empty() {
             return Err(Error::Usage(format!(
@@ -288,13 +300,8 @@ impl FrfData {
         }
         self.n_dropped_bins += (nw - keep.len()) * usize::from(!used.is_empty());
         let kept_bins: Vec<usize> = keep.iter().map(|&i| frf.selected[i]).collect();
-        let shared_rel_tol = match bins {
-            BinCorrelation::Phase => SHARED_NOISE_REL_TOL_CHAINED,
-            // Window keeps the tolerance its runs had, so they resume unchanged
-            BinCorrelation::Independent | BinCorrelation::Window => SHARED_NOISE_REL_TOL,
-        };
         let shared = noise
-            .map(|n| n.low_rank(&kept_bins, shared_rel_tol))
+            .map(|n| n.low_rank(&kept_bins, bins.shared_noise_rel_tol()))
             .transpose()?;
         let start = self.magnitude.len();
         let (mut loadings, mut scale) = (Vec::new(), Vec::new());
@@ -349,54 +356,58 @@ impl FrfData {
         });
         self.tests.push(frf.test.clone());
         self.window_tau_s.push(frf.exp_window_tau_s);
+        if bins != BinCorrelation::Independent {
+            self.push_bin_correlation(frf, &used, &kept_bins, bins);
+        }
         Ok(())
     }
 
-    /// Appends [`Self::bin_correlation`] of the test just pushed (its last block; no
-    /// block was pushed when the test has no points of the kind): per response, 0 at
-    /// its first bin, then the correlation of each bin with the previous one that `bins`
-    /// says.
-    fn push_bin_correlation(&mut self, frf: &TestFrf, bins: BinCorrelation) {
-        let start = self.bin_correlation.len();
-        let Some(block) = self.blocks.last().filter(|_| start < self.magnitude.len()) else {
-            return;
-        };
+    /// Appends [`Self::bin_correlation`] of the test just pushed, whose `used` responses
+    /// (indices into its responses) were pushed at its bins `kept_bins`: per response, 0
+    /// at its first bin, then the correlation of each bin with the previous one that
+    /// `correlation` says. The window's `c(d)`, turned by the input's phase for
+    /// [`BinCorrelation::Phase`], is common to the test's responses and computed once.
+    fn push_bin_correlation(
+        &mut self,
+        frf: &TestFrf,
+        used: &[usize],
+        kept_bins: &[usize],
+        correlation: BinCorrelation,
+    ) {
         let df = match frf.freq_hz.as_slice() {
-            [f0, f1, ..] => f1 - f0,
+            [f0, f1, ..] if f1 > f0 => f1 - f0,
             _ => 0.0,
         };
-        let bin_of = |w: f64| (w / (2.0 * std::f64::consts::PI * df)).round() as usize;
-        let bin: Vec<usize> = match df > 0.0 {
-            true => block.omega_rad_s.iter().map(|&w| bin_of(w)).collect(),
-            false => Vec::new(),
-        };
-        let c = |q: usize| {
-            let d = bin[q].abs_diff(bin[q - 1]);
-            exp_window_bin_correlation_complex(frf.exp_window_tau_s, frf.block_s, df, d)
-        };
-        // the responses behind the block's pairs, in order (a subsequence of the test's)
-        let pairs = frf.pairs().unwrap_or_default();
-        let mut next = 0;
-        for pair in &block.pairs {
-            let j = pairs[next..]
-                .iter()
-                .position(|p| p == pair)
-                .map(|i| next + i);
-            next = j.map_or(next, |j| j + 1);
-            let h1 = j.map(|j| &frf.responses[j].h1);
-            let per_response = (0..block.omega_rad_s.len()).map(|q| match (q, bins, h1) {
-                (0, ..) => 0.0,
-                _ if bin.is_empty() => 0.0,
-                (_, BinCorrelation::Phase, Some(h1)) => {
-                    let (k, l) = (bin[q], bin[q - 1]);
-                    magnitude_bin_correlation(
-                        c(q) * frf.input_turn(k, l),
-                        h1[k].arg() - h1[l].arg(),
-                    )
+        let zero = Complex64::new(0.0, 0.0);
+        let common: Vec<Complex64> = (0..kept_bins.len())
+            .map(|q| {
+                if q == 0 || df <= 0.0 {
+                    return zero;
                 }
-                _ => c(q).norm(),
+                let (k, l) = (kept_bins[q], kept_bins[q - 1]);
+                let c = exp_window_bin_correlation_complex(
+                    frf.exp_window_tau_s,
+                    frf.block_s,
+                    df,
+                    k.abs_diff(l),
+                );
+                match correlation {
+                    BinCorrelation::Phase => c * frf.input_turn(k, l),
+                    _ => c,
+                }
+            })
+            .collect();
+        for &j in used {
+            let h1 = &frf.responses[j].h1;
+            let per_point = common.iter().enumerate().map(|(q, &c)| match q {
+                0 => 0.0,
+                _ if correlation == BinCorrelation::Phase => {
+                    let (k, l) = (kept_bins[q], kept_bins[q - 1]);
+                    magnitude_bin_correlation(c, h1[k].arg() - h1[l].arg())
+                }
+                _ => c.norm(),
             });
-            self.bin_correlation.extend(per_response);
+            self.bin_correlation.extend(per_point);
         }
     }
 

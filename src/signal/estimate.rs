@@ -450,15 +450,13 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         .collect::<Result<Vec<_>>>()
         .map_err(|e| Error::invalid(&path, e.to_string()))?;
     let input_power = input_power(&f_blocks, n_keep);
+    let input_spectra: Vec<Vec<Complex64>> =
+        f_blocks.iter().map(|f| f[..n_keep].to_vec()).collect();
     let input_noise = (local.is_some() && input_noise_weights.iter().any(|w| !w.is_empty()))
-        .then(|| {
-            let force = f_blocks.iter().map(|f| f[..n_keep].to_vec()).collect();
-            InputNoise::new(n_fft, input_noise_weights, force)
-        })
+        .then(|| InputNoise::new(n_fft, input_noise_weights, input_spectra.clone()))
         .transpose()
         .map_err(|e| Error::invalid(&path, e.to_string()))?;
     let (bands, selected) = test_bands(&freq_hz, &responses, &input_power, opts)?;
-    let input_spectra = f_blocks.iter().map(|f| f[..n_keep].to_vec()).collect();
     Ok(TestFrf {
         test: test.name.clone(),
         freq_hz,
