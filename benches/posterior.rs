@@ -10,13 +10,16 @@
 //! with `FRFBAYES_PROBE_EVALS=<n>` the binary skips criterion and evaluates the posterior
 //! `n` times at the same points, which `valgrind --tool=callgrind
 //! --toggle-collect='*probe_loop*'` counts alone (setup excluded). The problem and the points
-//! are cached in `FRFBAYES_PROBE_POINTS` (default `$TMPDIR/frfbayes_probe_points.json`)
-//! so that runs before and after a change evaluate the same points, and valgrind skips
-//! the slow campaign estimate.
+//! are cached in `FRFBAYES_PROBE_POINTS` (default `$TMPDIR/frfbayes_probe_points.json`,
+//! `..._independent.json` with `FRFBAYES_PROBE_NOISE=independent`, the noise model of the
+//! kernel's history) so that runs before and after a change evaluate the same points, and
+//! valgrind skips the slow campaign estimate.
 
 use criterion::{criterion_group, Criterion};
 use frfbayes::bayes::run::{prepare, sample_posterior, SampleSettings, TestSelection};
-use frfbayes::bayes::{ball_positions, find_start, FrfData, FrfPosterior};
+use frfbayes::bayes::{
+    ball_positions, find_start, BandSelection, BinCorrelation, FrfData, FrfPosterior,
+};
 use frfbayes::frf::{Excitation, FrfBlock, FrfKind, FrfPair, ModalFrf};
 use frfbayes::mcmc::LogDensity;
 use frfbayes::modal::Modes;
@@ -42,15 +45,34 @@ struct Cache {
     points: Vec<Vec<f64>>,
 }
 
+/// `frfbayes sample`'s settings; with `FRFBAYES_PROBE_NOISE=independent` the noise model
+/// the kernel's history was measured on (neighbouring bins independent, each point's own
+/// noise estimate, the shared force noise truncated at 1e-3, bins selected on the
+/// estimates: 22,077 instructions per evaluation before the phase chain became the
+/// default).
 fn settings() -> SampleSettings {
-    SampleSettings::new(
+    let mut s = SampleSettings::new(
         "bundled:four-story".into(),
         DampingModel::Caughey,
         FrfKind::Receptance,
         TestSelection::Hammer,
         1,
     )
-    .unwrap()
+    .unwrap();
+    if independent_noise() {
+        s.bin_correlation = BinCorrelation::Independent;
+        s.noise_pool_bins = 0;
+        s.band_selection = BandSelection::Measured;
+    }
+    s
+}
+
+fn independent_noise() -> bool {
+    match std::env::var("FRFBAYES_PROBE_NOISE").as_deref() {
+        Ok("independent") => true,
+        Ok(other) => panic!("FRFBAYES_PROBE_NOISE={other}: independent, or unset"),
+        Err(_) => false,
+    }
 }
 
 fn posterior(settings: &SampleSettings, model: StructuralModel, data: FrfData) -> FrfPosterior {
@@ -70,7 +92,13 @@ fn setup() -> (FrfPosterior, Vec<Vec<f64>>) {
     let settings = settings();
     let path = std::env::var_os("FRFBAYES_PROBE_POINTS")
         .map(PathBuf::from)
-        .unwrap_or_else(|| std::env::temp_dir().join("frfbayes_probe_points.json"));
+        .unwrap_or_else(|| {
+            let name = match independent_noise() {
+                true => "frfbayes_probe_points_independent.json",
+                false => "frfbayes_probe_points.json",
+            };
+            std::env::temp_dir().join(name)
+        });
     if let Some(cache) = std::fs::read_to_string(&path)
         .ok()
         .and_then(|s| serde_json::from_str::<Cache>(&s).ok())

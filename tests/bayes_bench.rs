@@ -126,6 +126,13 @@ fn posterior_speed_threads_and_export() {
         1,
     )
     .unwrap();
+    // The noise model `benches/emcee_vs_rust.py` reimplements (and the speed history was
+    // measured on): neighbouring bins independent, each bin's own noise estimate, bins
+    // selected on the estimates; not `sample`'s defaults since 2026-12-02 (the phase
+    // chain, pooled noise, two-stage bands), whose cost is in the README's Speed table.
+    settings.bin_correlation = frfbayes::bayes::BinCorrelation::Independent;
+    settings.noise_pool_bins = 0;
+    settings.band_selection = frfbayes::bayes::BandSelection::Measured;
     // Experiments: another move mixture (TOML `[[moves]]` tables) or walker count.
     if let Ok(text) = std::env::var("FRFBAYES_BENCH_MOVES") {
         #[derive(serde::Deserialize)]

@@ -10,10 +10,11 @@
 //! Environment: `FRFBAYES_COVERAGE_N` campaigns (default 20), `FRFBAYES_COVERAGE_NOISE`
 //! (`all`, `force_only`, `responses_only`; default `all`), `FRFBAYES_COVERAGE_SEED`
 //! (default 1), `FRFBAYES_COVERAGE_INPUT_NOISE` (`shared`, the default of `sample`, or
-//! `per_point`, the model before), `FRFBAYES_COVERAGE_BAND_SELECTION` (`measured`, the
-//! default, or `model`, as `sample`'s `--band-selection`), `FRFBAYES_COVERAGE_NOISE_POOL_BINS`
-//! (as `sample`'s `--noise-pool-bins`, default 0), `FRFBAYES_COVERAGE_BINS` (`independent`,
-//! the default, `window` or `phase`, as `sample`'s `--bin-correlation`),
+//! `per_point`, the model before), `FRFBAYES_COVERAGE_BAND_SELECTION` (`measured` or
+//! `model`, as `sample`'s `--band-selection`; default `sample`'s, `model`), `FRFBAYES_COVERAGE_NOISE_POOL_BINS`
+//! (as `sample`'s `--noise-pool-bins`; default `sample`'s, 8), `FRFBAYES_COVERAGE_BINS`
+//! (`independent`, `window` or `phase`, as `sample`'s `--bin-correlation`; default
+//! `sample`'s, `phase`),
 //! `FRFBAYES_COVERAGE_REL_SIGMA_FLOOR` (as `--rel-sigma-floor`), `FRFBAYES_COVERAGE_LABEL` (file name prefix, default `run`),
 //! `FRFBAYES_COVERAGE_OUT` (default `results/coverage`). Writes `<label>_<noise>.md` and
 //! `.csv` there.
@@ -65,21 +66,24 @@ fn coverage_of_ninety_percent_intervals() {
         "per_point" => InputNoiseModel::PerPoint,
         other => panic!("FRFBAYES_COVERAGE_INPUT_NOISE={other}: use shared or per_point"),
     };
-    settings.noise_pool_bins = env_or("FRFBAYES_COVERAGE_NOISE_POOL_BINS", "0")
-        .parse()
-        .expect("FRFBAYES_COVERAGE_NOISE_POOL_BINS: bins");
-    settings.band_selection = match env_or("FRFBAYES_COVERAGE_BAND_SELECTION", "measured").as_str()
-    {
-        "measured" => BandSelection::Measured,
-        "model" => BandSelection::Model,
-        other => panic!("FRFBAYES_COVERAGE_BAND_SELECTION={other}: use measured or model"),
-    };
-    settings.bin_correlation = match env_or("FRFBAYES_COVERAGE_BINS", "independent").as_str() {
-        "independent" => BinCorrelation::Independent,
-        "window" => BinCorrelation::Window,
-        "phase" => BinCorrelation::Phase,
-        other => panic!("FRFBAYES_COVERAGE_BINS={other}: use independent, window or phase"),
-    };
+    if let Ok(v) = std::env::var("FRFBAYES_COVERAGE_NOISE_POOL_BINS") {
+        settings.noise_pool_bins = v.parse().expect("FRFBAYES_COVERAGE_NOISE_POOL_BINS: bins");
+    }
+    if let Ok(v) = std::env::var("FRFBAYES_COVERAGE_BAND_SELECTION") {
+        settings.band_selection = match v.as_str() {
+            "measured" => BandSelection::Measured,
+            "model" => BandSelection::Model,
+            other => panic!("FRFBAYES_COVERAGE_BAND_SELECTION={other}: use measured or model"),
+        };
+    }
+    if let Ok(v) = std::env::var("FRFBAYES_COVERAGE_BINS") {
+        settings.bin_correlation = match v.as_str() {
+            "independent" => BinCorrelation::Independent,
+            "window" => BinCorrelation::Window,
+            "phase" => BinCorrelation::Phase,
+            other => panic!("FRFBAYES_COVERAGE_BINS={other}: use independent, window or phase"),
+        };
+    }
     if let Ok(v) = std::env::var("FRFBAYES_COVERAGE_REL_SIGMA_FLOOR") {
         settings.rel_sigma_floor = v.parse().expect("FRFBAYES_COVERAGE_REL_SIGMA_FLOOR");
     }

@@ -12,8 +12,8 @@
 //! estimator's exponential window correlates their noise (residuals 0.79 at one bin):
 //! the posterior was about 3.5 times too narrow. With the correlated bins
 //! ([`frfbayes::bayes::BinCorrelation::Phase`]), two-stage band selection and pooled
-//! noise estimates it passes (docs/calibration.md, "The magnitude's own bin
-//! correlation").
+//! noise estimates, `sample`'s defaults since 2026-12-02, it passes (docs/calibration.md,
+//! "The magnitude's own bin correlation").
 //!
 //! Tolerance: with the posterior calibrated, `(truth - mean) / sd` is about standard
 //! normal per parameter, so `|z| <= 3` fails for a given parameter with probability
@@ -65,13 +65,7 @@ struct Recovery {
 /// Rayleigh damping (hammer tests, seed 1, defaults of `frfbayes sample` otherwise;
 /// `small`: 4 x dim walkers per ensemble),
 /// prints a table against the truth and returns the worst standardised error.
-fn recover(
-    model_file: &str,
-    small: bool,
-    bins: BinCorrelation,
-    selection: BandSelection,
-    noise_pool_bins: usize,
-) -> Recovery {
+fn recover(model_file: &str, small: bool, configure: &dyn Fn(&mut SampleSettings)) -> Recovery {
     let t0 = Instant::now();
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(model_file);
     let model = SimModel::from_path(&path).unwrap();
@@ -87,9 +81,7 @@ fn recover(
     )
     .unwrap();
     let mut settings = settings;
-    settings.bin_correlation = bins;
-    settings.band_selection = selection;
-    settings.noise_pool_bins = noise_pool_bins;
+    configure(&mut settings);
     if small {
         // 4 x dim walkers per ensemble: a third of the default work per step
         settings.walkers_per_dim = 4;
@@ -155,22 +147,21 @@ fn assert_recovered(r: &Recovery) {
 }
 
 /// The six-DOF spring network (`experiments/models/six-dof-hammer.toml`: braces between
-/// non-neighbouring DOFs, a non-diagonal mass matrix; 4 alphas, 3 betas, Rayleigh).
+/// non-neighbouring DOFs, a non-diagonal mass matrix; 4 alphas, 3 betas, Rayleigh), with
+/// `frfbayes sample`'s defaults.
 #[test]
 fn six_dof_network_recovers_the_truth() {
     assert_recovered(&recover(
         "experiments/models/six-dof-hammer.toml",
         true,
-        BinCorrelation::Independent,
-        BandSelection::Measured,
-        0,
+        &|_| {},
     ));
 }
 
 /// The ten-story frame as Matrix Market files (`experiments/models/ten-story-hammer.toml`:
-/// 10 alphas, 10 betas, Rayleigh; 23 sampled coordinates), as `frfbayes sample
-/// --bin-correlation phase --band-selection model --noise-pool-bins 8` samples it:
-/// neighbouring bins correlated as the window makes a magnitude's error, the window's
+/// 10 alphas, 10 betas, Rayleigh; 23 sampled coordinates), as `frfbayes sample` samples
+/// it with its defaults (since 2026-12-02 `--bin-correlation phase --band-selection model
+/// --noise-pool-bins 8`): neighbouring bins correlated as the window makes a magnitude's error, the window's
 /// complex correlation turned by the estimate's and the input's phase (with independent
 /// bins the check fails, worst |z| 4.08), bins selected again on the fitted model (which
 /// halves the bias of the mass-stiffness scale), each point's sd from the output noise
@@ -189,9 +180,7 @@ fn ten_story_recovers_the_truth() {
     assert_recovered(&recover(
         "experiments/models/ten-story-hammer.toml",
         false,
-        BinCorrelation::Phase,
-        BandSelection::Model,
-        8,
+        &|_| {},
     ));
 }
 
@@ -216,6 +205,7 @@ fn model_band_selection_on_noise_free_data_finds_the_estimates_bands() {
         1,
     )
     .unwrap();
+    settings.band_selection = BandSelection::Measured;
     let measured = prepare_campaign(&campaign, &settings).unwrap();
     settings.band_selection = BandSelection::Model;
     let reselected = prepare_campaign(&campaign, &settings).unwrap();

@@ -28,14 +28,15 @@
 //! `FRFBAYES_STUDY_N_MODES`, `FRFBAYES_STUDY_FREQ_MAX_HZ` and `FRFBAYES_STUDY_MODE_SOLVER=exact`
 //! (as `sample`'s `--n-modes`, `--freq-max-hz`, `--mode-solver`; the bridge needs them),
 //! `FRFBAYES_STUDY_MIN_PRETRIGGER` (samples; 0 gives the former 0.1 s alone),
-//! `FRFBAYES_STUDY_BINS=window` (neighbouring bins correlated, as the ten-story check) or
-//! `phase` (`sample`'s `--bin-correlation phase`),
+//! `FRFBAYES_STUDY_BINS` (`independent`, `window` or `phase`, as `sample`'s
+//! `--bin-correlation`; default `sample`'s, `phase`),
 //! `FRFBAYES_STUDY_RESIDUAL=log` (log-magnitude residuals), `FRFBAYES_STUDY_RHO` (with
 //! window bins, the chain's correlation at one bin; `ml_offset_over_noise_draws`
-//! without `FRFBAYES_STUDY_BAND_SELECTION`, which takes `sample`'s own path and none of
-//! the oracles), `FRFBAYES_STUDY_BAND_FACTOR`
-//! (as `sample`'s `--band-factor`), `FRFBAYES_STUDY_BAND_SELECTION=model` (as `sample`'s
-//! `--band-selection model`), `FRFBAYES_STUDY_NOISE_POOL_BINS` (as `--noise-pool-bins`). Writes
+//! with `FRFBAYES_STUDY_BAND_SELECTION=measured`: with `sample`'s two-stage selection it
+//! takes `sample`'s own path and none of the oracles), `FRFBAYES_STUDY_BAND_FACTOR`
+//! (as `sample`'s `--band-factor`), `FRFBAYES_STUDY_BAND_SELECTION` (`model` or
+//! `measured`, as `sample`'s `--band-selection`; default `sample`'s, `model`), `FRFBAYES_STUDY_NOISE_POOL_BINS` (as `--noise-pool-bins`;
+//! default `sample`'s, 8). Writes
 //! `<label>.csv` (one row per campaign) and `<label>.md` there.
 
 use frfbayes::bayes::recovery::{joint_error, JointError};
@@ -581,13 +582,18 @@ fn study_settings(model_file: &str) -> SampleSettings {
     match std::env::var("FRFBAYES_STUDY_BINS").as_deref() {
         Ok("window") => s.bin_correlation = frfbayes::bayes::BinCorrelation::Window,
         Ok("phase") => s.bin_correlation = frfbayes::bayes::BinCorrelation::Phase,
-        _ => {}
+        Ok("independent") => s.bin_correlation = frfbayes::bayes::BinCorrelation::Independent,
+        Ok(other) => panic!("FRFBAYES_STUDY_BINS={other}: independent, window or phase"),
+        Err(_) => {}
     }
     if let Ok(v) = std::env::var("FRFBAYES_STUDY_NOISE_POOL_BINS") {
         s.noise_pool_bins = v.parse().expect("FRFBAYES_STUDY_NOISE_POOL_BINS: bins");
     }
-    if std::env::var("FRFBAYES_STUDY_BAND_SELECTION").as_deref() == Ok("model") {
-        s.band_selection = BandSelection::Model;
+    match std::env::var("FRFBAYES_STUDY_BAND_SELECTION").as_deref() {
+        Ok("model") => s.band_selection = BandSelection::Model,
+        Ok("measured") => s.band_selection = BandSelection::Measured,
+        Ok(other) => panic!("FRFBAYES_STUDY_BAND_SELECTION={other}: model or measured"),
+        Err(_) => {}
     }
     if let Ok(v) = std::env::var("FRFBAYES_STUDY_MIN_PRETRIGGER") {
         s.estimate.min_pretrigger_samples = v.parse().expect("FRFBAYES_STUDY_MIN_PRETRIGGER");

@@ -86,7 +86,8 @@ mod tests;
 
 pub use data::{
     BinCorrelation, CorrelatedNoise, FrfData, InputNoiseModel, LoadingMagnitude,
-    DEFAULT_REL_SIGMA_FLOOR, SHARED_NOISE_REL_TOL, SHARED_NOISE_REL_TOL_CHAINED,
+    DEFAULT_NOISE_POOL_BINS, DEFAULT_REL_SIGMA_FLOOR, SHARED_NOISE_REL_TOL,
+    SHARED_NOISE_REL_TOL_CHAINED,
 };
 pub use posterior::{FrfPosterior, PosteriorOptions};
 pub use prior::{Prior, PriorKind, DEFAULT_NOISE_SCALE_BOUNDS};

@@ -99,7 +99,9 @@ fn n_peaks(settings: &SampleSettings, n_floors: usize) -> usize {
 /// The posterior of the `settings.tests` among `frfs` and its start (`where_` names them
 /// in errors); with [`BandSelection::Model`] the bins are then selected again on the
 /// start's model ([`reselect_on_model`], `n_peaks` per test) and the start found again.
-fn posterior_of(
+/// What `sample` does after estimating the FRFs, and what `repro`'s `[bayes]` does with
+/// each variant's.
+pub fn posterior_of(
     model: crate::model::StructuralModel,
     mut frfs: Vec<TestFrf>,
     settings: &SampleSettings,

@@ -1,6 +1,9 @@
 //! The settings of a sampling run (`settings.toml`) and which tests it uses.
 
-use super::data::{BinCorrelation, InputNoiseModel, LoadingMagnitude, DEFAULT_REL_SIGMA_FLOOR};
+use super::data::{
+    BinCorrelation, InputNoiseModel, LoadingMagnitude, DEFAULT_NOISE_POOL_BINS,
+    DEFAULT_REL_SIGMA_FLOOR,
+};
 use super::moves::default_moves;
 use super::posterior::PosteriorOptions;
 use super::reselect::BandSelection;
@@ -67,22 +70,26 @@ pub struct SampleSettings {
     #[serde(default)]
     pub loading_magnitude: LoadingMagnitude,
     /// Whether the output noise of neighbouring bins is correlated as the estimator's
-    /// window makes it (default and a settings file without the key: independent).
-    /// `Phase` (the window's correlation turned by the estimate's and the input's phase,
-    /// shared force noise at full rank) is calibrated on the four-story coverage study
-    /// (227/240), the six-DOF and the ten-story studies; `Window` (the modulus) fixes the
+    /// window makes it ([`SampleSettings::new`]: `Phase`, the window's correlation turned
+    /// by the estimate's and the input's phase, shared force noise at full rank,
+    /// calibrated on the four-story coverage study (227/240), the six-DOF and the
+    /// ten-story studies; a settings file without the key: independent, as runs before it
+    /// was added did, so they resume unchanged). `Window` (the modulus) fixes the
     /// ten-story check but worsens the four-story coverage study (masses and stiffnesses
     /// rms z 2.0-2.3; docs/calibration.md).
     #[serde(default)]
     pub bin_correlation: BinCorrelation,
     /// Where each test's bins are selected: on the estimate, or again on the
-    /// maximum-likelihood model's FRFs ([`BandSelection::Model`], two-stage; a settings
-    /// file without the key: on the estimate, as runs before it was added did).
+    /// maximum-likelihood model's FRFs ([`BandSelection::Model`], two-stage: the
+    /// default of [`SampleSettings::new`], which halves the ten-story campaign's bias of
+    /// the mass-stiffness scale; a settings file without the key: on the estimate, as
+    /// runs before it was added did).
     #[serde(default)]
     pub band_selection: BandSelection,
     /// The output noise's auto-spectrum behind each point's sd pooled over this many bins
-    /// either side ([`crate::signal::pooled_rel_std`]; 0, the default and a settings file
-    /// without the key: each bin's own coherence, as runs before it was added did).
+    /// either side ([`crate::signal::pooled_rel_std`]; [`SampleSettings::new`]:
+    /// [`DEFAULT_NOISE_POOL_BINS`]; 0, and a settings file without the key: each bin's own
+    /// coherence, as runs before it was added did).
     #[serde(default)]
     pub noise_pool_bins: usize,
     /// Multistart local solves for the start point.
@@ -130,9 +137,9 @@ impl SampleSettings {
             rel_sigma_floor: DEFAULT_REL_SIGMA_FLOOR,
             input_noise: InputNoiseModel::Shared,
             loading_magnitude: LoadingMagnitude::Model,
-            bin_correlation: BinCorrelation::Independent,
-            band_selection: BandSelection::Measured,
-            noise_pool_bins: 0,
+            bin_correlation: BinCorrelation::Phase,
+            band_selection: BandSelection::Model,
+            noise_pool_bins: DEFAULT_NOISE_POOL_BINS,
             n_starts: 32,
             ball_factor: 1.0,
             walkers_per_dim: 12,
@@ -147,6 +154,31 @@ impl SampleSettings {
             estimate: EstimateSection::default(),
             variables: VariablesConfig::default(),
         })
+    }
+
+    /// The noise model in words, for reports: `Bendat & Piersol ... times a sampled
+    /// scale`, with how the force noise, neighbouring bins and the noise estimate enter.
+    pub fn describe_noise(&self) -> String {
+        let estimate = match self.noise_pool_bins {
+            0 => "from each bin's coherence and averages".to_string(),
+            w => format!("from the output noise's auto-spectrum pooled over +-{w} bins"),
+        };
+        let force = match self.input_noise {
+            InputNoiseModel::Shared => {
+                "the force noise of hammer tests one low-rank error shared by the points of a test"
+            }
+            InputNoiseModel::PerPoint => "the force noise inside each point's error",
+        };
+        let bins = match self.bin_correlation {
+            BinCorrelation::Independent => "neighbouring bins independent",
+            BinCorrelation::Window => "neighbouring bins a chain correlated by the window's |c(d)|",
+            BinCorrelation::Phase => "neighbouring bins a chain correlated as the window correlates a magnitude's error (the window's c(d) turned by the estimate's and the input's phase)",
+        };
+        format!(
+            "magnitudes with Bendat & Piersol standard deviations {estimate} (floored at {} %) \
+             times a sampled noise scale, {force}, {bins}",
+            100.0 * self.rel_sigma_floor
+        )
     }
 
     /// Reads `settings.toml`.
@@ -165,11 +197,12 @@ impl SampleSettings {
 mod tests {
     use super::*;
 
-    /// The two-stage selection and the pooling survive `settings.toml` (what `--resume`
-    /// reads), and a settings file written before they existed reads with the former
-    /// behaviour (each bin's own estimate), so older runs resume unchanged.
+    /// New runs default to the phase chain, pooled noise and the two-stage selection,
+    /// which survive `settings.toml` (what `--resume` reads), and a
+    /// settings file written before they existed reads with the former behaviour
+    /// (independent bins, each bin's own estimate), so older runs resume unchanged.
     #[test]
-    fn band_selection_and_pooling_round_trip_and_default_for_old_files() {
+    fn noise_settings_default_round_trip_and_default_for_old_files() {
         let mut s = SampleSettings::new(
             "bundled:four-story".into(),
             DampingModel::Caughey,
@@ -178,20 +211,28 @@ mod tests {
             1,
         )
         .unwrap();
-        s.band_selection = BandSelection::Model;
-        s.noise_pool_bins = 8;
+        assert_eq!(s.bin_correlation, BinCorrelation::Phase);
+        assert_eq!(s.noise_pool_bins, DEFAULT_NOISE_POOL_BINS);
+        assert_eq!(s.band_selection, BandSelection::Model);
+        s.noise_pool_bins = 5;
         let text = s.to_toml().unwrap();
         let back: SampleSettings = toml::from_str(&text).unwrap();
         assert_eq!(back.band_selection, BandSelection::Model);
-        assert_eq!(back.noise_pool_bins, 8);
+        assert_eq!(back.noise_pool_bins, 5);
+        assert_eq!(back.bin_correlation, BinCorrelation::Phase);
         let old: String = text
             .lines()
-            .filter(|l| !l.starts_with("band_selection") && !l.starts_with("noise_pool_bins"))
+            .filter(|l| {
+                !["band_selection", "noise_pool_bins", "bin_correlation"]
+                    .iter()
+                    .any(|k| l.starts_with(k))
+            })
             .map(|l| format!("{l}\n"))
             .collect();
         assert_ne!(old, text);
         let old: SampleSettings = toml::from_str(&old).unwrap();
         assert_eq!(old.band_selection, BandSelection::Measured);
         assert_eq!(old.noise_pool_bins, 0);
+        assert_eq!(old.bin_correlation, BinCorrelation::Independent);
     }
 }

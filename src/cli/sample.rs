@@ -114,20 +114,22 @@ pub struct Args {
     /// Residuals on magnitudes (default) or log-magnitudes.
     #[arg(long, value_enum)]
     pub residual: Option<ResidualArg>,
-    /// Output noise of neighbouring bins: independent (default), or correlated as the
-    /// estimator's exponential window makes it: `phase`, the window's complex bin
-    /// correlation turned by the estimate's phase (what a magnitude's error has), or
-    /// `window`, its modulus (an upper bound; the former option). See
+    /// Output noise of neighbouring bins: correlated as the estimator's exponential
+    /// window makes a magnitude's error, `phase` (default: the window's complex bin
+    /// correlation turned by the estimate's and the input's phase, the shared force
+    /// noise at full rank), `window` (its modulus, an upper bound), or `independent`
+    /// (the default before 2026-12-02; too narrow on general models). See
     /// docs/calibration.md.
     #[arg(long, value_enum)]
     pub bin_correlation: Option<BinCorrelationArg>,
-    /// Where each test's bins are selected: on its estimate (`measured`, default) or,
-    /// after a first fit, again on the fitted model's FRFs (`model`: the peak bins and
-    /// -3 dB points then do not lean on the noise of the bins they select; README).
+    /// Where each test's bins are selected: after a first fit, again on the fitted
+    /// model's FRFs (`model`, default: the peak bins and -3 dB points then do not lean on
+    /// the noise of the bins they select; README), or on its estimate alone (`measured`,
+    /// the default before 2026-12-02).
     #[arg(long, value_enum)]
     pub band_selection: Option<BandSelectionArg>,
     /// Pool the output noise's auto-spectrum behind each point's sd over this many bins
-    /// either side [default: 0, each bin's own coherence]; see the README.
+    /// either side [default: 8; 0: each bin's own coherence]; see the README.
     #[arg(long)]
     pub noise_pool_bins: Option<usize>,
     /// Prior family [default: uniform].

@@ -12,10 +12,12 @@
 use super::config::{BayesSection, ExperimentConfig};
 use super::driver::Progress;
 use super::pipeline::{TableId, Variant};
-use crate::bayes::run::{sample_posterior, PosteriorSample, SampleSettings, TestSelection};
+use crate::bayes::run::{
+    posterior_of, sample_prepared, PosteriorSample, Prepared, SampleSettings, TestSelection,
+};
 use crate::bayes::summary::physical_values;
-use crate::bayes::{FrfData, FrfPosterior, PosteriorOptions};
-use crate::error::{Error, Result};
+use crate::bayes::FrfPosterior;
+use crate::error::Result;
 use crate::mcmc::Draws;
 use crate::modal::Modes;
 use crate::model::StructuralModel;
@@ -51,6 +53,8 @@ pub struct VariantPosterior {
     pub prior_box: Vec<[f64; 2]>,
     /// Per mode, ascending.
     pub modal: Vec<ModalStats>,
+    /// What the variant was sampled with.
+    pub settings: SampleSettings,
 }
 
 impl VariantPosterior {
@@ -157,33 +161,23 @@ pub fn variant_settings(
     Ok(s)
 }
 
-/// The posterior of one variant on the experiment's FRF estimates.
-pub fn variant_posterior(
+/// The posterior of one variant on the experiment's FRF estimates and its start, as
+/// `frfbayes sample` prepares them ([`posterior_of`]: the same noise model, band
+/// selection and maximum-likelihood start).
+pub fn variant_prepared(
     model: &StructuralModel,
     frfs: &[TestFrf],
     variant: &Variant,
     settings: &SampleSettings,
-) -> Result<FrfPosterior> {
-    let group: Vec<&TestFrf> = frfs.iter().filter(|f| variant.table.includes(f)).collect();
-    if group.is_empty() {
-        return Err(Error::Usage(format!(
-            "no tests for {}",
-            variant_name(variant)
-        )));
-    }
-    let data = FrfData::from_test_frfs(
-        &group,
-        variant.kind,
-        settings.residual,
-        settings.rel_sigma_floor,
-    )?;
-    FrfPosterior::new(
-        model.clone(),
-        data,
-        variant.damping,
-        &settings.variables,
-        PosteriorOptions::default(),
-    )
+) -> Result<Prepared> {
+    let n_peaks = settings
+        .estimate
+        .options()
+        .bands
+        .n_peaks
+        .unwrap_or(model.n_dof());
+    let where_ = format!("the experiment's estimates for {}", variant_name(variant));
+    posterior_of(model.clone(), frfs.to_vec(), settings, n_peaks, &where_)
 }
 
 /// Natural frequencies and damping ratios of (at most [`MAX_MODAL_DRAWS`] evenly
@@ -264,16 +258,18 @@ pub fn sample_variants(
         let name = variant_name(v);
         progress(&format!("sampling {name}"), i, chosen.len());
         let settings = variant_settings(cfg, bayes, v)?;
-        let post = variant_posterior(model, frfs, v, &settings)?;
-        let sample = sample_posterior(&post, &settings)?;
-        let modal = modal_stats(&post, &sample.draws)?;
-        let prior_box = prior_box(&post, &sample);
+        let prep = variant_prepared(model, frfs, v, &settings)?;
+        let sample = sample_prepared(&prep, &settings)?;
+        let post = &prep.posterior;
+        let modal = modal_stats(post, &sample.draws)?;
+        let prior_box = prior_box(post, &sample);
         out.push(VariantPosterior {
             variant: *v,
             name,
             prior_box,
             sample,
             modal,
+            settings,
         });
     }
     progress("sampling", chosen.len(), chosen.len());

@@ -67,7 +67,8 @@ pub fn posterior_markdown(posts: &[VariantPosterior]) -> String {
     let s0 = &first.sample.summary;
     let _ = writeln!(
         md,
-        "## Posterior (ensemble MCMC)\n\nEvery variant sampled as `frfbayes sample` samples it, on the same FRF estimates: magnitudes with Bendat & Piersol standard deviations from coherence and averages (floored at 0.1 %) times a sampled noise scale, priors uniform in the bounds above (log-uniform damping), the exponential window applied to the model (so damping here is the structure's), {} ensembles of {} x dim walkers (moves {}), run until R-hat < 1.01 and bulk ESS > 400 for every parameter or the step cap. Numbers of every variant in `posterior.json`. Figures: `posterior_cv_table*.png`, `posterior_corner_*.png`, `posterior_correlation_*.png`, `posterior_ridge_km.png`.\n",
+        "## Posterior (ensemble MCMC)\n\nEvery variant sampled as `frfbayes sample` samples it, on the same FRF estimates: {}, priors uniform in the bounds above (log-uniform damping), the exponential window applied to the model (so damping here is the structure's), {} ensembles of {} x dim walkers (moves {}), run until R-hat < 1.01 and bulk ESS > 400 for every parameter or the step cap. Numbers of every variant in `posterior.json`. Figures: `posterior_cv_table*.png`, `posterior_corner_*.png`, `posterior_correlation_*.png`, `posterior_ridge_km.png`.\n",
+        first.settings.describe_noise(),
         s0.n_ensembles,
         s0.n_walkers / s0.parameters.len().max(1),
         crate::mcmc::Moves::from_specs(&crate::bayes::run::default_moves())
