@@ -75,8 +75,9 @@ pub struct DiagnoseOptions {
     pub estimator_bias: bool,
 }
 
-/// Re-anchorings of a reduced basis at the nominal MAP, at most.
-const MAX_REANCHOR: usize = 3;
+/// Re-anchorings of a reduced basis at the nominal MAP (and at each accepted model's,
+/// [`super::stepwise`]), at most.
+pub(super) const MAX_REANCHOR: usize = 3;
 
 impl Default for DiagnoseOptions {
     fn default() -> Self {
