@@ -1,6 +1,8 @@
-//! The four-story log posterior of `tests/bayes_bench.rs` (hammer tests, Caughey damping,
-//! receptance; 13 parameters, 412 points): one evaluation per iteration, at 64 points of
-//! a ball around the maximum-likelihood start.
+//! The four-story log posterior (hammer tests, Caughey damping, receptance; 13
+//! parameters, 412 points) with `frfbayes sample`'s defaults, or with
+//! `FRFBAYES_PROBE_NOISE=independent` the former noise model of `tests/bayes_bench.rs`
+//! and the emcee comparison: one evaluation per iteration, at 64 points of a ball
+//! around the maximum-likelihood start.
 //!
 //! ```sh
 //! cargo bench --bench posterior
