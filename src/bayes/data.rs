@@ -176,24 +176,8 @@ impl FrfData {
     /// The responses of `kind` of every test in `frfs` at their selected points, with
     /// `sigma_k = max(r_k, rel_sigma_floor)` (log residuals) or `|H^E_k|` times that
     /// (magnitude residuals), `r_k` the Bendat & Piersol relative random error of
-    /// [`TestFrf::selected_rel_std`].
-    pub fn from_test_frfs(
-        frfs: &[&TestFrf],
-        kind: FrfKind,
-        residual: ResidualForm,
-        rel_sigma_floor: f64,
-    ) -> Result<Self> {
-        Self::with_input_noise(
-            frfs,
-            kind,
-            residual,
-            rel_sigma_floor,
-            InputNoiseModel::PerPoint,
-        )
-    }
-
-    /// [`Self::from_test_frfs`] with the force noise of hammer tests modelled as
-    /// `input_noise` says. [`InputNoiseModel::Shared`]: `sigma_k` from the output noise
+    /// [`TestFrf::selected_rel_std`], the force noise of hammer tests modelled as
+    /// `input_noise` says ([`InputNoiseModel::PerPoint`]: inside `r_k`). [`InputNoiseModel::Shared`]: `sigma_k` from the output noise
     /// alone (floored as before) plus the dropped components of the force noise, and one
     /// [`CorrelatedNoise`] per test with force noise, its loadings `|H^E_k| a_k`
     /// (magnitude residuals) or `a_k` (log residuals), `a` the low-rank relative loadings

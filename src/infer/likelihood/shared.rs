@@ -240,23 +240,15 @@ fn project_residuals_in(f: &SharedFactors, d: &[f64], u: &mut [f64], acc: &mut [
     let r = f.rank;
     let mut ss = [0.0; L];
     let (full, rest) = d.split_at(d.len() / L * L);
-    let mut step = |c: usize, dl: &Lanes| {
-        for l in 0..L {
-            ss[l] += dl[l] * dl[l];
-        }
-        for (acc, p) in acc.iter_mut().zip(&f.p[c * r..c * r + r]) {
-            for l in 0..L {
-                acc[l] += p[l] * dl[l];
-            }
-        }
-    };
     for (c, chunk) in full.chunks_exact(L).enumerate() {
-        step(c, &[chunk[0], chunk[1], chunk[2], chunk[3]]);
+        let dl = [chunk[0], chunk[1], chunk[2], chunk[3]];
+        accumulate(&dl, &f.p[c * r..c * r + r], &mut ss, acc);
     }
     if !rest.is_empty() {
         let mut dl = [0.0; L];
         dl[..rest.len()].copy_from_slice(rest);
-        step(full.len() / L, &dl);
+        let c = full.len() / L;
+        accumulate(&dl, &f.p[c * r..c * r + r], &mut ss, acc);
     }
     for (u, acc) in u.iter_mut().zip(acc.iter()) {
         *u = (acc[0] + acc[1]) + (acc[2] + acc[3]);
@@ -277,6 +269,14 @@ fn step<const R: usize>(
     let mut d = [0.0; L];
     for l in 0..L {
         d[l] = (a[l] - t[l]) * w[l];
+    }
+    accumulate(&d, p, ss, acc);
+}
+
+/// `ss += d^2`, `acc_i += P_i d` for one step of [`L`] residuals `d` (both kernels).
+#[inline(always)]
+fn accumulate(d: &Lanes, p: &[Lanes], ss: &mut Lanes, acc: &mut [Lanes]) {
+    for l in 0..L {
         ss[l] += d[l] * d[l];
     }
     for (acc, p) in acc.iter_mut().zip(p) {
