@@ -207,3 +207,44 @@ fn drift_weights_from_accelerometers_match_the_displacement_sensors() {
         assert!(h.parameters(&without, loc).is_ok(), "{loc}");
     }
 }
+
+#[test]
+fn replay_gain_carrier_is_the_drive_derivative() {
+    // The recorded force is the true force times 1 - delta, so the measured ratio is
+    // `s R(s)` at `s = 1 + delta`, `R(s)` the ratio of the response to s times the
+    // recorded force. A linear frame has `R(s) = H`: no carrier of its own (the
+    // prediction is). With a cubic spring, `x -> s x` maps the frame driven by `s F`
+    // onto the one driven by `F` with `k3 s^2` (and the replay's stepping, whose spring
+    // forces are the same under that map, keeps it), so `R(s; k3) = R(1; s^2 k3)` and
+    // the carrier `d(s R)/ds` at s = 1 is `R + 2 k3 dR/dk3`: the drive derivative
+    // checked against a derivative in k3, a different path through the replay.
+    let c = campaign(&format!(
+        "[[effect]]\nkind = \"stiffness_nonlinearity\"\nstory = 1\nk3_n_per_m3 = {K3:e}\n"
+    ));
+    let data = Arc::new(DiagnosisData::from_campaign(&c, &DataOptions::default()).unwrap());
+    let h: Arc<dyn Hypothesis> = Arc::from(hypothesis_by_name("stiffness_nonlinearity").unwrap());
+    let loc = Location::Story(1);
+    let post = ModelPosterior::new(data.clone(), Some((h.clone(), loc.clone()))).unwrap();
+    let td = TimeDomainModel::new(&c, data.clone()).unwrap();
+    let base = truth(&post);
+    let hyp = Some((h.as_ref(), &loc));
+    assert!(td.gain_carrier(&base, hyp, &[0.0]).unwrap().is_none());
+    let step = 1e-3;
+    let pred = td.predict(&base, hyp, &[K3]).unwrap();
+    let up = td.predict(&base, hyp, &[K3 * (1.0 + step)]).unwrap();
+    let down = td.predict(&base, hyp, &[K3 * (1.0 - step)]).unwrap();
+    let carrier = td.gain_carrier(&base, hyp, &[K3]).unwrap().unwrap();
+    let norm = |v: &mut dyn Iterator<Item = num_complex::Complex64>| {
+        v.map(|x| x.norm_sqr()).sum::<f64>().sqrt()
+    };
+    let own = norm(&mut carrier.iter().zip(&pred).map(|(c, p)| c - p));
+    let miss = norm(
+        &mut carrier
+            .iter()
+            .zip(pred.iter().zip(up.iter().zip(&down)))
+            .map(|(c, (p, (u, d)))| c - (p + (u - d) / step)),
+    );
+    println!("carrier - prediction {own:.4e}; against R + 2 k3 dR/dk3: {miss:.3e}");
+    assert!(own > 0.0);
+    assert!(miss < 1e-4 * own, "{miss:e} against {own:e}");
+}

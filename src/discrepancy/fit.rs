@@ -370,7 +370,7 @@ pub fn refit_at_map(
     let first = post.at_map(&map.z)?;
     let refit = fit_map(&first, std::slice::from_ref(&map.z), opts)?;
     let pred = first.predict(&refit.z)?;
-    let post = first.at_prediction(pred.clone());
+    let post = first.at_map_predicted(&refit.z, pred.clone())?;
     let ln_likelihood = post.ln_likelihood_of(&pred, refit.eta);
     let out = MapFit {
         ln_posterior: ln_likelihood + post.ln_prior(&refit.z),

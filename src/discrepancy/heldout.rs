@@ -138,7 +138,7 @@ fn held_out_density(
     let pred = post_one.predict(&z_one)?;
     let eta = z_one[post_one.eta_index()].exp();
     Ok(post_one
-        .at_prediction(pred.clone())
+        .at_map_predicted(&z_one, pred.clone())?
         .ln_likelihood_of(&pred, eta))
 }
 

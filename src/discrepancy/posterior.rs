@@ -486,24 +486,35 @@ impl ModelPosterior {
         }
     }
 
-    /// With [`GainCarrier::ModelAtMap`], the same posterior with the prediction at `z`
-    /// (its MAP) as the gain carrier from now on; otherwise unchanged.
+    /// With [`GainCarrier::ModelAtMap`], the same posterior with the model at `z` (its
+    /// MAP) as the gain carrier from now on; otherwise unchanged.
     pub fn at_map(self, z: &[f64]) -> Result<Self> {
         match self.data().options.gain_carrier {
             GainCarrier::ModelAtMap => {
                 let pred = self.predict(z)?;
-                Ok(self.at_prediction(pred))
+                self.at_map_predicted(z, pred)
             }
             _ => Ok(self),
         }
     }
 
-    /// [`Self::at_map`] with the prediction at the MAP given (flat layout).
-    pub fn at_prediction(mut self, pred: Vec<Complex64>) -> Self {
-        if self.data().options.gain_carrier == GainCarrier::ModelAtMap {
-            self.gain_plug_in = Some(Arc::new(pred));
+    /// [`Self::at_map`] with the prediction at `z` given (flat layout). The carrier is
+    /// that prediction, except for a replay with a cubic spring, whose ratios depend on
+    /// the drive's level: there it is [`TimeDomainModel::gain_carrier`].
+    pub fn at_map_predicted(mut self, z: &[f64], pred: Vec<Complex64>) -> Result<Self> {
+        if self.data().options.gain_carrier != GainCarrier::ModelAtMap {
+            return Ok(self);
         }
-        self
+        let carrier = match &self.time_domain {
+            Some(td) => {
+                let (base, effect) = (self.base_params(z), self.effect_physical(z)?);
+                let hyp = self.model.hypothesis();
+                td.gain_carrier(&base, hyp.map(|(h, l)| (h.as_ref(), l)), &effect)?
+            }
+            None => None,
+        };
+        self.gain_plug_in = Some(Arc::new(carrier.unwrap_or(pred)));
+        Ok(self)
     }
 
     /// Number of whitened residuals: `2 N` plus 2 per correlated gain coefficient.

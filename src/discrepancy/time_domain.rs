@@ -16,7 +16,10 @@
 //! estimator settings, same bins), so the model's ratios carry the same windowing,
 //! leakage and amplitude history as the measured ones. The model is noise-free; the
 //! recorded input's noise inside the windows drives it as it drove nothing in the real
-//! structure, which does not bias H1 (the ratio to that same input).
+//! structure, which does not bias H1 (the ratio to that same input) of a linear frame.
+//! With a cubic spring the ratio depends on the drive's level, which that noise moves
+//! (by the segment's input-gain error, [`super::input_noise`]): the likelihood carries
+//! it through the gain carrier [`TimeDomainModel::gain_carrier`].
 //!
 //! The recording stands for a band-limited signal. The stepping drives the state with
 //! the straight line between pre-emphasised samples ([`crate::simulate::pre_emphasised`]),
@@ -163,6 +166,52 @@ impl TimeDomainModel {
         hypothesis: Option<(&dyn Hypothesis, &Location)>,
         effect: &[f64],
     ) -> Result<Vec<Complex64>> {
+        let (sys, springs) = self.system(base, hypothesis, effect)?;
+        self.predict_driven(&sys, &springs, 1.0)
+    }
+
+    /// What the input-gain error of a hammer segment multiplies in the replayed ratios
+    /// (the gain carrier of [`super::data::GainCarrier::ModelAtMap`]), or `None` where it
+    /// is the prediction itself (no cubic spring). The recorded force is `F (1 - delta)`
+    /// for the true `F`: the measured ratio is `H[F] (1 + delta)` to first order, and the
+    /// replay, driven by the recorded force, misses the drive's own error. For a linear
+    /// frame `H[F]` does not depend on the drive and the carrier is `H`; with a cubic
+    /// spring the ratio depends on the drive's level `s`, and the carrier is
+    /// `d(s R(s)) / ds = R + dR/ds` at `s = 1` (`s R(s)` the ratio of the response to `s`
+    /// times the recorded force over the recorded force, by central differences). A
+    /// gain error smooth over the band ([`super::input_noise`]) scales the drift of each
+    /// mode by its value near that mode, which is the scaling differentiated here.
+    /// Without it the noise of the recorded force moves the cubic spring's size with no
+    /// trace in its posterior: over 8 noise seeds of the benchmark's first cubic case, 1
+    /// of 8 intervals of `k3` covered the truth (rms z 7.6; docs/diagnose.md).
+    pub fn gain_carrier(
+        &self,
+        base: &BaseParams,
+        hypothesis: Option<(&dyn Hypothesis, &Location)>,
+        effect: &[f64],
+    ) -> Result<Option<Vec<Complex64>>> {
+        const STEP: f64 = 1e-3;
+        let (sys, springs) = self.system(base, hypothesis, effect)?;
+        if springs.iter().all(|s| s.k3_n_per_m3 == 0.0) {
+            return Ok(None);
+        }
+        let up = self.predict_driven(&sys, &springs, 1.0 + STEP)?;
+        let down = self.predict_driven(&sys, &springs, 1.0 - STEP)?;
+        Ok(Some(
+            up.iter()
+                .zip(&down)
+                .map(|(a, b)| (a - b) / (2.0 * STEP))
+                .collect(),
+        ))
+    }
+
+    /// The frame with the hypothesis' linear change, and its cubic springs.
+    fn system(
+        &self,
+        base: &BaseParams,
+        hypothesis: Option<(&dyn Hypothesis, &Location)>,
+        effect: &[f64],
+    ) -> Result<(LinearSystem, Vec<crate::simulate::CubicSpring>)> {
         let mut sys = frame_system(&self.data.model, base)?;
         let springs = match hypothesis {
             Some((h, loc)) => {
@@ -171,11 +220,22 @@ impl TimeDomainModel {
             }
             None => Vec::new(),
         };
+        Ok((sys, springs))
+    }
+
+    /// The ratios of the responses of `sys` to `drive_scale` times each recorded input,
+    /// estimated against the recorded input itself.
+    fn predict_driven(
+        &self,
+        sys: &LinearSystem,
+        springs: &[crate::simulate::CubicSpring],
+        drive_scale: f64,
+    ) -> Result<Vec<Complex64>> {
         let r = self.oversampling;
         let records: Vec<Replayed> = self
             .tests
             .par_iter()
-            .map(|(t, est)| replay(t, est, &sys, &springs, r))
+            .map(|(t, est)| replay(t, est, sys, springs, r, drive_scale))
             .collect::<Result<_>>()?;
         let per_segment: Vec<Vec<Complex64>> = self
             .data
@@ -273,7 +333,8 @@ pub fn hold_rel_err(
 }
 
 /// `test` with its response channels replaced by the responses of `sys` (with
-/// `springs`) to its recorded input as the estimator `est` sees it, from rest: a
+/// `springs`) to `drive_scale` times its recorded input as the estimator `est` sees it
+/// (its input channel left as recorded), from rest: a
 /// hammer's force inside its force windows ([`windowed_force`]), a shake table's
 /// ground acceleration less its mean; stepped `r` times per sample interval on the
 /// input's band-limited interpolation.
@@ -283,6 +344,7 @@ fn replay(
     sys: &LinearSystem,
     springs: &[crate::simulate::CubicSpring],
     r: usize,
+    drive_scale: f64,
 ) -> Result<Replayed> {
     let (input_index, drive) = match test.kind {
         TestKind::Hammer { excited_floor } => (
@@ -303,6 +365,7 @@ fn replay(
             u.iter().map(|v| v - mean).collect()
         }
     };
+    let input: Vec<f64> = input.into_iter().map(|v| v * drive_scale).collect();
     let mut responses = Vec::new();
     let mut columns = Vec::new();
     for (i, c) in test.channels.iter().enumerate() {
