@@ -30,10 +30,12 @@ fn case_campaign(
     if !noise {
         model.noise = Default::default();
     }
-    // FRFBAYES_CUBIC_NOISE: `no-force` (the force channel noise-free), `force-only`
+    // FRFBAYES_CUBIC_NOISE: `no-force` (the force channel noise-free), `no-ground` (the
+    // shake table's input channel noise-free), `force-only`
     // (only the force channel noisy), otherwise the case's own noise.
     match std::env::var("FRFBAYES_CUBIC_NOISE").as_deref() {
         Ok("no-force") => model.noise.force_n = 0.0,
+        Ok("no-ground") => model.noise.ground_acceleration_m_per_s2 = 0.0,
         Ok("force-only") => {
             model.noise = frfbayes::simulate::NoiseSpec {
                 force_n: model.noise.force_n,
