@@ -9,7 +9,7 @@
 //!   carrier the replay's derivative with respect to the drive's level
 //!   ([`TimeDomainModel::gain_carrier`]) at the linearised MAP, then refitted with it at
 //!   the replay's MAP (the carrier depends on `k3`: on one noise seed of the benchmark's
-//!   first cubic case the second fit gained 13.4 nats and moved `k3` by 1.4 interval
+//!   first cubic case the second fit gained 13.4 nats and moved `k3` by 2.7 interval
 //!   sd, `tests/discrepancy_cubic_refit.rs`);
 //! - the posterior of the effect: the Gauss-Newton (Laplace) approximation at that MAP,
 //!   covariance `(J^T J)^-1` of the whitened residuals (error floor fixed at the MAP's),
