@@ -145,18 +145,12 @@ fn delay_case_round_two_adds_no_oscillator_once_the_basis_follows_the_accepted_m
     );
 
     // Round 2's base as `continue_rounds` makes it.
-    let result = ModelResult {
-        name: "sensor_timing".into(),
-        location: first.location.clone(),
-        posterior: post1.clone(),
-        map: f1.map.clone(),
-        evidence: None,
-        effect: Vec::new(),
-        plausible: true,
-        implausible_because: String::new(),
-        held_out: None,
-        time_domain: None,
-    };
+    let result = ModelResult::fitted(
+        "sensor_timing",
+        first.location.clone(),
+        post1.clone(),
+        f1.map.clone(),
+    );
     let base = BaseModel {
         laplace: laplace_u(&post1, &f1.map.z),
         result,

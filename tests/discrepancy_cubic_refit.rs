@@ -99,18 +99,8 @@ fn refit(
     let z_true = post.z_of(&truth(&post, model), 1e-3, &[coord]);
     let lin = fit_map(&post, std::slice::from_ref(&z_true), &opts.map).unwrap();
     let (post, lin) = refit_at_map(post, lin, &opts.map).unwrap();
-    let mut result = ModelResult {
-        name: "stiffness_nonlinearity".into(),
-        location: Location::Story(story),
-        posterior: post,
-        map: lin,
-        evidence: None,
-        effect: Vec::new(),
-        plausible: true,
-        implausible_because: String::new(),
-        held_out: None,
-        time_domain: None,
-    };
+    let mut result =
+        ModelResult::fitted("stiffness_nonlinearity", Location::Story(story), post, lin);
     refit_in_time_domain(c, &mut result, opts).unwrap();
     if std::env::var("FRFBAYES_CUBIC_CHECK_MAP").is_ok() {
         // Where the replay's MAP is under the refit's carrier: from the refit's MAP and

@@ -142,6 +142,23 @@ pub struct ModelResult {
 }
 
 impl ModelResult {
+    /// A model's result after its MAP fit alone: no evidence, effect summaries, held-out
+    /// check or time-domain refit yet, and plausible until judged.
+    pub fn fitted(name: &str, location: Location, posterior: ModelPosterior, map: MapFit) -> Self {
+        ModelResult {
+            name: name.to_string(),
+            location,
+            posterior,
+            map,
+            evidence: None,
+            effect: Vec::new(),
+            plausible: true,
+            implausible_because: String::new(),
+            held_out: None,
+            time_domain: None,
+        }
+    }
+
     /// Log evidence, when computed.
     pub fn ln_z(&self) -> Option<f64> {
         self.evidence.as_ref().map(|e| e.ln_z)

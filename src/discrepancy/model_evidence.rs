@@ -203,15 +203,10 @@ pub fn model_result(
     done: Completion,
 ) -> ModelResult {
     ModelResult {
-        name: name.to_string(),
-        location,
-        posterior,
-        map,
         evidence: Some(done.evidence),
         effect: done.effect,
         plausible: done.plausible,
         implausible_because: done.why,
-        held_out: None,
-        time_domain: None,
+        ..ModelResult::fitted(name, location, posterior, map)
     }
 }
