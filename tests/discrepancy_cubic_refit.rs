@@ -155,6 +155,8 @@ fn cubic_refit_on_the_noise_free_campaign() {
         r.k3[0],
         100.0 * (r.k3[0] / k3_true - 1.0)
     );
+    // Measured: +0.015 % on stiffness_nonlinearity-1, where the noisy seeds' sd is 0.06 %.
+    assert!((r.k3[0] / k3_true - 1.0).abs() < 1e-3, "{:e}", r.k3[0]);
 }
 
 /// The refit over `FRFBAYES_CUBIC_SEEDS` noise seeds (default 8; the case's own seed

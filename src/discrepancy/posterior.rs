@@ -488,11 +488,15 @@ impl ModelPosterior {
 
     /// With [`GainCarrier::ModelAtMap`], the same posterior with the model at `z` (its
     /// MAP) as the gain carrier from now on; otherwise unchanged.
-    pub fn at_map(self, z: &[f64]) -> Result<Self> {
+    pub fn at_map(mut self, z: &[f64]) -> Result<Self> {
         match self.data().options.gain_carrier {
             GainCarrier::ModelAtMap => {
-                let pred = self.predict(z)?;
-                self.at_map_predicted(z, pred)
+                let carrier = match self.replay_carrier(z)? {
+                    Some(c) => c,
+                    None => self.predict(z)?,
+                };
+                self.gain_plug_in = Some(Arc::new(carrier));
+                Ok(self)
             }
             _ => Ok(self),
         }
@@ -505,16 +509,20 @@ impl ModelPosterior {
         if self.data().options.gain_carrier != GainCarrier::ModelAtMap {
             return Ok(self);
         }
-        let carrier = match &self.time_domain {
-            Some(td) => {
-                let (base, effect) = (self.base_params(z), self.effect_physical(z)?);
-                let hyp = self.model.hypothesis();
-                td.gain_carrier(&base, hyp.map(|(h, l)| (h.as_ref(), l)), &effect)?
-            }
-            None => None,
-        };
-        self.gain_plug_in = Some(Arc::new(carrier.unwrap_or(pred)));
+        let carrier = self.replay_carrier(z)?.unwrap_or(pred);
+        self.gain_plug_in = Some(Arc::new(carrier));
         Ok(self)
+    }
+
+    /// [`TimeDomainModel::gain_carrier`] at `z` for a replay (`None`: the carrier is the
+    /// prediction).
+    fn replay_carrier(&self, z: &[f64]) -> Result<Option<Vec<Complex64>>> {
+        let Some(td) = &self.time_domain else {
+            return Ok(None);
+        };
+        let (base, effect) = (self.base_params(z), self.effect_physical(z)?);
+        let hyp = self.model.hypothesis();
+        td.gain_carrier(&base, hyp.map(|(h, l)| (h.as_ref(), l)), &effect)
     }
 
     /// Number of whitened residuals: `2 N` plus 2 per correlated gain coefficient.

@@ -22,7 +22,7 @@
 
 use super::diagnose::{DiagnoseOptions, ModelResult};
 use super::effect_summary::effect_summaries;
-use super::fit::{fit_map, MapOptions};
+use super::fit::{fit_map, refit_at_map, MapOptions};
 use super::time_domain::TimeDomainModel;
 use crate::error::{Error, Result};
 use crate::io::Campaign;
@@ -61,8 +61,7 @@ pub struct TimeDomainRefit {
     /// Chi2 per dof of the linearised MAP, and of the replay's MAP.
     pub chi2_linearised: f64,
     pub chi2_time_domain: f64,
-    /// Forward-model evaluations of the refit and their wall time, s.
-    pub n_evaluations: usize,
+    /// Wall time of the refit, s.
     pub elapsed_s: f64,
 }
 
@@ -78,24 +77,11 @@ pub fn refit_in_time_domain(
     let data = result.posterior.data().clone();
     let td = Arc::new(TimeDomainModel::new(campaign, data)?);
     // The replay's own gain carrier (it depends on k3) at the linearised MAP for a first
-    // fit, at that fit's MAP for a second, and at the second's, where the likelihood is
-    // evaluated again: the two-stage plug-in of `fit::refit_at_map`.
-    let mut post = (result.posterior.clone().with_time_domain(td)?).at_map(&result.map.z)?;
+    // fit, then the two-stage plug-in of `refit_at_map` from that fit's MAP.
+    let post = (result.posterior.clone().with_time_domain(td)?).at_map(&result.map.z)?;
     let map_opts = replay_map_options(&opts.map, REFIT_EVALUATIONS, 2);
-    let mut map = fit_map(&post, std::slice::from_ref(&result.map.z), &map_opts)?;
-    let mut n_evaluations = 0;
-    for stage in 0..2 {
-        n_evaluations += map.starts.iter().map(|s| s.n_evaluations).sum::<usize>();
-        let pred = post.predict(&map.z)?;
-        post = post.at_map_predicted(&map.z, pred.clone())?;
-        if stage == 0 {
-            map = fit_map(&post, std::slice::from_ref(&map.z), &map_opts)?;
-        } else {
-            map.ln_likelihood = post.ln_likelihood_of(&pred, map.eta);
-            map.ln_posterior = map.ln_likelihood + post.ln_prior(&map.z);
-            map.chi2_per_dof = post.chi2_per_dof_of(&pred, map.eta);
-        }
-    }
+    let first = fit_map(&post, std::slice::from_ref(&result.map.z), &map_opts)?;
+    let (post, map) = refit_at_map(post, first, &map_opts)?;
 
     // Gauss-Newton covariance over every coordinate but ln eta.
     let ie = post.eta_index();
@@ -115,7 +101,7 @@ pub fn refit_in_time_domain(
         post.whitened_residuals(&z, map.eta, r)
     };
     let mut jac = DMatrix::zeros(n_res, free.len());
-    n_evaluations += fd_jacobian(FdScheme::Forward, &x, &bounds, residuals, &mut jac)?;
+    fd_jacobian(FdScheme::Forward, &x, &bounds, residuals, &mut jac)?;
     let chol = jac.tr_mul(&jac).cholesky().ok_or_else(|| {
         Error::Numerical(format!(
             "{}: the time-domain refit's Gauss-Newton matrix is singular",
@@ -148,7 +134,6 @@ pub fn refit_in_time_domain(
         ln_likelihood_gain: gain,
         chi2_linearised,
         chi2_time_domain: map.chi2_per_dof,
-        n_evaluations,
         elapsed_s: t0.elapsed().as_secs_f64(),
     };
     // The replay's gain in maximum log-likelihood raises the evidence and its bound.

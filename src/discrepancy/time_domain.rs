@@ -358,14 +358,16 @@ fn replay(
     let input_index = input_index
         .ok_or_else(|| Error::Usage(format!("test {} has no input channel", test.name)))?;
     let u = &test.data[input_index];
-    let input: Vec<f64> = match test.kind {
+    let mut input: Vec<f64> = match test.kind {
         TestKind::Hammer { .. } => windowed_force(u, test.sample_rate_hz, &est.hammer),
         TestKind::ShakeTable => {
             let mean = u.iter().sum::<f64>() / u.len().max(1) as f64;
             u.iter().map(|v| v - mean).collect()
         }
     };
-    let input: Vec<f64> = input.into_iter().map(|v| v * drive_scale).collect();
+    if drive_scale != 1.0 {
+        input.iter_mut().for_each(|v| *v *= drive_scale);
+    }
     let mut responses = Vec::new();
     let mut columns = Vec::new();
     for (i, c) in test.channels.iter().enumerate() {
