@@ -266,4 +266,56 @@ fn replay_residuals_at_the_truth() {
             .collect();
         println!("{k:8} by band {edges_hz:?} Hz: {}", cells.join(", "));
     }
+    common_mode_by_band(&data, &post.predict(&z).unwrap(), &edges_hz);
+}
+
+/// Per band of the shake-table segments, the correlation between channels of the
+/// residuals `(pred - h) / (h eps)` at one frequency (whitened by each point's whole
+/// error, turned by the phase of `h` so that a common relative error has one phase),
+/// `sum_(i != j) Re(r_i conj(r_j)) / ((n - 1) sum |r_i|^2)`: about 0 for errors independent
+/// between channels, 1 for one error common to all of them; beside it what the data's
+/// per-bin common input error predicts (`E[r_i conj(r_j)] = E|delta|^2 / (eps_i eps_j)`,
+/// `E|r_i|^2 = 2`), and the channels' mean relative error.
+fn common_mode_by_band(data: &DiagnosisData, pred: &[num_complex::Complex64], edges_hz: &[f64]) {
+    use frfbayes::discrepancy::data::InputGainBasis;
+    use num_complex::Complex64;
+    let mut i = 0;
+    for seg in &data.segments {
+        let mut by_freq = std::collections::BTreeMap::<usize, Vec<(Complex64, f64)>>::new();
+        for ch in &seg.channels {
+            for (p, &fi) in ch.freq_index.iter().enumerate() {
+                let rel = (pred[i + p] - ch.h[p]) / ch.h[p] / ch.rel_err[p];
+                by_freq.entry(fi).or_default().push((rel, ch.rel_err[p]));
+            }
+            i += ch.h.len();
+        }
+        let Some(InputGainBasis::PerBin { sd }) = &seg.input_gain else {
+            continue;
+        };
+        let mut acc = vec![[0.0; 5]; edges_hz.len() - 1];
+        for (&fi, pts) in &by_freq {
+            let f = seg.freq_hz[fi];
+            let Some(b) = edges_hz.windows(2).position(|w| f >= w[0] && f < w[1]) else {
+                continue;
+            };
+            let n = pts.len() as f64;
+            let sum: Complex64 = pts.iter().map(|p| p.0).sum();
+            let auto: f64 = pts.iter().map(|p| p.0.norm_sqr()).sum();
+            let inv: f64 = pts.iter().map(|p| 1.0 / p.1).sum();
+            let inv2: f64 = pts.iter().map(|p| 1.0 / (p.1 * p.1)).sum();
+            acc[b][0] += sum.norm_sqr() - auto;
+            acc[b][1] += auto * (n - 1.0);
+            acc[b][2] += sd[fi] * sd[fi] * (inv * inv - inv2);
+            acc[b][3] += 2.0 * n * (n - 1.0);
+            acc[b][4] += n;
+        }
+        let cells: Vec<String> = acc
+            .iter()
+            .map(|a| match a[4] {
+                0.0 => "-".into(),
+                n => format!("rho {:.2} model {:.2} ({n})", a[0] / a[1], a[2] / a[3]),
+            })
+            .collect();
+        println!("{}: {}", seg.name, cells.join(", "));
+    }
 }

@@ -36,8 +36,8 @@
 use super::amplitude::story_drift_weights;
 use super::bins::{band_span, select_bins};
 pub use super::data_options::{weight_bias, DataOptions, GainCarrier, MAX_WEIGHT_BIAS};
-use super::input_noise::input_gain_basis;
-pub use super::input_noise::{InputGainBasis, MAX_GAIN_RANK};
+use super::input_noise::{input_gain_basis, per_bin_basis};
+pub use super::input_noise::{InputGainBasis, MAX_COMMON_SHARE, MAX_GAIN_RANK};
 use super::location::Location;
 use super::reduction::{model_for_campaign, Reduction};
 pub use super::time_domain::SegmentSource;
@@ -111,7 +111,8 @@ pub struct SegmentData {
     /// How the segment was cut and estimated (for a time-domain model of the test).
     pub source: SegmentSource,
     /// Correlated relative error that the input channel's noise puts on every ratio of
-    /// a single-impact segment (see [`InputGainBasis`]); `None` otherwise.
+    /// a single-impact segment, or of a shake-table record bin by bin (see
+    /// [`InputGainBasis`]); `None` otherwise.
     pub input_gain: Option<InputGainBasis>,
 }
 
@@ -585,6 +586,19 @@ fn build_segment(
             &freq_hz,
             &o.estimate,
         ),
+        (InputKind::Ground { .. }, _) if o.common_input_error => {
+            let rel_var: Vec<f64> = sel
+                .iter()
+                .map(|&k| frf.common_input_rel_var.get(k).copied().unwrap_or(f64::NAN))
+                .collect();
+            let mut min_rel_err = vec![f64::INFINITY; sel.len()];
+            for c in &channels {
+                for (&i, &e) in c.freq_index.iter().zip(&c.rel_err) {
+                    min_rel_err[i] = min_rel_err[i].min(e);
+                }
+            }
+            per_bin_basis(&rel_var, &min_rel_err)
+        }
         _ => None,
     };
     Ok(SegmentData {

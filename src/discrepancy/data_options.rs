@@ -32,6 +32,10 @@ pub struct DataOptions {
     /// What the input-gain error multiplies ([`GainCarrier`]; default each model's own
     /// `H` at its MAP).
     pub gain_carrier: GainCarrier,
+    /// Shake-table records: the input channel's noise as one relative error per bin
+    /// shared by every channel ([`super::data::InputGainBasis::PerBin`]; default true;
+    /// false takes the channels' errors as independent).
+    pub common_input_error: bool,
     /// Top of the analysed band, Hz (default none: `freq_range_rel` alone; a model
     /// reduced for the diagnosis then uses 0.4 of the slowest sample rate, the
     /// anti-aliasing pass band, and its modes up to this top).
@@ -88,6 +92,7 @@ impl Default for DataOptions {
             extra_peaks: 2,
             weight_bias_correction: false,
             gain_carrier: GainCarrier::ModelAtMap,
+            common_input_error: true,
             freq_max_hz: None,
         }
     }

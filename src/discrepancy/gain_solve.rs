@@ -7,12 +7,44 @@ use num_complex::Complex64;
 /// A segment's [`super::data::InputGainBasis`] on the flat layout.
 #[derive(Debug, Clone)]
 pub(super) struct GainSegment {
+    /// Number of gain coefficients.
     pub(super) rank: usize,
+    /// Smooth: `U` frequency-major (`n_freq x rank`); per bin: its diagonal (`rank =
+    /// n_freq`).
     pub(super) u: Vec<Complex64>,
+    pub(super) per_bin: bool,
     pub(super) n_freq: usize,
     /// Flat range of the segment's points and the frequency index of each.
     pub(super) start: usize,
     pub(super) freq_of: Vec<u32>,
+}
+
+impl GainSegment {
+    /// `U_k g`, the relative error at frequency `k` of the coefficients `g`.
+    pub(super) fn term(&self, k: usize, g: &[Complex64]) -> Complex64 {
+        match self.per_bin {
+            true => self.u[k] * g[k],
+            false => {
+                let uk = &self.u[k * self.rank..(k + 1) * self.rank];
+                uk.iter().zip(g).map(|(a, b)| a * b).sum()
+            }
+        }
+    }
+}
+
+/// [`gain_solve`] of a per-bin basis: `G` is diagonal.
+fn diagonal_solve(gs: &GainSegment, w: &[f64], bk: &[Complex64]) -> (Vec<Complex64>, f64, f64) {
+    let (mut quad, mut ln_det) = (0.0, 0.0);
+    let g = (0..gs.n_freq)
+        .map(|k| {
+            let gkk = 1.0 + w[k] * gs.u[k].norm_sqr();
+            let b = gs.u[k].conj() * bk[k];
+            quad += b.norm_sqr() / gkk;
+            ln_det += gkk.ln();
+            b / gkk
+        })
+        .collect();
+    (g, quad, ln_det)
 }
 
 /// `G = I + sum_k w_k U_k^* U_k`, `b = sum_k U_k^* b_k`; returns `g = G^-1 b`,
@@ -22,6 +54,9 @@ pub(super) fn gain_solve(
     w: &[f64],
     bk: &[Complex64],
 ) -> (Vec<Complex64>, f64, f64) {
+    if gs.per_bin {
+        return diagonal_solve(gs, w, bk);
+    }
     let r = gs.rank;
     let mut g = vec![Complex64::new(0.0, 0.0); r * r];
     let mut b = vec![Complex64::new(0.0, 0.0); r];

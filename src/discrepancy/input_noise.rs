@@ -23,11 +23,34 @@ use num_complex::Complex64;
 /// Stored as its leading eigen-directions `C ~ U U^*` (`U = B V_r`, eigenvalues of
 /// `B^* B` above `1e-4` of the largest, at most [`MAX_GAIN_RANK`]); measured on the
 /// benchmark's 20 N impacts: 0.7 % rms.
+///
+/// A whole-record (shake-table) estimate has the same kind of error, `delta_k = -N_x / X`
+/// ([`crate::signal::TestFrf::common_input_rel_var`]), but independent between bins:
+/// [`InputGainBasis::PerBin`], one coefficient per frequency.
 #[derive(Debug, Clone, PartialEq)]
-pub struct InputGainBasis {
-    pub rank: usize,
-    /// `U`, frequency-major: `u[k * rank + m]` for the segment's frequency `k`.
-    pub u: Vec<Complex64>,
+pub enum InputGainBasis {
+    /// A single impact's: smooth in frequency, `C ~ U U^*` of low rank.
+    Smooth {
+        rank: usize,
+        /// `U`, frequency-major: `u[k * rank + m]` for the segment's frequency `k`.
+        u: Vec<Complex64>,
+    },
+    /// A whole-record estimate's: `sd[k]^2 = E|delta_k|^2` at the segment's frequency
+    /// `k`, independent between frequencies (`U = diag(sd)`).
+    PerBin { sd: Vec<f64> },
+}
+
+impl InputGainBasis {
+    /// `E|delta_k|^2`, the relative error's variance at frequency `k`.
+    pub fn variance(&self, k: usize) -> f64 {
+        match self {
+            InputGainBasis::Smooth { rank, u } => u[k * rank..(k + 1) * rank]
+                .iter()
+                .map(|v| v.norm_sqr())
+                .sum(),
+            InputGainBasis::PerBin { sd } => sd[k] * sd[k],
+        }
+    }
 }
 
 /// Largest rank kept of an [`InputGainBasis`].
@@ -105,8 +128,34 @@ pub(super) fn input_gain_basis(
             u[k * r + c] = col[k];
         }
     }
-    Some(InputGainBasis { rank: r, u })
+    Some(InputGainBasis::Smooth { rank: r, u })
 }
+
+/// The [`InputGainBasis::PerBin`] of a whole-record segment: `E|delta|^2` from the
+/// estimate (`rel_var`, per segment frequency; NaN: not estimated, taken as 0), at most
+/// [`MAX_COMMON_SHARE`] of the smallest total relative error `2 eps^2` of the channels
+/// at that frequency (`rel_err_at[k]`; the estimate is noisy, and the common error cannot
+/// be larger than any channel's whole error). `None` when it is zero everywhere.
+pub(super) fn per_bin_basis(rel_var: &[f64], min_rel_err: &[f64]) -> Option<InputGainBasis> {
+    let sd: Vec<f64> = rel_var
+        .iter()
+        .zip(min_rel_err)
+        .map(|(&v, &e)| {
+            let cap = MAX_COMMON_SHARE * 2.0 * e * e;
+            match v.is_finite() && v > 0.0 && cap.is_finite() {
+                true => v.min(cap).sqrt(),
+                false => 0.0,
+            }
+        })
+        .collect();
+    sd.iter()
+        .any(|&v| v > 0.0)
+        .then_some(InputGainBasis::PerBin { sd })
+}
+
+/// Largest share of a point's total error variance that a correlated input error may
+/// take ([`per_bin_basis`], and the posterior's split of each point's variance).
+pub const MAX_COMMON_SHARE: f64 = 0.9;
 
 /// The estimator's weights on a single-impact block of `len` samples from `start`: the
 /// force window around `impact` (when the estimator uses one) times the exponential
@@ -244,9 +293,12 @@ mod tests {
         let freq_hz = [1.0, 3.0, 6.0];
         let est = EstimateOptions::default();
         let basis = input_gain_basis(&test, start, len, tau_s, &freq_hz, &est).unwrap();
+        let InputGainBasis::Smooth { rank, u } = basis else {
+            panic!("an impact's basis is smooth");
+        };
         let cov = |k: usize, l: usize| -> Complex64 {
-            (0..basis.rank)
-                .map(|m| basis.u[k * basis.rank + m] * basis.u[l * basis.rank + m].conj())
+            (0..rank)
+                .map(|m| u[k * rank + m] * u[l * rank + m].conj())
                 .sum()
         };
         let impact = &detect_impacts(&force, FS_HZ, &est.hammer)[0];

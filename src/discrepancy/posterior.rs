@@ -33,7 +33,7 @@
 //! ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`: 1 when the noise model is
 //! right.
 
-use super::data::{weight_bias, DiagnosisData, GainCarrier};
+use super::data::{weight_bias, DiagnosisData, GainCarrier, InputGainBasis, MAX_COMMON_SHARE};
 use super::forward::{BaseParams, ExtendedModel};
 pub use super::frame_layout::FrameLayout;
 use super::gain_solve::{gain_solve, GainSegment};
@@ -156,7 +156,7 @@ impl ModelPosterior {
             let Some(basis) = &seg.input_gain else {
                 continue;
             };
-            if basis.rank == 0 || ranges.is_empty() {
+            if matches!(basis, InputGainBasis::Smooth { rank: 0, .. }) || ranges.is_empty() {
                 continue;
             }
             let start = ranges[0].start;
@@ -165,10 +165,26 @@ impl ModelPosterior {
                 debug_assert_eq!(r.start, start + freq_of.len());
                 freq_of.extend(ch.freq_index.iter().map(|&k| k as u32));
             }
+            // The points' own errors without the shared one (the coherence holds both).
+            for (j, &k) in freq_of.iter().enumerate() {
+                let e2 = &mut eps2[start + j];
+                let shared = 0.5 * basis.variance(k as usize);
+                *e2 = (*e2 - shared).max((1.0 - MAX_COMMON_SHARE) * *e2);
+            }
+            let n_freq = seg.freq_hz.len();
+            let (rank, u, per_bin) = match basis {
+                InputGainBasis::Smooth { rank, u } => (*rank, u.clone(), false),
+                InputGainBasis::PerBin { sd } => (
+                    n_freq,
+                    sd.iter().map(|&v| Complex64::new(v, 0.0)).collect(),
+                    true,
+                ),
+            };
             gains.push(GainSegment {
-                rank: basis.rank,
-                u: basis.u.clone(),
-                n_freq: seg.freq_hz.len(),
+                rank,
+                u,
+                per_bin,
+                n_freq,
                 start,
                 freq_of,
             });
@@ -551,9 +567,7 @@ impl ModelPosterior {
         for (gs, g) in self.gains.iter().zip(&gains) {
             for (j, &k) in gs.freq_of.iter().enumerate() {
                 let i = gs.start + j;
-                let uk = &gs.u[k as usize * gs.rank..(k as usize + 1) * gs.rank];
-                let ug: Complex64 = uk.iter().zip(g).map(|(a, b)| a * b).sum();
-                corr[i] = carrier[i] * ug;
+                corr[i] = carrier[i] * gs.term(k as usize, g);
             }
         }
         for (i, p) in pred.iter().enumerate() {

@@ -611,14 +611,18 @@ fn correlated_gain_likelihood_is_the_dense_gaussian() {
     // whitened residuals against the dense complex covariance D + V V^*, V = diag(h) U,
     // with the gain on the model's H (`GainCarrier::Model`: V = diag(H) U), and on the
     // model's H at a fixed point (`ModelAtMap`: V = diag(H(z0)) U, evaluated elsewhere).
+    // The same with a per-bin basis (a shake-table record's: one coefficient per
+    // frequency). Each point's own variance is its total less the shared one.
     use super::data::GainCarrier;
-    gain_likelihood_against_dense(GainCarrier::Measured);
-    gain_likelihood_against_dense(GainCarrier::Model);
-    gain_likelihood_against_dense(GainCarrier::ModelAtMap);
+    for per_bin in [false, true] {
+        gain_likelihood_against_dense(GainCarrier::Measured, per_bin);
+        gain_likelihood_against_dense(GainCarrier::Model, per_bin);
+        gain_likelihood_against_dense(GainCarrier::ModelAtMap, per_bin);
+    }
 }
 
-fn gain_likelihood_against_dense(carrier: super::data::GainCarrier) {
-    use super::data::GainCarrier;
+fn gain_likelihood_against_dense(carrier: super::data::GainCarrier, per_bin: bool) {
+    use super::data::{GainCarrier, InputGainBasis, MAX_COMMON_SHARE};
     let mut data = (*synthetic()).clone();
     let freq: Vec<f64> = (1..=6).map(|i| 0.7 * i as f64).collect();
     let mut seg = segment(
@@ -632,9 +636,22 @@ fn gain_likelihood_against_dense(carrier: super::data::GainCarrier) {
     );
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     let mut c = || Complex64::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5);
-    let rank = 2;
-    let u: Vec<Complex64> = (0..6 * rank).map(|_| c() * 0.05).collect();
-    seg.input_gain = Some(super::data::InputGainBasis { rank, u: u.clone() });
+    // The dense `U` (6 x rank) either way.
+    let (rank, u) = match per_bin {
+        false => (2, (0..12).map(|_| c() * 0.05).collect::<Vec<_>>()),
+        true => (6, vec![Complex64::new(0.0, 0.0); 36]),
+    };
+    let mut u = u;
+    seg.input_gain = Some(match per_bin {
+        false => InputGainBasis::Smooth { rank, u: u.clone() },
+        true => {
+            let sd: Vec<f64> = (0..6).map(|_| 0.03 * c().re.abs()).collect();
+            for (k, v) in sd.iter().enumerate() {
+                u[k * 6 + k] = Complex64::new(*v, 0.0);
+            }
+            InputGainBasis::PerBin { sd }
+        }
+    });
     for ch in &mut seg.channels {
         for (h, e) in ch.h.iter_mut().zip(ch.rel_err.iter_mut()) {
             *h = c() * 0.01;
@@ -662,7 +679,10 @@ fn gain_likelihood_against_dense(carrier: super::data::GainCarrier) {
     let mut i = 0;
     for ch in &seg.channels {
         for (p, &k) in ch.freq_index.iter().enumerate() {
-            let d = 2.0 * (ch.rel_err[p].powi(2) + eta2) * ch.h[p].norm_sqr();
+            let total = ch.rel_err[p].powi(2);
+            let shared: f64 = (0..rank).map(|m| 0.5 * u[k * rank + m].norm_sqr()).sum();
+            let own = (total - shared).max((1.0 - MAX_COMMON_SHARE) * total);
+            let d = 2.0 * (own + eta2) * ch.h[p].norm_sqr();
             sigma[(i, i)] = Complex64::new(d, 0.0);
             let carrier = match carrier {
                 GainCarrier::Measured => ch.h[p],

@@ -139,6 +139,11 @@ pub struct TestFrf {
     /// error of `|H1|` smooth in frequency and common to all responses ([`InputNoise`]);
     /// it is part of `coherence`, not of `output_coherence`.
     pub input_noise: Option<InputNoise>,
+    /// Whole-record (shake-table) estimates: per bin, `E|delta|^2` of the relative error
+    /// `delta = -N_x / X` that the input channel's noise puts on every response at once
+    /// ([`super::common_input`]); NaN where it could not be estimated, empty for other
+    /// estimates. Part of `coherence`.
+    pub common_input_rel_var: Vec<f64>,
 }
 
 impl TestFrf {
@@ -457,7 +462,19 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         .transpose()
         .map_err(|e| Error::invalid(&path, e.to_string()))?;
     let (bands, selected) = test_bands(&freq_hz, &responses, &input_power, opts)?;
+    let common_input_rel_var = match (&input, &local, n_blocks) {
+        (InputKind::Ground { .. }, Some(local), 1) if responses.len() >= 2 => {
+            let y: Vec<&[Complex64]> = y_blocks.iter().map(|b| b[0].as_slice()).collect();
+            let absolute: Vec<bool> = responses
+                .iter()
+                .map(|r| r.kind == FrfKind::Accelerance)
+                .collect();
+            super::common_input::common_input_rel_var(local, &f_blocks[0], &y, &absolute, n_keep)
+        }
+        _ => Vec::new(),
+    };
     Ok(TestFrf {
+        common_input_rel_var,
         test: test.name.clone(),
         freq_hz,
         input,

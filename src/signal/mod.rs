@@ -48,6 +48,7 @@
 //! 5.723 Hz in the shake-table test.
 
 pub mod bands;
+mod common_input;
 pub mod correlation;
 mod estimate;
 pub mod frf_csv;
