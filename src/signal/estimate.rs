@@ -462,8 +462,15 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         .transpose()
         .map_err(|e| Error::invalid(&path, e.to_string()))?;
     let (bands, selected) = test_bands(&freq_hz, &responses, &input_power, opts)?;
-    let common_input_rel_var = match (&input, &local, n_blocks) {
-        (InputKind::Ground { .. }, Some(local), 1) if responses.len() >= 2 => {
+    let common_local = match (&input, &local, n_blocks) {
+        (InputKind::Ground { .. }, Some(_), 1) if responses.len() >= 2 => {
+            let m = super::common_input::HALF_WIDTH_BINS;
+            LocalModel::new(m, tau, block_len, fs, n_fft, n_keep, n_blocks).ok()
+        }
+        _ => None,
+    };
+    let common_input_rel_var = match &common_local {
+        Some(local) => {
             let y: Vec<&[Complex64]> = y_blocks.iter().map(|b| b[0].as_slice()).collect();
             let absolute: Vec<bool> = responses
                 .iter()
