@@ -48,6 +48,11 @@ pub struct NoiseModelArgs {
     /// model's H at every evaluation.
     #[arg(long, value_enum)]
     pub gain_carrier: Option<GainCarrierArg>,
+    /// Take the channels of a shake-table record as independent, without the relative
+    /// error the ground channel's noise puts on all of them at once, bin by bin (the
+    /// former default; docs/diagnose.md, "The shake table's common input error").
+    #[arg(long)]
+    pub channels_independent: bool,
     /// Same as `--gain-carrier model-at-map` (kept for earlier scripts).
     #[arg(long, hide = true, conflicts_with_all = ["gain_carrier", "gain_on_model"])]
     pub gain_at_map: bool,
@@ -87,6 +92,7 @@ impl NoiseModelArgs {
             data: DataOptions {
                 weight_bias_correction: self.weight_bias_correction,
                 gain_carrier: self.carrier(),
+                common_input_error: !self.channels_independent,
                 freq_max_hz: self.freq_max_hz,
                 ..DataOptions::default()
             },

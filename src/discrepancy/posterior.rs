@@ -32,6 +32,13 @@
 //! eta^2))` and `b = V^* D^-1 e`: `O(N + M r^2)` per segment. `ln L = -e^* Sigma^-1 e -
 //! ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`: 1 when the noise model is
 //! right.
+//!
+//! Shake-table records add the same kind of term bin by bin
+//! ([`InputGainBasis::PerBin`]: the ground channel's noise, `delta_k = -N_x / X_k`,
+//! independent between bins): `U = diag(sd)`, `G` diagonal, `O(N + M)`.
+//! The coherence behind `eps_i` holds both the point's own noise and the shared error,
+//! so `D` takes the point's own part, `eps_i^2 - E|delta_k|^2 / 2`, at least
+//! `1 - MAX_COMMON_SHARE` of it (for both kinds of basis).
 
 use super::data::{weight_bias, DiagnosisData, GainCarrier, InputGainBasis, MAX_COMMON_SHARE};
 use super::forward::{BaseParams, ExtendedModel};

@@ -115,12 +115,10 @@ fn smoothed_power(windows: &[Option<Window>], n_channels: usize) -> Option<f64> 
 /// Each channel's local model is polynomial with a transient, `Y = X (a + b u + c u^2) +
 /// t_0 + t_1 u` (the local polynomial method, Pintelon et al. 2010), made rational by a
 /// term `-Y u d` where an F test at [`RATIONAL_TEST_LEVEL`] finds it significant (the
-/// local rational method, McKelvey & Guerin 2012, as for the coherence; always rational,
-/// the noise in that column takes some of the common noise with it: 0.66 of it over a
-/// band with a resonance, measured). Without the transient a record that ends before a lightly damped response has died
-/// out leaks a term with the mode's pole into every channel, which without the
-/// transient would pass for common noise (21 times the noise power within three
-/// half-power bandwidths of a 1 % damped mode, measured).
+/// local rational method, McKelvey & Guerin 2012, as for the coherence). A record that
+/// ends before a lightly damped response has died out leaks a term with the mode's pole
+/// into every channel, which without the transient passes for common noise (21 times
+/// the noise power within three half-power bandwidths of a 1 % damped mode, measured).
 fn window_products(
     local: &LocalModel,
     x: &[Complex64],
