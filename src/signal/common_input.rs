@@ -150,44 +150,13 @@ fn window_products(
         true => local.corr[a - b],
         false => local.corr[b - a].conj(),
     });
-    // Per channel: the projection off its design, and its residuals over its carrier.
-    let fits: Vec<Option<(DMatrix<Complex64>, DVector<Complex64>)>> = y
+    let fits: Vec<Option<ChannelFit>> = y
         .iter()
         .zip(absolute)
-        .map(|(yi, &abs)| {
-            // Columns: X, X u, X u^2, 1, u (polynomial with transient), then -Y u.
-            let design = DMatrix::from_fn(width, 6, |l, p| {
-                let (xl, ul) = (x[bins[l]], u[l]);
-                match p {
-                    0 => xl,
-                    1 => xl * ul,
-                    2 => xl * (ul * ul),
-                    3 => Complex64::new(1.0, 0.0),
-                    4 => Complex64::new(ul, 0.0),
-                    _ => -yi[bins[l]] * ul,
-                }
-            });
-            let obs = DVector::from_fn(width, |l, _| yi[bins[l]]);
-            let poly = LocalFit::new(&design.columns(0, 5).into_owned(), &obs)?;
-            let fit = match LocalFit::new(&design, &obs) {
-                Some(r) if poly.rss > ratio_crit * r.rss => r,
-                _ => poly,
-            };
-            // The carrier is the fit's ratio at the bin (the measured one is as noisy as
-            // the bin, and dividing by it biases the products low where it is).
-            let carrier = fit.ratio_at_centre + if abs { 1.0 } else { 0.0 };
-            if carrier.norm_sqr() == 0.0 || !carrier.is_finite() {
-                return None;
-            }
-            Some((fit.proj, fit.residual.map(|v| v / carrier)))
-        })
+        .map(|(yi, &abs)| channel_fit(x, yi, abs, &bins, &u, ratio_crit, &corr))
         .collect();
     // `Re tr(P_i C P_j^*) = Re sum (P_i C) .* conj(P_j)`: what `E sum_l e_i conj(e_j)` is
     // in units of the shared power.
-    let fits: Vec<Option<(DMatrix<Complex64>, DMatrix<Complex64>, DVector<Complex64>)>> = fits
-        .into_iter()
-        .map(|f| f.map(|(p, e)| (&p * &corr, p, e)))
-        .collect();
     let trace = |pci: &DMatrix<Complex64>, pj: &DMatrix<Complex64>| -> f64 {
         pci.iter()
             .zip(pj.iter())
@@ -197,8 +166,8 @@ fn window_products(
     let power = fits
         .iter()
         .map(|f| {
-            let (pc, p, e) = f.as_ref()?;
-            let v = e.norm_squared() / trace(pc, p);
+            let f = f.as_ref()?;
+            let v = f.residual.norm_squared() / trace(&f.proj_corr, &f.proj);
             (v > 0.0 && v.is_finite()).then_some(v)
         })
         .collect::<Vec<_>>();
@@ -206,9 +175,9 @@ fn window_products(
     for i in 0..y.len() {
         for j in i + 1..y.len() {
             let t = match (&fits[i], &fits[j], power[i], power[j]) {
-                (Some((pci, _, ei)), Some((_, pj, ej)), Some(_), Some(_)) => {
-                    let dof = trace(pci, pj);
-                    let t = ei.dotc(ej).re / dof;
+                (Some(fi), Some(fj), Some(_), Some(_)) => {
+                    let dof = trace(&fi.proj_corr, &fj.proj);
+                    let t = fi.residual.dotc(&fj.residual).re / dof;
                     match dof > 0.0 && t.is_finite() {
                         true => t,
                         false => 0.0,
@@ -220,6 +189,58 @@ fn window_products(
         }
     }
     Some(Window { power, cross })
+}
+
+/// One channel's local model in one window.
+struct ChannelFit {
+    /// `P`, the projection off its design, and `P C`.
+    proj: DMatrix<Complex64>,
+    proj_corr: DMatrix<Complex64>,
+    /// `P y` over the carrier.
+    residual: DVector<Complex64>,
+}
+
+/// The local model of response `y` over `bins` (`u` their offsets; `absolute`: the
+/// carrier is the ratio plus one), rational where `RSS_poly / RSS_rat > ratio_crit`.
+fn channel_fit(
+    x: &[Complex64],
+    y: &[Complex64],
+    absolute: bool,
+    bins: &[usize],
+    u: &[f64],
+    ratio_crit: f64,
+    corr: &DMatrix<Complex64>,
+) -> Option<ChannelFit> {
+    let width = bins.len();
+    // Columns: X, X u, X u^2, 1, u (polynomial with transient), then -Y u.
+    let design = DMatrix::from_fn(width, 6, |l, p| {
+        let (xl, ul) = (x[bins[l]], u[l]);
+        match p {
+            0 => xl,
+            1 => xl * ul,
+            2 => xl * (ul * ul),
+            3 => Complex64::new(1.0, 0.0),
+            4 => Complex64::new(ul, 0.0),
+            _ => -y[bins[l]] * ul,
+        }
+    });
+    let obs = DVector::from_fn(width, |l, _| y[bins[l]]);
+    let poly = LocalFit::new(&design.columns(0, 5).into_owned(), &obs)?;
+    let fit = match LocalFit::new(&design, &obs) {
+        Some(r) if poly.rss > ratio_crit * r.rss => r,
+        _ => poly,
+    };
+    // The carrier is the fit's ratio at the bin (the measured one is as noisy as the
+    // bin, and dividing by it biases the products low where it is).
+    let carrier = fit.ratio_at_centre + if absolute { 1.0 } else { 0.0 };
+    if carrier.norm_sqr() == 0.0 || !carrier.is_finite() {
+        return None;
+    }
+    Some(ChannelFit {
+        proj_corr: &fit.proj * corr,
+        proj: fit.proj,
+        residual: fit.residual.map(|v| v / carrier),
+    })
 }
 
 /// Significance level of the F test that prefers the rational local model.
