@@ -47,7 +47,9 @@ use crate::io::{Campaign, Channel, NominalModel, Quantity, Test, TestKind};
 use crate::modal::Modes;
 use crate::model::StructuralModel;
 use crate::signal::hammer::detect_impacts;
-use crate::signal::{bendat_piersol_rel_std, estimate_test, Band, InputKind, TestFrf};
+use crate::signal::{
+    bendat_piersol_rel_std, common_input_rel_var, estimate_test, Band, InputKind, TestFrf,
+};
 use num_complex::Complex64;
 use std::sync::Arc;
 
@@ -587,10 +589,11 @@ fn build_segment(
             &o.estimate,
         ),
         (InputKind::Ground { .. }, _) if o.common_input_error => {
-            let rel_var: Vec<f64> = sel
-                .iter()
-                .map(|&k| frf.common_input_rel_var.get(k).copied().unwrap_or(f64::NAN))
-                .collect();
+            let rel_var = common_input_rel_var(&r.record, &r.source.estimate, sel)?;
+            let rel_var = match rel_var.is_empty() {
+                true => vec![f64::NAN; sel.len()],
+                false => rel_var,
+            };
             let mut min_rel_err = vec![f64::INFINITY; sel.len()];
             for c in &channels {
                 for (&i, &e) in c.freq_index.iter().zip(&c.rel_err) {

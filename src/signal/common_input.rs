@@ -34,36 +34,53 @@ pub const SMOOTH_WINDOWS: usize = 2;
 /// degrees of freedom).
 pub const HALF_WIDTH_BINS: usize = 7;
 
-/// `E|delta_k|^2` at the first `n_keep` bins (NaN where no window fits or fewer than two
-/// channels have power): `x` the input's spectrum, `y[i]` response `i`'s, `absolute[i]`
-/// whether its carrier is its ratio plus one (an accelerometer made relative to the
-/// table). One block (a whole-record estimate).
+/// A whole record's spectra: the input's `x`, response `i`'s `y[i]`, and whether its
+/// carrier is its ratio plus one (`absolute[i]`: an accelerometer made relative to the
+/// table).
+pub(super) struct RecordSpectra<'a> {
+    pub x: &'a [Complex64],
+    pub y: Vec<&'a [Complex64]>,
+    pub absolute: Vec<bool>,
+}
+
+/// `E|delta_k|^2` at the bins `wanted` (NaN where no window fits or fewer than two
+/// channels have power), from the windows within reach of them only. One block (a
+/// whole-record estimate).
 pub(super) fn common_input_rel_var(
     local: &LocalModel,
-    x: &[Complex64],
-    y: &[&[Complex64]],
-    absolute: &[bool],
-    n_keep: usize,
+    rec: &RecordSpectra,
+    wanted: &[usize],
 ) -> Vec<f64> {
-    let n_bins = local.n_local.min(x.len());
+    let n_bins = local.n_local.min(rec.x.len());
     // Windows every third of a window (the average over SMOOTH_WINDOWS each side has a
-    // dozen of them).
+    // dozen of them), where a wanted bin's average reaches.
     let stride = ((2 * local.half_width_bins + 1) * local.step / 3).max(1);
+    let reach = SMOOTH_WINDOWS * (2 * local.half_width_bins + 1) * local.step;
+    let span = |k: usize| {
+        (
+            k.saturating_sub(reach).min(n_bins),
+            (k + reach + 1).min(n_bins),
+        )
+    };
+    let mut needed = vec![false; n_bins];
+    for &k in wanted {
+        let (lo, hi) = span(k);
+        needed[lo..hi].iter_mut().for_each(|v| *v = true);
+    }
     use rayon::prelude::*;
     let windows: Vec<Option<Window>> = (0..n_bins)
         .into_par_iter()
-        .map(|k| match k % stride {
-            0 => window_products(local, x, y, absolute, k),
-            _ => None,
+        .map(|k| match needed[k] && k % stride == 0 {
+            true => window_products(local, rec, k),
+            false => None,
         })
         .collect();
-    let reach = SMOOTH_WINDOWS * (2 * local.half_width_bins + 1) * local.step;
-    (0..n_keep)
-        .map(|k| {
-            let p = x.get(k).map_or(0.0, |v| v.norm_sqr());
-            let lo = k.saturating_sub(reach).min(n_bins);
-            let hi = (k + reach + 1).min(n_bins);
-            match smoothed_power(&windows[lo..hi], y.len()) {
+    wanted
+        .iter()
+        .map(|&k| {
+            let p = rec.x.get(k).map_or(0.0, |v| v.norm_sqr());
+            let (lo, hi) = span(k);
+            match smoothed_power(&windows[lo..hi], rec.y.len()) {
                 Some(s) if p > 0.0 => s.max(0.0) / p,
                 _ => f64::NAN,
             }
@@ -119,13 +136,8 @@ fn smoothed_power(windows: &[Option<Window>], n_channels: usize) -> Option<f64> 
 /// ends before a lightly damped response has died out leaks a term with the mode's pole
 /// into every channel, which without the transient passes for common noise (21 times
 /// the noise power within three half-power bandwidths of a 1 % damped mode, measured).
-fn window_products(
-    local: &LocalModel,
-    x: &[Complex64],
-    y: &[&[Complex64]],
-    absolute: &[bool],
-    k: usize,
-) -> Option<Window> {
+fn window_products(local: &LocalModel, rec: &RecordSpectra, k: usize) -> Option<Window> {
+    let (x, y) = (rec.x, &rec.y);
     let (m, step, n_bins) = (
         local.half_width_bins,
         local.step,
@@ -152,7 +164,7 @@ fn window_products(
     });
     let fits: Vec<Option<ChannelFit>> = y
         .iter()
-        .zip(absolute)
+        .zip(&rec.absolute)
         .map(|(yi, &abs)| channel_fit(x, yi, abs, &bins, &u, ratio_crit, &corr))
         .collect();
     // `Re tr(P_i C P_j^*) = Re sum (P_i C) .* conj(P_j)`: what `E sum_l e_i conj(e_j)` is
@@ -286,7 +298,7 @@ impl LocalFit {
 mod tests {
     use crate::io::{Channel, Quantity, Test, TestKind};
     use crate::signal::sweep::full_record_spectra;
-    use crate::signal::{estimate_test, EstimateOptions};
+    use crate::signal::{common_input_rel_var, estimate_test, EstimateOptions};
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
     use rand_distr::StandardNormal;
@@ -377,15 +389,18 @@ mod tests {
             (SIGMA_X, Some((5.0, 0.01))),
         ] {
             let (test, noise_x) = record(&mut rng, sigma_y, resonance);
-            let frf = estimate_test(&test, &EstimateOptions::default()).unwrap();
+            let opts = EstimateOptions::default();
+            let frf = estimate_test(&test, &opts).unwrap();
             let x = full_record_spectra(&test.data[0], &[], 1).unwrap().input;
             let truth = full_record_spectra(&noise_x, &[], 1).unwrap().input;
-            let n = frf.common_input_rel_var.len();
-            assert_eq!(n, frf.freq_hz.len());
+            let n = frf.freq_hz.len();
             let band = n / 20..n - n / 20;
+            let all: Vec<usize> = (0..n).collect();
+            let rel_var = common_input_rel_var(&test, &opts, &all).unwrap();
+            assert_eq!(rel_var.len(), n);
             let estimate: f64 = band
                 .clone()
-                .map(|k| frf.common_input_rel_var[k] * x[k].norm_sqr())
+                .map(|k| rel_var[k] * x[k].norm_sqr())
                 .sum::<f64>();
             let power: f64 = band.clone().map(|k| truth[k].norm_sqr()).sum();
             let ratio = estimate / power;
@@ -394,10 +409,7 @@ mod tests {
                     .clone()
                     .filter(|&k| (frf.freq_hz[k] - f_hz).abs() < 3.0 * zeta * f_hz)
                     .collect();
-                let est: f64 = near
-                    .iter()
-                    .map(|&k| frf.common_input_rel_var[k] * x[k].norm_sqr())
-                    .sum();
+                let est: f64 = near.iter().map(|&k| rel_var[k] * x[k].norm_sqr()).sum();
                 let pow: f64 = near.iter().map(|&k| truth[k].norm_sqr()).sum();
                 let near_ratio = est / pow;
                 eprintln!("near the resonance ({} bins): {near_ratio:.3}", near.len());

@@ -139,11 +139,6 @@ pub struct TestFrf {
     /// error of `|H1|` smooth in frequency and common to all responses ([`InputNoise`]);
     /// it is part of `coherence`, not of `output_coherence`.
     pub input_noise: Option<InputNoise>,
-    /// Whole-record (shake-table) estimates: per bin, `E|delta|^2` of the relative error
-    /// `delta = -N_x / X` that the input channel's noise puts on every response at once
-    /// ([`super::common_input`]); NaN where it could not be estimated, empty for other
-    /// estimates. Part of `coherence`.
-    pub common_input_rel_var: Vec<f64>,
 }
 
 impl TestFrf {
@@ -462,26 +457,7 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         .transpose()
         .map_err(|e| Error::invalid(&path, e.to_string()))?;
     let (bands, selected) = test_bands(&freq_hz, &responses, &input_power, opts)?;
-    let common_local = match (&input, &local, n_blocks) {
-        (InputKind::Ground { .. }, Some(_), 1) if responses.len() >= 2 => {
-            let m = super::common_input::HALF_WIDTH_BINS;
-            LocalModel::new(m, tau, block_len, fs, n_fft, n_keep, n_blocks).ok()
-        }
-        _ => None,
-    };
-    let common_input_rel_var = match &common_local {
-        Some(local) => {
-            let y: Vec<&[Complex64]> = y_blocks.iter().map(|b| b[0].as_slice()).collect();
-            let absolute: Vec<bool> = responses
-                .iter()
-                .map(|r| r.kind == FrfKind::Accelerance)
-                .collect();
-            super::common_input::common_input_rel_var(local, &f_blocks[0], &y, &absolute, n_keep)
-        }
-        _ => Vec::new(),
-    };
     Ok(TestFrf {
-        common_input_rel_var,
         test: test.name.clone(),
         freq_hz,
         input,
@@ -497,6 +473,44 @@ pub fn estimate_test(test: &Test, opts: &EstimateOptions) -> Result<TestFrf> {
         selected,
         input_noise,
     })
+}
+
+/// The relative error the input channel's noise puts on every response of a shake-table
+/// test at once, `E|delta_k|^2` with `delta_k = -N_x / X_k` ([`super::common_input`]), at
+/// the bins `bins` of [`estimate_test`]'s grid (NaN where it cannot be estimated); empty
+/// for other tests, fewer than two responses or the ordinary coherence. Part of the
+/// coherence. Computed on demand (the diagnosis asks for its selected bins only).
+pub fn common_input_rel_var(
+    test: &Test,
+    opts: &EstimateOptions,
+    bins: &[usize],
+) -> Result<Vec<f64>> {
+    let local_coherence = matches!(opts.coherence, CoherenceMethod::LocalRational { .. });
+    if test.kind != TestKind::ShakeTable || !local_coherence {
+        return Ok(Vec::new());
+    }
+    let (b, resp_idx) = test_blocks(test, opts)?;
+    if resp_idx.len() < 2 || b.f_blocks.len() != 1 {
+        return Ok(Vec::new());
+    }
+    let fs = test.sample_rate_hz;
+    let n_fft = b.block_len * opts.zero_pad_factor.max(1);
+    let n_keep = kept_freq_hz(n_fft, fs, opts.freq_max_hz).len();
+    let m = super::common_input::HALF_WIDTH_BINS;
+    let Ok(local) = LocalModel::new(m, b.tau, b.block_len, fs, n_fft, n_keep, 1) else {
+        return Ok(Vec::new());
+    };
+    let rec = super::common_input::RecordSpectra {
+        x: &b.f_blocks[0],
+        y: b.y_blocks.iter().map(|yb| yb[0].as_slice()).collect(),
+        absolute: resp_idx
+            .iter()
+            .map(|&i| test.channels[i].quantity == Quantity::Acceleration)
+            .collect(),
+    };
+    Ok(super::common_input::common_input_rel_var(
+        &local, &rec, bins,
+    ))
 }
 
 /// Bin frequencies (Hz) of `n_fft`-point spectra at `fs_hz`, up to `freq_max_hz`

@@ -169,7 +169,6 @@ mod tests {
             output_coherence: (0..5).map(|k| 1.0 - 0.1 * k as f64 / 3.0).collect(),
         };
         TestFrf {
-            common_input_rel_var: Vec::new(),
             test: "t".into(),
             freq_hz,
             input: InputKind::Ground {

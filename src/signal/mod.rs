@@ -65,7 +65,8 @@ pub mod windows;
 
 pub use bands::{Band, BandOptions};
 pub use estimate::{
-    estimate_campaign, estimate_h1, estimate_test, EstimateOptions, InputKind, ResponseFrf, TestFrf,
+    common_input_rel_var, estimate_campaign, estimate_h1, estimate_test, EstimateOptions,
+    InputKind, ResponseFrf, TestFrf,
 };
 pub use hammer::{
     windowed_force, HammerEstimator, HammerOptions, MIN_FORCE_WINDOW_SAMPLES,

@@ -449,7 +449,6 @@ fn finish_test(
     )?;
     let df = freq_hz[1] - freq_hz[0];
     Ok(TestFrf {
-        common_input_rel_var: Vec::new(),
         test: spec.name.clone(),
         input,
         responses,
