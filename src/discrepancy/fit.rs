@@ -124,8 +124,8 @@ impl LeastSquaresProblem for MapProblem<'_> {
     }
 }
 
-/// MAP fit of `post` from each of `starts` (full `z`, `ln eta` included: it sets the
-/// first round's `eta` only when it is inside the box, else `eta` is profiled first).
+/// MAP fit of `post` from each of `starts` (full `z`; its `ln eta` is not used: each
+/// start's first round runs at the error floor profiled at the start itself).
 pub fn fit_map(post: &ModelPosterior, starts: &[Vec<f64>], options: &MapOptions) -> Result<MapFit> {
     if starts.is_empty() {
         return Err(Error::Usage("a MAP fit needs at least one start".into()));
@@ -212,11 +212,14 @@ fn solve_start(
         free.iter().map(|&i| lo[i]).collect(),
         free.iter().map(|&i| hi[i]).collect(),
     )?;
-    let mut eta = if start[ie] >= lo[ie] && start[ie] <= hi[ie] {
-        start[ie].exp()
-    } else {
-        post.profile_eta(&post.predict(&z)?)
-    };
+    // The floor the start's own misfit implies, not the one it came with: a start far
+    // from the fit it was built from (an effect drawn from its box on top of a model
+    // whose floor was profiled at 1e-4) would otherwise be solved against whitened
+    // residuals millions of times its noise, where the solver crawls or stops in a
+    // false minimum (a second round on the four-story campaign: 30-280 iterations at
+    // cost 1.2e7 before the profile freed them). A large floor first, then the exact
+    // profile, is a continuation from a smooth objective to the sharp one.
+    let mut eta = post.profile_eta(&post.predict(&z)?);
     let trf = Trf::new(options.trf.clone());
     let mut n_eval = 0;
     for _ in 0..options.max_eta_rounds.max(1) {

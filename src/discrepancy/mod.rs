@@ -14,6 +14,7 @@ pub mod diagnose;
 pub mod effect_coverage;
 pub mod effect_summary;
 pub mod estimator_bias;
+mod eta_profile;
 pub mod extension;
 pub mod figures;
 pub mod fit;

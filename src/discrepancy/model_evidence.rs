@@ -82,6 +82,10 @@ pub fn box_bounds(post: &ModelPosterior) -> Vec<(f64, f64)> {
 /// or the curvature there is not positive definite).
 pub type LaplaceOutcome = std::result::Result<LaplaceInU, String>;
 
+/// The [`LaplaceOutcome`] of a model whose gain bound rules it out: its evidence is the
+/// bound ([`Estimator::GainBound`]), which needs no Laplace; not a failure.
+pub const NOT_NEEDED: &str = "not computed: the gain bound rules the model out";
+
 /// Laplace at the mode in logit coordinates from the MAP `z`.
 pub fn laplace_u(post: &ModelPosterior, z: &[f64]) -> LaplaceOutcome {
     laplace_of(post, &box_bounds(post), z).map_err(|e| e.to_string())
@@ -175,7 +179,7 @@ pub fn completion(
             &screen,
             Some(&mut cb),
         )?;
-        evidence.laplace_failure = laplace.as_ref().err().cloned();
+        evidence.laplace_failure = laplace.as_ref().err().filter(|w| *w != NOT_NEEDED).cloned();
         let draws: Vec<Vec<f64>> = match (evidence.posterior_draws(), lap) {
             (Some(d), _) => d,
             (None, Some(l)) => {

@@ -24,6 +24,7 @@ use super::location::Location;
 use super::posterior::ModelPosterior;
 use crate::error::Result;
 use crate::io::Quantity;
+use rayon::prelude::*;
 use std::sync::Arc;
 
 /// Settings of the location search.
@@ -130,8 +131,16 @@ pub fn search(
 ) -> Result<HypothesisSearch> {
     let mut tried: Vec<LocationFit> = Vec::new();
     let mut failed = Vec::new();
-    for loc in hypothesis.locations(data) {
-        match fit_location(data, hypothesis, &loc, nominal_z, opts) {
+    // The locations are fitted side by side (each fit's starts run in parallel too:
+    // with one location's 7 starts on 2 cores one waits for the last), collected in
+    // their order: the same result whatever the thread count.
+    let locations = hypothesis.locations(data);
+    let fits: Vec<Result<LocationFit>> = locations
+        .par_iter()
+        .map(|loc| fit_location(data, hypothesis, loc, nominal_z, opts))
+        .collect();
+    for (loc, fit) in locations.into_iter().zip(fits) {
+        match fit {
             Ok(f) => tried.push(f),
             // A location the model cannot evaluate is not a candidate; it is reported.
             Err(e) => failed.push((loc.clone(), e.to_string())),
@@ -216,26 +225,37 @@ impl Growth<'_> {
         loop {
             let set = channel_set(data, &best.location).unwrap_or_default();
             let mut improved: Option<LocationFit> = None;
-            for c in self.all.iter().filter(|c| !set.contains(c)) {
-                let mut grown = set.clone();
-                grown.push(c.clone());
-                let loc = as_location(data, grown);
-                // A set already fitted (a candidate of its own) is not grown into.
-                if tried.iter().any(|f| f.location == loc) {
+            // A set already fitted (a candidate of its own) is not grown into.
+            let grown: Vec<Location> = self
+                .all
+                .iter()
+                .filter(|c| !set.contains(c))
+                .map(|c| {
+                    let mut grown = set.clone();
+                    grown.push(c.clone());
+                    as_location(data, grown)
+                })
+                .filter(|loc| !tried.iter().any(|f| f.location == *loc))
+                .collect();
+            // One more channel under the same effect parameters: the set's own fit is
+            // the start (a fresh search of the effect's box would only find it again;
+            // see the module docs). Single-start fits, so side by side.
+            let fits: Vec<Option<LocationFit>> = grown
+                .par_iter()
+                .map(|loc| {
+                    let warm = fit_location(data, hypothesis, loc, &best.map.z, opts);
+                    let fresh = || {
+                        let from = &best.map.z[..self.nominal_z.len()];
+                        fit_location(data, hypothesis, loc, from, opts)
+                    };
+                    warm.or_else(|_| fresh()).ok()
+                })
+                .collect();
+            for (loc, f) in grown.iter().zip(fits) {
+                let Some(f) = f else {
                     continue;
-                }
-                // One more channel under the same effect parameters: the set's own fit
-                // is the start (a fresh search of the effect's box would only find it
-                // again; see the module docs).
-                let warm = fit_location(data, hypothesis, &loc, &best.map.z, opts);
-                let fresh = || {
-                    let from = &best.map.z[..self.nominal_z.len()];
-                    fit_location(data, hypothesis, &loc, from, opts)
                 };
-                let Ok(f) = warm.or_else(|_| fresh()) else {
-                    continue;
-                };
-                progress(hypothesis.name(), &loc);
+                progress(hypothesis.name(), loc);
                 tried.push(f.clone());
                 let gain = f.map.ln_likelihood - best.map.ln_likelihood;
                 if gain > self.penalty
