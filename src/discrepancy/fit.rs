@@ -4,7 +4,9 @@
 //! Each start alternates (a) a trust-region reflective least-squares solve
 //! ([`crate::update::lsq::Trf`]) of the whitened residuals over every coordinate but
 //! `ln eta`, with `eta` fixed, and (b) the exact profile of `eta` for that fit
-//! ([`ModelPosterior::profile_eta`]), until `eta` moves by less than 5 %. For fixed
+//! ([`ModelPosterior::profile_eta`]), until `eta` moves by less than 5 % (at most
+//! [`MapOptions::max_eta_rounds`] rounds); the first round runs at the profile of the
+//! start itself. For fixed
 //! `eta` the log-likelihood is `-0.5 ||r||^2` plus a constant, so (a) maximises it
 //! exactly; (b) maximises over `eta` given the fit. The Jacobian is by forward
 //! differences (step `1e-6` of each coordinate's box width). Starts run in parallel,
