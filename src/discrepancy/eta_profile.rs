@@ -11,8 +11,7 @@ impl ModelPosterior {
     /// The `eta` in the prior box that maximises the likelihood of a prediction (Brent's
     /// method on `ln eta`, to 1e-7 in it; the profile is unimodal in practice). Every
     /// start of every MAP fit profiles it once per round, each likelihood over every
-    /// point: Brent's parabolic steps need fewer of them than a golden-section search's
-    /// 35 to the same tolerance.
+    /// point.
     pub fn profile_eta(&self, pred: &[Complex64]) -> f64 {
         let (lo, hi) = (ETA_BOUNDS.0.ln(), ETA_BOUNDS.1.ln());
         let problem = EtaProfile { post: self, pred };

@@ -82,8 +82,8 @@ pub fn box_bounds(post: &ModelPosterior) -> Vec<(f64, f64)> {
 /// or the curvature there is not positive definite).
 pub type LaplaceOutcome = std::result::Result<LaplaceInU, String>;
 
-/// The [`LaplaceOutcome`] of a model whose gain bound rules it out: its evidence is the
-/// bound ([`Estimator::GainBound`]), which needs no Laplace; not a failure.
+/// Why a model whose gain bound rules it out has no [`LaplaceOutcome`]: its evidence is
+/// the bound ([`Estimator::GainBound`]), which needs none.
 pub const NOT_NEEDED: &str = "not computed: the gain bound rules the model out";
 
 /// Laplace at the mode in logit coordinates from the MAP `z`.
@@ -179,7 +179,10 @@ pub fn completion(
             &screen,
             Some(&mut cb),
         )?;
-        evidence.laplace_failure = laplace.as_ref().err().filter(|w| *w != NOT_NEEDED).cloned();
+        // A gain-bound evidence needs no Laplace: its absence there is not a failure.
+        if evidence.estimator != Estimator::GainBound {
+            evidence.laplace_failure = laplace.as_ref().err().cloned();
+        }
         let draws: Vec<Vec<f64>> = match (evidence.posterior_draws(), lap) {
             (Some(d), _) => d,
             (None, Some(l)) => {

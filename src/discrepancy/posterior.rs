@@ -431,8 +431,8 @@ impl ModelPosterior {
     /// The correlated gain errors' part of [`Self::quadratic_and_ln_det`]: what they take
     /// from the quadratic form and add to the log-determinant (Woodbury, summed over
     /// the gain segments); `gains` receives each segment's `g`. The whitened residuals
-    /// need only the `g`: the diagonal part's logarithms over every point are not
-    /// computed for them (they were a quarter of a diagnosis' time).
+    /// need only the `g`, not the diagonal part's quotient and logarithm per point
+    /// (skipping them cut the four-story diagnosis from 185 s to 170 s of CPU).
     fn gain_terms(
         &self,
         pred: &[Complex64],

@@ -601,6 +601,27 @@ fn posterior_prior_is_normalised_and_likelihood_is_the_gaussian() {
     let at = |e: f64| post.ln_likelihood_of(&pred, e);
     assert!(at(best) >= at(best * 1.01) && at(best) >= at(best / 1.01));
     assert!((best - 0.0141).abs() < 0.001, "{best}");
+    // Against a grid of 4,001 points over the box in ln eta (step 2e-3): Brent's
+    // maximum is at least the grid's, and within one step of its argmax.
+    let (lo, hi) = (
+        super::posterior::ETA_BOUNDS.0.ln(),
+        super::posterior::ETA_BOUNDS.1.ln(),
+    );
+    let step = (hi - lo) / 4000.0;
+    let grid_best = (0..=4000)
+        .map(|i| lo + step * i as f64)
+        .max_by(|a, b| at(a.exp()).total_cmp(&at(b.exp())))
+        .unwrap();
+    assert!(
+        at(best) >= at(grid_best.exp()),
+        "{best} {}",
+        grid_best.exp()
+    );
+    assert!(
+        (best.ln() - grid_best).abs() <= step,
+        "{best} {}",
+        grid_best.exp()
+    );
     let chi2 = post.chi2_per_dof_of(&pred, best);
     assert!((chi2 - 1.0).abs() < 0.05, "{chi2}");
 }
@@ -900,4 +921,40 @@ fn a_story_without_drift_sensors_is_a_location_that_says_why_it_is_not_tested() 
         e.contains("not testable") && e.contains("floors 2 and 3"),
         "{e}"
     );
+}
+
+#[test]
+fn the_location_search_is_the_same_on_one_thread_and_on_two() {
+    // Locations and the channel growth's candidates are fitted side by side: the search
+    // of a channel hypothesis (every single channel and quantity, then growth) must
+    // give the same fits, bit for bit, whatever the thread count.
+    use super::search::{search, SearchOptions};
+    let (_, data) = noisy_synthetic(0.01, 7);
+    let data = Arc::new(data);
+    let nominal = ModelPosterior::new(data.clone(), None).unwrap();
+    let z0 = nominal.z_of(&base(), 0.01, &[]);
+    let h: Arc<dyn Hypothesis> = Arc::from(hypothesis_by_name("sensor_timing").unwrap());
+    let opts = SearchOptions {
+        n_effect_starts: 2,
+        ..SearchOptions::default()
+    };
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| search(&data, &h, &z0, &opts, &mut |_, _| {}).unwrap())
+    };
+    let (one, two) = (run(1), run(2));
+    assert!(
+        one.tried.len() > data.channels().len(),
+        "{}",
+        one.tried.len()
+    );
+    assert_eq!(one.tried.len(), two.tried.len());
+    for (a, b) in one.tried.iter().zip(&two.tried) {
+        assert_eq!(a.location, b.location);
+        assert_eq!(a.map.z, b.map.z);
+        assert_eq!(a.map.ln_likelihood.to_bits(), b.map.ln_likelihood.to_bits());
+    }
 }
