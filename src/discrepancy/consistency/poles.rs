@@ -1,8 +1,8 @@
 //! The pole checks of [`super`] (`impact_level`, `hammer_vs_shake`, `drift`): one pole per
-//! band and segment ([`super::fit::fit_pole`]), compared across segments.
+//! band and segment ([`super::pole_fit::fit_pole`]), compared across segments.
 
 use super::checks::result;
-use super::fit::{fit_pole, PoleData, PoleFit};
+use super::pole_fit::{fit_pole, PoleData, PoleFit};
 use super::segment::{band_window, SegmentFrf};
 use super::{
     CheckDetails, CheckKind, CheckResult, Compared, ConsistencyOptions, ModeComparison,
