@@ -51,6 +51,25 @@ impl InputGainBasis {
             InputGainBasis::PerBin { sd } => sd[k] * sd[k],
         }
     }
+
+    /// A point's own relative error variance at frequency `k`, given `total_rel_var`,
+    /// the `eps^2` of its coherence. A whole-record estimate's coherence holds the shared
+    /// per-bin error too, so its own part is `eps^2 - E|delta_k|^2 / 2`, at least
+    /// `1 - MAX_COMMON_SHARE` of it. A single impact's coherence counts the force noise as
+    /// if it were white (`signal::noise::add_smooth_input_noise`) where this basis
+    /// carries its measured, often red, spectrum: the point keeps its whole `eps^2`, and
+    /// the force noise is counted twice on purpose (subtracting the basis' variance took
+    /// far too much at low frequency under red noise: 3 false alarms in 23 null
+    /// campaigns; `docs/diagnose.md`, "The hammer's variance split").
+    pub fn own_rel_var(&self, k: usize, total_rel_var: f64) -> f64 {
+        match self {
+            InputGainBasis::Smooth { .. } => total_rel_var,
+            InputGainBasis::PerBin { .. } => {
+                let shared = 0.5 * self.variance(k);
+                (total_rel_var - shared).max((1.0 - MAX_COMMON_SHARE) * total_rel_var)
+            }
+        }
+    }
 }
 
 /// Largest rank kept of an [`InputGainBasis`].

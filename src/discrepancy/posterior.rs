@@ -36,19 +36,14 @@
 //! Shake-table records add the same kind of term bin by bin
 //! ([`InputGainBasis::PerBin`]: the ground channel's noise, `delta_k = -N_x / X_k`,
 //! independent between bins): `U = diag(sd)`, `G` diagonal, `O(N + M)`.
-//! A whole-record estimate's coherence holds both the point's own noise and the shared
-//! per-bin error, so for [`InputGainBasis::PerBin`] `D` takes the point's own part,
-//! `eps_i^2 - E|delta_k|^2 / 2`, at least `1 - MAX_COMMON_SHARE` of it. A segment with an
-//! [`InputGainBasis::Smooth`] keeps the whole `eps_i^2` in `D`: its coherence (a single
-//! impact's local models, `signal::noise::add_smooth_input_noise`) counts the force noise
-//! as if it were white, and the basis counts it again with its measured, often red,
-//! spectrum. The double count is deliberate and measured: subtracting the basis'
-//! variance gave 3 false alarms in 23 null campaigns, all on red noise (it took far too
-//! much at low frequency), and taking `eps_i` from the output noise's coherence alone
-//! (the exact split were that noise the only other error) still gave one on null-22
-//! (`sensor_timing`, delta ln Z 8.2), where keeping the total gives `none`.
+//! `D` takes each point's own error ([`InputGainBasis::own_rel_var`]): for a per-bin
+//! basis its coherence's total less the shared part; for a single impact's smooth basis
+//! the whole total, the force noise counted twice on purpose. Taking `eps_i` from the
+//! output noise's coherence alone (the exact split were that noise the only other error)
+//! gave a false alarm on null-22 (`sensor_timing`, delta ln Z 8.2) where the whole total
+//! gives `none`.
 
-use super::data::{weight_bias, DiagnosisData, GainCarrier, InputGainBasis, MAX_COMMON_SHARE};
+use super::data::{weight_bias, DiagnosisData, GainCarrier, InputGainBasis};
 use super::forward::{BaseParams, ExtendedModel};
 pub use super::frame_layout::FrameLayout;
 use super::gain_solve::{gain_solve, GainSegment};
@@ -180,15 +175,10 @@ impl ModelPosterior {
                 debug_assert_eq!(r.start, start + freq_of.len());
                 freq_of.extend(ch.freq_index.iter().map(|&k| k as u32));
             }
-            // The points' own errors without the shared one, for the whole-record
-            // estimate only (the hammer's basis is counted on top of its total: see the
-            // module doc).
-            if matches!(basis, InputGainBasis::PerBin { .. }) {
-                for (j, &k) in freq_of.iter().enumerate() {
-                    let e2 = &mut eps2[start + j];
-                    let shared = 0.5 * basis.variance(k as usize);
-                    *e2 = (*e2 - shared).max((1.0 - MAX_COMMON_SHARE) * *e2);
-                }
+            // The points' own errors ([`InputGainBasis::own_rel_var`]).
+            for (j, &k) in freq_of.iter().enumerate() {
+                let e2 = &mut eps2[start + j];
+                *e2 = basis.own_rel_var(k as usize, *e2);
             }
             let n_freq = seg.freq_hz.len();
             let (rank, u, per_bin) = match basis {
