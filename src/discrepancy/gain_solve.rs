@@ -3,6 +3,10 @@
 //! Woodbury solve `G = I + V^* D^-1 V` (see that module's docs).
 
 use num_complex::Complex64;
+use std::cell::RefCell;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use thread_local::ThreadLocal;
 
 /// A segment's [`super::data::InputGainBasis`] on the flat layout.
 #[derive(Debug, Clone)]
@@ -32,49 +36,55 @@ impl GainSegment {
     }
 }
 
-/// [`gain_solve`] of a per-bin basis: `G` is diagonal.
-fn diagonal_solve(gs: &GainSegment, w: &[f64], bk: &[Complex64]) -> (Vec<Complex64>, f64, f64) {
-    let (mut quad, mut ln_det) = (0.0, 0.0);
-    let g = (0..gs.n_freq)
-        .map(|k| {
-            let gkk = 1.0 + w[k] * gs.u[k].norm_sqr();
-            let b = gs.u[k].conj() * bk[k];
-            quad += b.norm_sqr() / gkk;
-            ln_det += gkk.ln();
-            b / gkk
-        })
-        .collect();
-    (g, quad, ln_det)
+/// `G = I + sum_k w_k U_k^* U_k` of one segment, factored: it depends on the weights
+/// `w_k = sum_(i at k) |c_i|^2 / (2 sigma_i^2)` only (carrier `c`, error floor in
+/// `sigma`), not on the residual, so one factor serves every prediction at the same
+/// error floor and carrier ([`GainCache`]).
+#[derive(Debug, Clone)]
+pub(super) struct GainFactor {
+    /// Per-bin basis: `G`'s diagonal; smooth basis: `L` of `G = L L^*`, row-major
+    /// `rank x rank`.
+    kind: FactorKind,
+    /// `ln det G`.
+    pub(super) ln_det: f64,
 }
 
-/// `G = I + sum_k w_k U_k^* U_k`, `b = sum_k U_k^* b_k`; returns `g = G^-1 b`,
-/// `b^* G^-1 b` and `ln det G` (see the module docs).
-pub(super) fn gain_solve(
-    gs: &GainSegment,
-    w: &[f64],
-    bk: &[Complex64],
-) -> (Vec<Complex64>, f64, f64) {
+#[derive(Debug, Clone)]
+enum FactorKind {
+    Diagonal(Vec<f64>),
+    Cholesky(Vec<Complex64>),
+}
+
+/// Factors `G` of `gs` at the weights `w` (per segment frequency).
+pub(super) fn gain_factor(gs: &GainSegment, w: &[f64]) -> GainFactor {
     if gs.per_bin {
-        return diagonal_solve(gs, w, bk);
+        let mut ln_det = 0.0;
+        let diag = (0..gs.n_freq)
+            .map(|k| {
+                let gkk = 1.0 + w[k] * gs.u[k].norm_sqr();
+                ln_det += gkk.ln();
+                gkk
+            })
+            .collect();
+        return GainFactor {
+            kind: FactorKind::Diagonal(diag),
+            ln_det,
+        };
     }
     let r = gs.rank;
     let mut g = vec![Complex64::new(0.0, 0.0); r * r];
-    let mut b = vec![Complex64::new(0.0, 0.0); r];
     for i in 0..r {
         g[i * r + i] = Complex64::new(1.0, 0.0);
     }
-    for k in 0..gs.n_freq {
+    for (k, &wk) in w.iter().enumerate().take(gs.n_freq) {
         let uk = &gs.u[k * r..(k + 1) * r];
-        if w[k] != 0.0 {
+        if wk != 0.0 {
             for m in 0..r {
-                let cm = uk[m].conj() * w[k];
+                let cm = uk[m].conj() * wk;
                 for n in m..r {
                     g[m * r + n] += cm * uk[n];
                 }
             }
-        }
-        for m in 0..r {
-            b[m] += uk[m].conj() * bk[k];
         }
     }
     // Cholesky G = L L^* (upper triangle filled; Hermitian positive definite).
@@ -97,23 +107,132 @@ pub(super) fn gain_solve(
             l[i * r + j] = v / d;
         }
     }
-    // Solve L y = b, then L^* x = y.
-    let mut y = b.clone();
-    for i in 0..r {
-        let mut v = y[i];
-        for k in 0..i {
-            v -= l[i * r + k] * y[k];
-        }
-        y[i] = v / l[i * r + i].re;
+    GainFactor {
+        kind: FactorKind::Cholesky(l),
+        ln_det,
     }
-    let quad: f64 = y.iter().map(|v| v.norm_sqr()).sum();
-    let mut x = y;
-    for i in (0..r).rev() {
-        let mut v = x[i];
-        for k in i + 1..r {
-            v -= l[k * r + i].conj() * x[k];
+}
+
+/// With `b = sum_k U_k^* b_k`: `g = G^-1 b` and `b^* G^-1 b`, `G` factored as `f`.
+pub(super) fn gain_apply(
+    gs: &GainSegment,
+    f: &GainFactor,
+    bk: &[Complex64],
+) -> (Vec<Complex64>, f64) {
+    match &f.kind {
+        FactorKind::Diagonal(diag) => {
+            let mut quad = 0.0;
+            let g = (0..gs.n_freq)
+                .map(|k| {
+                    let b = gs.u[k].conj() * bk[k];
+                    quad += b.norm_sqr() / diag[k];
+                    b / diag[k]
+                })
+                .collect();
+            (g, quad)
         }
-        x[i] = v / l[i * r + i].re;
+        FactorKind::Cholesky(l) => {
+            let r = gs.rank;
+            let mut b = vec![Complex64::new(0.0, 0.0); r];
+            for (k, &bkk) in bk.iter().enumerate().take(gs.n_freq) {
+                let uk = &gs.u[k * r..(k + 1) * r];
+                for m in 0..r {
+                    b[m] += uk[m].conj() * bkk;
+                }
+            }
+            // Solve L y = b, then L^* x = y.
+            let mut y = b;
+            for i in 0..r {
+                let mut v = y[i];
+                for k in 0..i {
+                    v -= l[i * r + k] * y[k];
+                }
+                y[i] = v / l[i * r + i].re;
+            }
+            let quad: f64 = y.iter().map(|v| v.norm_sqr()).sum();
+            let mut x = y;
+            for i in (0..r).rev() {
+                let mut v = x[i];
+                for k in i + 1..r {
+                    v -= l[k * r + i].conj() * x[k];
+                }
+                x[i] = v / l[i * r + i].re;
+            }
+            (x, quad)
+        }
     }
-    (x, quad, ln_det)
+}
+
+/// What the factors of `G` were built for: the error floor (its bits) and the carrier
+/// (the measured ratios, fixed in a posterior, or a plug-in prediction, kept alive here
+/// so that its address cannot be reused by another while it is the key).
+struct Cached {
+    eta_bits: u64,
+    plug_in: Option<Arc<Vec<Complex64>>>,
+    factors: Vec<GainFactor>,
+}
+
+/// Each thread's factors of `G` for every gain segment at the last error floor and
+/// carrier it evaluated. A least-squares fit holds `eta` fixed while it moves the
+/// model (`super::fit`), so its residual and Jacobian evaluations reuse one set: the
+/// `O(M r^2)` assembly and the Cholesky drop out and `O(N + M r)` remain. Results are
+/// bit for bit those of factoring anew (the same arithmetic, done once). A clone starts
+/// empty, as does a posterior whose carrier or data change.
+#[derive(Default)]
+pub(super) struct GainCache {
+    per_thread: ThreadLocal<RefCell<Option<Cached>>>,
+    /// Factor sets built so far (all threads).
+    builds: AtomicUsize,
+}
+
+impl Clone for GainCache {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl std::fmt::Debug for GainCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("GainCache")
+    }
+}
+
+impl GainCache {
+    /// `apply(factors)` with this thread's factors at (`eta`, `plug_in`; `None`: the
+    /// measured ratios), built by `build` when this thread last built them for another
+    /// key.
+    pub(super) fn with<R>(
+        &self,
+        eta: f64,
+        plug_in: Option<&Arc<Vec<Complex64>>>,
+        build: impl FnOnce() -> Vec<GainFactor>,
+        apply: impl FnOnce(&[GainFactor]) -> R,
+    ) -> R {
+        let cell = self.per_thread.get_or_default();
+        let hit = cell.borrow().as_ref().is_some_and(|c| {
+            c.eta_bits == eta.to_bits()
+                && match (&c.plug_in, plug_in) {
+                    (None, None) => true,
+                    (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+                    _ => false,
+                }
+        });
+        if !hit {
+            self.builds.fetch_add(1, Ordering::Relaxed);
+            let factors = build();
+            *cell.borrow_mut() = Some(Cached {
+                eta_bits: eta.to_bits(),
+                plug_in: plug_in.cloned(),
+                factors,
+            });
+        }
+        let cached = cell.borrow();
+        apply(&cached.as_ref().expect("filled above").factors)
+    }
+
+    /// Factor sets built so far, over all threads.
+    #[cfg(test)]
+    pub(super) fn builds(&self) -> usize {
+        self.builds.load(Ordering::Relaxed)
+    }
 }

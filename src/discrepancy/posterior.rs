@@ -29,8 +29,9 @@
 //! `D = diag(2 sigma_i^2)`, `V_i = h_i U_k(i)` (rank `r`, a few), and by Woodbury
 //! `e^* Sigma^-1 e = e^* D^-1 e - b^* G^-1 b`, `ln det Sigma = ln det D + ln det G`
 //! with `G = I + V^* D^-1 V = I + sum_k U_k^* U_k sum_(i at k) 1 / (2 (eps_i^2 +
-//! eta^2))` and `b = V^* D^-1 e`: `O(N + M r^2)` per segment. `ln L = -e^* Sigma^-1 e -
-//! ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`: 1 when the noise model is
+//! eta^2))` and `b = V^* D^-1 e`: `O(N + M r^2)` per segment, `O(N + M r)` while `eta`
+//! and the carrier stay (`G`'s factor is kept, [`super::gain_solve::GainCache`]).
+//! `ln L = -e^* Sigma^-1 e - ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`: 1 when the noise model is
 //! right.
 //!
 //! Shake-table records add the same kind of term bin by bin
@@ -43,10 +44,12 @@
 //! gave a false alarm on null-22 (`sensor_timing`, delta ln Z 8.2) where the whole total
 //! gives `none`.
 
-use super::data::{weight_bias, DiagnosisData, GainCarrier, InputGainBasis};
+mod gain;
+
+use super::data::{weight_bias, DiagnosisData, InputGainBasis};
 use super::forward::{BaseParams, ExtendedModel};
 pub use super::frame_layout::FrameLayout;
-use super::gain_solve::{gain_solve, GainSegment};
+use super::gain_solve::{GainCache, GainSegment};
 use super::hypothesis::{EffectParam, Hypothesis};
 use super::location::Location;
 use super::time_domain::TimeDomainModel;
@@ -96,8 +99,10 @@ pub struct ModelPosterior {
     /// `model`'s frequency-domain solution ([`Self::with_time_domain`]).
     time_domain: Option<Arc<TimeDomainModel>>,
     /// The model's prediction at its MAP, the gain carrier of
-    /// [`GainCarrier::ModelAtMap`] ([`Self::at_map`]); the measured `h` until set.
+    /// [`super::data::GainCarrier::ModelAtMap`] ([`Self::at_map`]); the measured `h` until set.
     gain_plug_in: Option<Arc<Vec<Complex64>>>,
+    /// Each thread's factors of the gain segments' `G` at its last error floor.
+    gain_cache: GainCache,
 }
 
 impl ModelPosterior {
@@ -204,6 +209,7 @@ impl ModelPosterior {
             n_gain_residuals,
             time_domain: None,
             gain_plug_in: None,
+            gain_cache: GainCache::default(),
             model,
             effect_params,
             names,
@@ -378,6 +384,7 @@ impl ModelPosterior {
             ));
         }
         self.time_domain = Some(td);
+        self.gain_cache = GainCache::default();
         Ok(self)
     }
 
@@ -430,41 +437,6 @@ impl ModelPosterior {
         (quad - q, ln_det + ld)
     }
 
-    /// The correlated gain errors' part of [`Self::quadratic_and_ln_det`]: what they take
-    /// from the quadratic form and add to the log-determinant (Woodbury, summed over
-    /// the gain segments); `gains` receives each segment's `g`. The whitened residuals
-    /// need only the `g`, not the diagonal part's quotient and logarithm per point
-    /// (skipping them cut the four-story diagnosis from 185 s to 170 s of CPU).
-    fn gain_terms(
-        &self,
-        pred: &[Complex64],
-        eta: f64,
-        mut gains: Option<&mut Vec<Vec<Complex64>>>,
-    ) -> (f64, f64) {
-        let eta2 = eta * eta;
-        let carrier = self.gain_carrier(pred);
-        let (mut quad, mut ln_det) = (0.0, 0.0);
-        for gs in &self.gains {
-            let mut w = vec![0.0; gs.n_freq];
-            let mut bk = vec![Complex64::new(0.0, 0.0); gs.n_freq];
-            for (j, &k) in gs.freq_of.iter().enumerate() {
-                let i = gs.start + j;
-                let inv_d = 1.0 / (2.0 * (self.eps2[i] + eta2) * self.abs2[i]);
-                // `w` and `bk` take the same `V` (`diag(carrier) U`), which keeps
-                // `q <= e^* D^-1 e`.
-                w[k as usize] += carrier[i].norm_sqr() * inv_d;
-                bk[k as usize] += carrier[i].conj() * (self.h[i] - pred[i]) * inv_d;
-            }
-            let (g, q, ld) = gain_solve(gs, &w, &bk);
-            quad += q;
-            ln_det += ld;
-            if let Some(out) = gains.as_deref_mut() {
-                out.push(g);
-            }
-        }
-        (quad, ln_det)
-    }
-
     /// `e^* Sigma^-1 e / N` of a prediction at error floor `eta` (the chi2 per real
     /// degree of freedom: 1 when the noise model is right), correlated gain errors
     /// included.
@@ -486,56 +458,6 @@ impl ModelPosterior {
             .map(|i| (pred[i] - self.h[i]).norm_sqr() / ((self.eps2[i] + eta2) * self.abs2[i]))
             .sum();
         q / (2.0 * n.max(1) as f64)
-    }
-
-    /// The ratios the input-gain error multiplies (flat layout,
-    /// [`super::data::DataOptions::gain_carrier`]): the measured `h`, the prediction, or
-    /// the prediction at the MAP once [`Self::at_map`] has set it.
-    fn gain_carrier<'a>(&'a self, pred: &'a [Complex64]) -> &'a [Complex64] {
-        match (self.data().options.gain_carrier, &self.gain_plug_in) {
-            (GainCarrier::Model, _) => pred,
-            (GainCarrier::ModelAtMap, Some(at_map)) => at_map,
-            _ => &self.h,
-        }
-    }
-
-    /// With [`GainCarrier::ModelAtMap`], the same posterior with the model at `z` (its
-    /// MAP) as the gain carrier from now on; otherwise unchanged.
-    pub fn at_map(mut self, z: &[f64]) -> Result<Self> {
-        match self.data().options.gain_carrier {
-            GainCarrier::ModelAtMap => {
-                let carrier = match self.replay_carrier(z)? {
-                    Some(c) => c,
-                    None => self.predict(z)?,
-                };
-                self.gain_plug_in = Some(Arc::new(carrier));
-                Ok(self)
-            }
-            _ => Ok(self),
-        }
-    }
-
-    /// [`Self::at_map`] with the prediction at `z` given (flat layout). The carrier is
-    /// that prediction, except for a replay with a cubic spring, whose ratios depend on
-    /// the drive's level: there it is [`TimeDomainModel::gain_carrier`].
-    pub fn at_map_predicted(mut self, z: &[f64], pred: Vec<Complex64>) -> Result<Self> {
-        if self.data().options.gain_carrier != GainCarrier::ModelAtMap {
-            return Ok(self);
-        }
-        let carrier = self.replay_carrier(z)?.unwrap_or(pred);
-        self.gain_plug_in = Some(Arc::new(carrier));
-        Ok(self)
-    }
-
-    /// [`TimeDomainModel::gain_carrier`] at `z` for a replay (`None`: the carrier is the
-    /// prediction).
-    fn replay_carrier(&self, z: &[f64]) -> Result<Option<Vec<Complex64>>> {
-        let Some(td) = &self.time_domain else {
-            return Ok(None);
-        };
-        let (base, effect) = (self.base_params(z), self.effect_physical(z)?);
-        let hyp = self.model.hypothesis();
-        td.gain_carrier(&base, hyp.map(|(h, l)| (h.as_ref(), l)), &effect)
     }
 
     /// Number of whitened residuals: `2 N` plus 2 per correlated gain coefficient.

@@ -92,8 +92,20 @@ fn correlated_gain_likelihood_is_the_dense_gaussian() {
     }
 }
 
-fn gain_likelihood_against_dense(carrier: crate::discrepancy::data::GainCarrier, per_bin: bool) {
-    use crate::discrepancy::data::{GainCarrier, InputGainBasis, MAX_COMMON_SHARE};
+/// One hammer segment on 6 frequencies with a random gain basis (rank 2, or per bin),
+/// random ratios and errors; the posterior (before `at_map`), the evaluation point `z`
+/// and a plug-in point `z0` 3 % stiffer.
+struct GainFixture {
+    post: ModelPosterior,
+    z: Vec<f64>,
+    z0: Vec<f64>,
+    seg: crate::discrepancy::data::SegmentData,
+    rank: usize,
+    u: Vec<Complex64>,
+}
+
+fn gain_fixture(carrier: crate::discrepancy::data::GainCarrier, per_bin: bool) -> GainFixture {
+    use crate::discrepancy::data::InputGainBasis;
     let mut data = (*synthetic()).clone();
     let freq: Vec<f64> = (1..=6).map(|i| 0.7 * i as f64).collect();
     let mut seg = segment(
@@ -139,6 +151,26 @@ fn gain_likelihood_against_dense(carrier: crate::discrepancy::data::GainCarrier,
         .enumerate()
         .map(|(i, v)| if i < 4 { v + 0.03 } else { *v })
         .collect();
+    GainFixture {
+        post,
+        z,
+        z0,
+        seg,
+        rank,
+        u,
+    }
+}
+
+fn gain_likelihood_against_dense(carrier: crate::discrepancy::data::GainCarrier, per_bin: bool) {
+    use crate::discrepancy::data::{GainCarrier, MAX_COMMON_SHARE};
+    let GainFixture {
+        post,
+        z,
+        z0,
+        seg,
+        rank,
+        u,
+    } = gain_fixture(carrier, per_bin);
     let at_z0 = post.predict(&z0).unwrap();
     let post = post.at_map(&z0).unwrap();
     let pred = post.predict(&z).unwrap();
@@ -222,4 +254,60 @@ fn the_weight_bias_correction_removes_the_magnitude_bias_of_measured_weights() {
     let expected = 1.0 / (1.0 + 2.0 * eps * eps);
     assert!((a_measured - expected).abs() < 4.0 * sd, "{a_measured}");
     assert!((a_corrected - 1.0).abs() < 4.0 * sd, "{a_corrected}");
+}
+
+#[test]
+fn the_kept_gain_factors_give_the_bits_of_factoring_anew() {
+    // The factors of `G` are kept per thread while `eta` and the carrier stay: every
+    // evaluation equals, bit for bit, a fresh posterior's (an empty cache), and the
+    // factors are built once per change of `eta` (the measured or plug-in carrier), on
+    // every evaluation when the carrier is the prediction itself.
+    use crate::discrepancy::data::GainCarrier;
+    use rayon::prelude::*;
+    for (carrier, per_bin) in [
+        (GainCarrier::Measured, false),
+        (GainCarrier::ModelAtMap, false),
+        (GainCarrier::ModelAtMap, true),
+        (GainCarrier::Model, false),
+    ] {
+        let GainFixture { post, z, z0, .. } = gain_fixture(carrier, per_bin);
+        let post = post.at_map(&z0).unwrap();
+        let points: Vec<(Vec<f64>, f64)> = (0..12)
+            .map(|j| {
+                let zj: Vec<f64> = z.iter().map(|v| v + 0.004 * (j % 5) as f64).collect();
+                (zj, [0.01, 0.01, 0.01, 0.02][j % 4] * (1.0 + (j / 8) as f64))
+            })
+            .collect();
+        let fresh = |zj: &[f64], eta: f64| {
+            let p = post.clone();
+            let pred = p.predict(zj).unwrap();
+            let mut r = vec![0.0; p.n_whitened_residuals()];
+            p.whitened_residuals(zj, eta, &mut r).unwrap();
+            (p.ln_likelihood_of(&pred, eta).to_bits(), r)
+        };
+        let kept = |zj: &[f64], eta: f64| {
+            let pred = post.predict(zj).unwrap();
+            let mut r = vec![0.0; post.n_whitened_residuals()];
+            post.whitened_residuals(zj, eta, &mut r).unwrap();
+            (post.ln_likelihood_of(&pred, eta).to_bits(), r)
+        };
+        let expect: Vec<_> = points.iter().map(|(zj, e)| fresh(zj, *e)).collect();
+        let got: Vec<_> = points.iter().map(|(zj, e)| kept(zj, *e)).collect();
+        assert_eq!(got, expect, "{carrier:?}, per bin {per_bin}");
+        // Two evaluations (likelihood, residuals) per point, one build per new eta.
+        let changes = 1 + points.windows(2).filter(|w| w[0].1 != w[1].1).count();
+        let builds = post.gain_factor_builds();
+        match carrier {
+            GainCarrier::Model => assert_eq!(builds, 0),
+            _ => assert_eq!(builds, changes, "{carrier:?}"),
+        }
+        // The same from several threads at once.
+        let par: Vec<_> = (0..64)
+            .into_par_iter()
+            .map(|j| kept(&points[j % 12].0, points[j % 12].1))
+            .collect();
+        for (j, v) in par.iter().enumerate() {
+            assert_eq!(v, &expect[j % 12], "{carrier:?}: thread evaluation {j}");
+        }
+    }
 }
