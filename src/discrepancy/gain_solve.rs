@@ -177,7 +177,7 @@ struct Cached {
 /// model (`super::fit`), so its residual and Jacobian evaluations reuse one set: the
 /// `O(M r^2)` assembly and the Cholesky drop out and `O(N + M r)` remain. Results are
 /// bit for bit those of factoring anew (the same arithmetic, done once). A clone starts
-/// empty, as does a posterior whose carrier or data change.
+/// empty.
 #[derive(Default)]
 pub(super) struct GainCache {
     per_thread: ThreadLocal<RefCell<Option<Cached>>>,

@@ -31,8 +31,8 @@
 //! with `G = I + V^* D^-1 V = I + sum_k U_k^* U_k sum_(i at k) 1 / (2 (eps_i^2 +
 //! eta^2))` and `b = V^* D^-1 e`: `O(N + M r^2)` per segment, `O(N + M r)` while `eta`
 //! and the carrier stay (`G`'s factor is kept, [`super::gain_solve::GainCache`]).
-//! `ln L = -e^* Sigma^-1 e - ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`: 1 when the noise model is
-//! right.
+//! `ln L = -e^* Sigma^-1 e - ln det (pi Sigma)`. `chi2 per dof` is `e^* Sigma^-1 e / N`:
+//! 1 when the noise model is right.
 //!
 //! Shake-table records add the same kind of term bin by bin
 //! ([`InputGainBasis::PerBin`]: the ground channel's noise, `delta_k = -N_x / X_k`,
@@ -99,7 +99,8 @@ pub struct ModelPosterior {
     /// `model`'s frequency-domain solution ([`Self::with_time_domain`]).
     time_domain: Option<Arc<TimeDomainModel>>,
     /// The model's prediction at its MAP, the gain carrier of
-    /// [`super::data::GainCarrier::ModelAtMap`] ([`Self::at_map`]); the measured `h` until set.
+    /// [`super::data::GainCarrier::ModelAtMap`] ([`Self::at_map`]); the measured `h`
+    /// until set.
     gain_plug_in: Option<Arc<Vec<Complex64>>>,
     /// Each thread's factors of the gain segments' `G` at its last error floor.
     gain_cache: GainCache,
@@ -384,7 +385,6 @@ impl ModelPosterior {
             ));
         }
         self.time_domain = Some(td);
-        self.gain_cache = GainCache::default();
         Ok(self)
     }
 

@@ -1,13 +1,23 @@
 //! The input-gain error's part of [`ModelPosterior`]'s likelihood: the Woodbury terms of
 //! the gain segments (factors of `G` kept per thread, [`GainCache`]) and the carrier the
-//! gain error multiplies ([`GainCarrier`]).
+//! gain error multiplies ([`GainCarrier`]). The kept factors are keyed by `eta` and the
+//! carrier itself (a new plug-in is a new key), so nothing needs resetting.
 
-use super::super::gain_solve::{gain_apply, gain_factor, GainCache, GainFactor};
+use super::super::gain_solve::{gain_apply, gain_factor, GainFactor};
 use super::ModelPosterior;
 use crate::discrepancy::data::GainCarrier;
 use crate::error::Result;
 use num_complex::Complex64;
 use std::sync::Arc;
+
+/// The ratios the input-gain error multiplies, and what keys the factors of `G` kept
+/// for them (a plug-in by its `Arc`; the prediction is never kept).
+#[derive(Clone, Copy)]
+enum CarrierKey<'a> {
+    Prediction,
+    Measured,
+    PlugIn(&'a Arc<Vec<Complex64>>),
+}
 
 impl ModelPosterior {
     /// The correlated gain errors' part of [`Self::quadratic_and_ln_det`]: what they take
@@ -22,7 +32,8 @@ impl ModelPosterior {
         mut gains: Option<&mut Vec<Vec<Complex64>>>,
     ) -> (f64, f64) {
         let eta2 = eta * eta;
-        let carrier = self.gain_carrier(pred);
+        let key = self.carrier_key();
+        let carrier = self.carrier_of(key, pred);
         let inv_d = |i: usize| 1.0 / (2.0 * (self.eps2[i] + eta2) * self.abs2[i]);
         // `w` and `bk` take the same `V` (`diag(carrier) U`), which keeps
         // `q <= e^* D^-1 e`.
@@ -56,13 +67,11 @@ impl ModelPosterior {
             }
             (quad, ln_det)
         };
-        // The factors depend on the carrier: cached unless it is the prediction itself.
-        match (self.data().options.gain_carrier, &self.gain_plug_in) {
-            (GainCarrier::Model, _) => apply(&build()),
-            (GainCarrier::ModelAtMap, Some(at_map)) => {
-                self.gain_cache.with(eta, Some(at_map), build, apply)
-            }
-            _ => self.gain_cache.with(eta, None, build, apply),
+        // The factors depend on the carrier: kept unless it is the prediction itself.
+        match key {
+            CarrierKey::Prediction => apply(&build()),
+            CarrierKey::Measured => self.gain_cache.with(eta, None, build, apply),
+            CarrierKey::PlugIn(at_map) => self.gain_cache.with(eta, Some(at_map), build, apply),
         }
     }
 
@@ -76,10 +85,23 @@ impl ModelPosterior {
     /// [`super::data::DataOptions::gain_carrier`]): the measured `h`, the prediction, or
     /// the prediction at the MAP once [`Self::at_map`] has set it.
     pub(super) fn gain_carrier<'a>(&'a self, pred: &'a [Complex64]) -> &'a [Complex64] {
+        self.carrier_of(self.carrier_key(), pred)
+    }
+
+    /// Which ratios carry the gain error ([`Self::gain_carrier`]).
+    fn carrier_key(&self) -> CarrierKey<'_> {
         match (self.data().options.gain_carrier, &self.gain_plug_in) {
-            (GainCarrier::Model, _) => pred,
-            (GainCarrier::ModelAtMap, Some(at_map)) => at_map,
-            _ => &self.h,
+            (GainCarrier::Model, _) => CarrierKey::Prediction,
+            (GainCarrier::ModelAtMap, Some(at_map)) => CarrierKey::PlugIn(at_map),
+            _ => CarrierKey::Measured,
+        }
+    }
+
+    fn carrier_of<'a>(&'a self, key: CarrierKey<'a>, pred: &'a [Complex64]) -> &'a [Complex64] {
+        match key {
+            CarrierKey::Prediction => pred,
+            CarrierKey::PlugIn(at_map) => at_map,
+            CarrierKey::Measured => &self.h,
         }
     }
 
@@ -93,7 +115,6 @@ impl ModelPosterior {
                     None => self.predict(z)?,
                 };
                 self.gain_plug_in = Some(Arc::new(carrier));
-                self.gain_cache = GainCache::default();
                 Ok(self)
             }
             _ => Ok(self),
@@ -109,7 +130,6 @@ impl ModelPosterior {
         }
         let carrier = self.replay_carrier(z)?.unwrap_or(pred);
         self.gain_plug_in = Some(Arc::new(carrier));
-        self.gain_cache = GainCache::default();
         Ok(self)
     }
 
