@@ -19,7 +19,7 @@ log-uniform on [0.5, 2]. Sizes (uniform unless said):
 
 The cubic spring (stiffness_nonlinearity) is left out: one diagnosis takes about 20 min.
 The draws come from Python's Mersenne Twister seeded with 20261128; the simulation
-seeds are 9001.. (c1-c6 of the five families, then c7-c12). Diagnose each family with only its own hypothesis (the interval, not
+seeds are 9001.. (c1-c6 of the five families, then c7-c12, then c13-c24). Diagnose each family with only its own hypothesis (the interval, not
 the verdict, is measured here), e.g.
 
     frfbayes diagnose-benchmark --cases experiments/models/discrepancy/coverage/cases.toml \
@@ -33,8 +33,10 @@ import random
 from make_cases import TRUTH, case_entry, effect_truth, model_toml
 
 # Cases c1-c6 of every family came first (2026-11-28); c7-c12 were added (2026-12-01)
-# as a second batch drawn after them, so the first 30 cases stay as they were.
-BATCHES = [range(1, 7), range(7, 13)]
+# as a second batch drawn after them, so the first 30 cases stay as they were; c13-c24
+# (2026-12-03) are a third batch, sized before any of them was diagnosed (24 per family),
+# drawn after the first 60, which stay as they were.
+BATCHES = [range(1, 7), range(7, 13), range(13, 25)]
 ACCS = ["acc1", "acc2", "acc3", "acc4"]
 
 
