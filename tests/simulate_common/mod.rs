@@ -3,21 +3,18 @@
 #![allow(dead_code)]
 
 use frfbayes::frf::direct;
+use frfbayes::signal::spectra::Fft;
 use nalgebra::{DMatrix, DVector};
 use num_complex::Complex64;
-use realfft::RealFftPlanner;
 use std::f64::consts::PI;
 
 /// Internal rate of the simulations in these tests.
 pub const INTERNAL_RATE_HZ: f64 = 5000.0;
 
-/// One-sided DFT of `x`.
+/// One-sided DFT of `x` (the library's real FFT, so each test binary does not compile
+/// another copy of realfft's planner).
 pub fn spectrum(x: &[f64]) -> Vec<Complex64> {
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(x.len());
-    let mut input = x.to_vec();
-    let mut out = fft.make_output_vec();
-    fft.process(&mut input, &mut out).unwrap();
-    out
+    Fft::new().forward(x, None, x.len()).unwrap()
 }
 
 /// `P(omega) sum_j (X(nu_j) - limit) sinc^2(nu_j h / 2) + limit` over the images
