@@ -19,6 +19,7 @@ use crate::signal::{
     bendat_piersol_rel_std, Band, CoherenceMethod, EstimateOptions, InputKind, TestFrf,
 };
 use num_complex::Complex64;
+use rayon::prelude::*;
 
 /// One response channel of a segment.
 #[derive(Debug, Clone, PartialEq)]
@@ -148,62 +149,17 @@ pub fn impact_segments(
     };
     let mut segments = Vec::with_capacity(spectra.force.len());
     for (b, (f_block, impact)) in spectra.force.iter().zip(&spectra.impacts).enumerate() {
-        let mut channels = Vec::with_capacity(resp_idx.len());
-        for (r, &ci) in resp_idx.iter().enumerate() {
-            let y_block = &spectra.responses[r][b];
-            let h: Vec<Complex64> = y_block
-                .iter()
-                .zip(f_block)
-                .map(|(y, f)| {
-                    if f.norm_sqr() > 0.0 {
-                        y / f
-                    } else {
-                        Complex64::new(f64::NAN, f64::NAN)
-                    }
-                })
-                .collect();
-            let h_finite: Vec<Complex64> = h
-                .iter()
-                .map(|v| {
-                    if v.is_finite() {
-                        *v
-                    } else {
-                        Complex64::new(0.0, 0.0)
-                    }
-                })
-                .collect();
-            let noise = local_rational_noise(
-                std::slice::from_ref(f_block),
-                std::slice::from_ref(y_block),
-                &h_finite,
-                half_width,
-                pad,
-                None,
-            )?;
-            let channel = test.channels[ci].clone();
-            let kind = match channel.quantity {
-                Quantity::Acceleration => FrfKind::Accelerance,
-                _ => FrfKind::Receptance,
-            };
-            channels.push(ChannelEstimate {
-                channel,
-                kind,
-                rel_std: noise
-                    .coherence
-                    .iter()
-                    .zip(&h)
-                    .take(n_keep)
-                    .map(|(&g, v)| {
-                        if v.is_finite() {
-                            bendat_piersol_rel_std(g, 1)
-                        } else {
-                            f64::INFINITY
-                        }
-                    })
-                    .collect(),
-                h: h_finite.into_iter().take(n_keep).collect(),
-            });
-        }
+        // The channels' local models are independent: one task each, in channel order
+        // (the same numbers as one after the other).
+        let channels = resp_idx
+            .par_iter()
+            .enumerate()
+            .map(|(r, &ci)| {
+                let y_block = &spectra.responses[r][b];
+                let (f_one, y_one) = (std::slice::from_ref(f_block), std::slice::from_ref(y_block));
+                channel_estimate(&test.channels[ci], f_one, y_one, half_width, pad, n_keep)
+            })
+            .collect::<Result<Vec<_>>>()?;
         segments.push(SegmentFrf {
             test: test.name.clone(),
             label: format!("{}#impact{}", test.name, b + 1),
@@ -216,6 +172,64 @@ pub fn impact_segments(
         });
     }
     Ok(segments)
+}
+
+/// One channel's estimate from one impact's block (`f_one`, `y_one`: that block's force
+/// and response spectra, one block each): H1 of the single block (NaN where the force
+/// has no power, kept as 0 in `h`) and its Bendat-Piersol relative error from the local
+/// rational model's coherence.
+fn channel_estimate(
+    channel: &Channel,
+    f_one: &[Vec<Complex64>],
+    y_one: &[Vec<Complex64>],
+    half_width: usize,
+    pad: usize,
+    n_keep: usize,
+) -> Result<ChannelEstimate> {
+    let h: Vec<Complex64> = y_one[0]
+        .iter()
+        .zip(&f_one[0])
+        .map(|(y, f)| {
+            if f.norm_sqr() > 0.0 {
+                y / f
+            } else {
+                Complex64::new(f64::NAN, f64::NAN)
+            }
+        })
+        .collect();
+    let h_finite: Vec<Complex64> = h
+        .iter()
+        .map(|v| {
+            if v.is_finite() {
+                *v
+            } else {
+                Complex64::new(0.0, 0.0)
+            }
+        })
+        .collect();
+    let noise = local_rational_noise(f_one, y_one, &h_finite, half_width, pad, None)?;
+    let kind = match channel.quantity {
+        Quantity::Acceleration => FrfKind::Accelerance,
+        _ => FrfKind::Receptance,
+    };
+    Ok(ChannelEstimate {
+        channel: channel.clone(),
+        kind,
+        rel_std: noise
+            .coherence
+            .iter()
+            .zip(&h)
+            .take(n_keep)
+            .map(|(&g, v)| {
+                if v.is_finite() {
+                    bendat_piersol_rel_std(g, 1)
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .collect(),
+        h: h_finite.into_iter().take(n_keep).collect(),
+    })
 }
 
 /// Bins used around band `i` of `bands` on the grid `freq_hz`: the peak +- `half_widths`
