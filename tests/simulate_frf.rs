@@ -17,14 +17,16 @@
 //! times `H - D` at high frequency. These tests compare with `G` to 1e-9 and report
 //! `|G / H - 1|`, the hold's departure from the continuous FRF.
 
+mod simulate_common;
+
 use frfbayes::frf::{direct, modal_coefficient, modal_frf, Excitation, FrfKind, FrfPair};
 use frfbayes::modal::Modes;
-use frfbayes::signal::spectra::Fft;
 use frfbayes::simulate::{
     ChirpSpec, DampingSpec, Drive, Foh, ImpactSpec, LinearSystem, NoiseSpec, Response,
     SamplingSpec, SimModel, Simulator, StateSpace, StructureSpec, TestSpec,
 };
 use num_complex::Complex64;
+use simulate_common::spectrum;
 use std::f64::consts::PI;
 
 const RATE_HZ: f64 = 5000.0;
@@ -392,12 +394,6 @@ fn pipeline_model() -> SimModel {
             },
         ],
     }
-}
-
-/// One-sided DFT of `x` (the library's real FFT, so this binary does not compile
-/// another copy of realfft's planner: about 20 s of its build).
-fn spectrum(x: &[f64]) -> Vec<Complex64> {
-    Fft::new().forward(x, None, x.len()).unwrap()
 }
 
 /// The FRF between the anti-aliased, decimated input and output channels of a noise-free
