@@ -16,7 +16,8 @@
 use super::posterior::ModelPosterior;
 use crate::error::{Error, Result};
 use crate::update::lsq::{
-    fd_jacobian, latin_hypercube, Bounds, FdScheme, LeastSquaresProblem, Trf, TrfOptions,
+    fd_jacobian, fd_jacobian_at, latin_hypercube, Bounds, FdScheme, LeastSquaresProblem, Trf,
+    TrfOptions,
 };
 use nalgebra::DMatrix;
 use rand::SeedableRng;
@@ -123,6 +124,17 @@ impl LeastSquaresProblem for MapProblem<'_> {
     fn jacobian(&self, x: &[f64], z: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()> {
         let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, z, r);
         fd_jacobian(FdScheme::Forward, x, self.bounds, residuals, jac).map(|_| ())
+    }
+
+    fn jacobian_at(
+        &self,
+        x: &[f64],
+        f: &[f64],
+        z: &mut Self::Workspace,
+        jac: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        let residuals = |x: &[f64], r: &mut [f64]| self.residuals(x, z, r);
+        fd_jacobian_at(FdScheme::Forward, x, Some(f), self.bounds, residuals, jac).map(|_| ())
     }
 }
 

@@ -35,6 +35,7 @@ use crate::error::{Error, Result};
 use crate::frf::FrfKind;
 use crate::io::Channel;
 use crate::simulate::LinearSystem;
+use nalgebra::DMatrix;
 use num_complex::Complex64;
 use std::collections::HashMap;
 use std::ops::Range;
@@ -326,6 +327,18 @@ impl ExtendedModel {
                     .collect()
             })
             .collect();
+        // (K, C, M) of each variant, row-major.
+        let row_major = |m: &DMatrix<f64>| -> Vec<f64> { m.transpose().as_slice().to_vec() };
+        let kcm: Vec<[Vec<f64>; 3]> = variants
+            .iter()
+            .map(|v| {
+                [
+                    row_major(&v.stiffness_n_per_m),
+                    row_major(&v.damping_n_s_per_m),
+                    row_major(&v.mass_kg),
+                ]
+            })
+            .collect();
         let mut sol = vec![Complex64::new(0.0, 0.0); self.n_solutions];
         let max_rhs = self.slots.iter().map(|s| s.rhs.len()).max().unwrap_or(0);
         let mut a = vec![Complex64::new(0.0, 0.0); n * n];
@@ -334,12 +347,9 @@ impl ExtendedModel {
             let v = &variants[slot.variant];
             let s = slot.s;
             let s2 = s * s;
-            for i in 0..n {
-                for j in 0..n {
-                    a[i * n + j] = v.stiffness_n_per_m[(i, j)]
-                        + s * v.damping_n_s_per_m[(i, j)]
-                        + s2 * v.mass_kg[(i, j)];
-                }
+            let [k, c, m] = &kcm[slot.variant];
+            for (e, ae) in a.iter_mut().enumerate() {
+                *ae = k[e] + s * c[e] + s2 * m[e];
             }
             let nr = slot.rhs.len();
             for (r, rhs) in slot.rhs.iter().enumerate() {

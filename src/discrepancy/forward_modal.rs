@@ -223,12 +223,39 @@ impl<'a> LowRankModal<'a> {
 
 /// Solves `A X = B` in place by Gaussian elimination with partial pivoting: `a` is
 /// `n x n` row-major (destroyed), `b` is `n x nr` row-major and receives `X`.
+///
+/// The shear frames' systems (1 to 8 DOFs, one or two right-hand sides) take copies of
+/// [`eliminate`] with `n` (and `nr`) constant, which the compiler unrolls and checks once:
+/// the same operations in the same order, so the same bits.
 pub(crate) fn solve_in_place(
     n: usize,
     a: &mut [Complex64],
     b: &mut [Complex64],
     nr: usize,
 ) -> std::result::Result<(), ()> {
+    macro_rules! fixed {
+        ($($n:literal),*) => {
+            match (n, nr) {
+                $(($n, 1) => eliminate($n, a, b, 1),
+                  ($n, 2) => eliminate($n, a, b, 2),
+                  ($n, _) => eliminate($n, a, b, nr),)*
+                _ => eliminate(n, a, b, nr),
+            }
+        };
+    }
+    fixed!(1, 2, 3, 4, 5, 6, 7, 8)
+}
+
+/// [`solve_in_place`]'s elimination, inlined into each of its fixed-size copies.
+#[inline(always)]
+fn eliminate(
+    n: usize,
+    a: &mut [Complex64],
+    b: &mut [Complex64],
+    nr: usize,
+) -> std::result::Result<(), ()> {
+    let a = &mut a[..n * n];
+    let b = &mut b[..n * nr];
     for c in 0..n {
         let mut p = c;
         let mut best = a[c * n + c].norm_sqr();

@@ -45,6 +45,7 @@
 //! gives `none`.
 
 mod gain;
+mod scales;
 
 use super::data::{weight_bias, DiagnosisData, InputGainBasis};
 use super::forward::{BaseParams, ExtendedModel};
@@ -58,6 +59,7 @@ use crate::mcmc::LogDensity;
 use num_complex::Complex64;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
+use scales::ScaleCache;
 use std::ops::Range;
 use std::sync::Arc;
 
@@ -104,6 +106,9 @@ pub struct ModelPosterior {
     gain_plug_in: Option<Arc<Vec<Complex64>>>,
     /// Each thread's factors of the gain segments' `G` at its last error floor.
     gain_cache: GainCache,
+    /// Each thread's per-point noise scales at its last error floor (the whitened
+    /// residuals').
+    scales: ScaleCache,
 }
 
 impl ModelPosterior {
@@ -211,6 +216,7 @@ impl ModelPosterior {
             time_domain: None,
             gain_plug_in: None,
             gain_cache: GainCache::default(),
+            scales: ScaleCache::default(),
             model,
             effect_params,
             names,
@@ -433,7 +439,8 @@ impl ModelPosterior {
             quad += (p - h).norm_sqr() / d;
             ln_det += d.ln();
         }
-        let (q, ld) = self.gain_terms(pred, eta, gains);
+        let inv_d = |i: usize| 1.0 / (2.0 * (self.eps2[i] + eta2) * self.abs2[i]);
+        let (q, ld) = self.gain_terms(pred, eta, inv_d, gains);
         (quad - q, ln_det + ld)
     }
 
@@ -478,20 +485,21 @@ impl ModelPosterior {
 
     /// [`Self::whitened_residuals`] of a given prediction (flat layout).
     pub fn whitened_residuals_of(&self, pred: &[Complex64], eta: f64, out: &mut [f64]) {
-        let eta2 = eta * eta;
+        let scales = self.scales.at(eta, &self.eps2, &self.abs2);
         let mut gains = Vec::with_capacity(self.gains.len());
-        self.gain_terms(pred, eta, Some(&mut gains));
+        self.gain_terms(pred, eta, |i| scales.inv_d[i], Some(&mut gains));
         let carrier = self.gain_carrier(pred);
         let mut corr = vec![Complex64::new(0.0, 0.0); pred.len()];
         for (gs, g) in self.gains.iter().zip(&gains) {
+            // `U_k g` once per frequency: the segment's channels share it.
+            let terms: Vec<Complex64> = (0..gs.n_freq).map(|k| gs.term(k, g)).collect();
             for (j, &k) in gs.freq_of.iter().enumerate() {
                 let i = gs.start + j;
-                corr[i] = carrier[i] * gs.term(k as usize, g);
+                corr[i] = carrier[i] * terms[k as usize];
             }
         }
         for (i, p) in pred.iter().enumerate() {
-            let sd = ((self.eps2[i] + eta2) * self.abs2[i]).sqrt();
-            let r = (p - self.h[i] + corr[i]) / sd;
+            let r = (p - self.h[i] + corr[i]) / scales.sd[i];
             out[2 * i] = r.re;
             out[2 * i + 1] = r.im;
         }

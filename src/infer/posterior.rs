@@ -20,7 +20,7 @@ use super::prior::BoxPrior;
 use crate::error::{Error, Result};
 use crate::mcmc::LogDensity;
 use crate::predict::Predict;
-use crate::update::lsq::{fd_jacobian, Bounds, FdScheme, LeastSquaresProblem};
+use crate::update::lsq::{fd_jacobian_at, Bounds, FdScheme, LeastSquaresProblem};
 
 /// Scratch memory of one thread.
 pub struct Scratch<W> {
@@ -432,8 +432,31 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
     }
     /// The predictor's analytic Jacobian through each block's
     /// [`Block::residual_jacobian`] when it has one, else the one finite-difference
-    /// fallback ([`fd_jacobian`]).
+    /// fallback ([`fd_jacobian_at`]).
     fn jacobian(&self, x: &[f64], ws: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()> {
+        self.jacobian_from(x, None, ws, jac)
+    }
+
+    fn jacobian_at(
+        &self,
+        x: &[f64],
+        f: &[f64],
+        ws: &mut Self::Workspace,
+        jac: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        self.jacobian_from(x, Some(f), ws, jac)
+    }
+}
+
+impl<P: Predict> LeastSquares<'_, P> {
+    /// [`LeastSquaresProblem::jacobian`], with the residuals at `x` when known (`f0`).
+    fn jacobian_from(
+        &self,
+        x: &[f64],
+        f0: Option<&[f64]>,
+        ws: &mut Scratch<P::Workspace>,
+        jac: &mut DMatrix<f64>,
+    ) -> Result<()> {
         let p = &self.post.predictor;
         ws.dpred.resize_mut(p.n_outputs(), p.n_params(), 0.0);
         if p.jacobian(x, &mut ws.ws, &mut ws.pred, &mut ws.dpred)? {
@@ -448,9 +471,10 @@ impl<P: Predict> LeastSquaresProblem for LeastSquares<'_, P> {
             }
             return Ok(());
         }
-        fd_jacobian(
+        fd_jacobian_at(
             FdScheme::Forward,
             x,
+            f0,
             &self.bounds,
             |xp: &[f64], r: &mut [f64]| self.residuals(xp, ws, r),
             jac,

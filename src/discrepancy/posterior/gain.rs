@@ -22,19 +22,19 @@ enum CarrierKey<'a> {
 impl ModelPosterior {
     /// The correlated gain errors' part of [`Self::quadratic_and_ln_det`]: what they take
     /// from the quadratic form and add to the log-determinant (Woodbury, summed over
-    /// the gain segments); `gains` receives each segment's `g`. The whitened residuals
+    /// the gain segments); `inv_d(i)` is point `i`'s `1 / (2 sigma_i^2)` at `eta`;
+    /// `gains` receives each segment's `g`. The whitened residuals
     /// need only the `g`, not the diagonal part's quotient and logarithm per point
     /// (skipping them cut the four-story diagnosis from 185 s to 170 s of CPU).
     pub(super) fn gain_terms(
         &self,
         pred: &[Complex64],
         eta: f64,
+        inv_d: impl Fn(usize) -> f64,
         mut gains: Option<&mut Vec<Vec<Complex64>>>,
     ) -> (f64, f64) {
-        let eta2 = eta * eta;
         let key = self.carrier_key();
         let carrier = self.carrier_of(key, pred);
-        let inv_d = |i: usize| 1.0 / (2.0 * (self.eps2[i] + eta2) * self.abs2[i]);
         // `w` and `bk` take the same `V` (`diag(carrier) U`), which keeps
         // `q <= e^* D^-1 e`.
         let build = || {

@@ -23,7 +23,7 @@ mod qr;
 mod step;
 mod trf;
 
-pub use fd::{fd_jacobian, FdScheme};
+pub use fd::{fd_jacobian, fd_jacobian_at, FdScheme};
 pub use multistart::{
     latin_hypercube, multistart, multistart_from, start_points, MultistartOptions,
     MultistartResult, StartOutcome,
@@ -79,6 +79,20 @@ pub trait LeastSquaresProblem: Sync {
     fn residuals(&self, x: &[f64], ws: &mut Self::Workspace, r: &mut [f64]) -> Result<()>;
     /// Jacobian `dr_i/dx_j` at `x` into `jac` (m x n).
     fn jacobian(&self, x: &[f64], ws: &mut Self::Workspace, jac: &mut DMatrix<f64>) -> Result<()>;
+    /// [`Self::jacobian`] where the solver already holds `f`, the residuals at `x`: a
+    /// finite-difference Jacobian ([`fd_jacobian_at`]) then need not evaluate them again
+    /// (one evaluation of its `n + 1` saved, the result the same bits as long as
+    /// [`Self::residuals`] is deterministic). By default `f` is not used.
+    fn jacobian_at(
+        &self,
+        x: &[f64],
+        f: &[f64],
+        ws: &mut Self::Workspace,
+        jac: &mut DMatrix<f64>,
+    ) -> Result<()> {
+        let _ = f;
+        self.jacobian(x, ws, jac)
+    }
 }
 
 /// A box `lower <= x <= upper`; infinite entries mean no bound.

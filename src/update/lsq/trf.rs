@@ -382,7 +382,7 @@ impl Trf {
         ws: &mut P::Workspace,
         st: &mut TrfState,
     ) -> Result<()> {
-        problem.jacobian(&st.x, ws, &mut st.jac)?;
+        problem.jacobian_at(&st.x, &st.f, ws, &mut st.jac)?;
         st.n_jacobians += 1;
         st.f_work.copy_from_slice(&st.f);
         householder_qr(&mut st.jac, &mut st.f_work, &mut st.r, &mut st.qtf);

@@ -1,0 +1,93 @@
+//! Each point's noise scale at an error floor, kept per thread: a least-squares fit
+//! holds `eta` fixed while it moves the model ([`super::super::fit`]), so every residual
+//! and Jacobian evaluation of one round would otherwise take the same square root and
+//! quotient per point again. Kept values are computed by the same expressions as
+//! before, so results are bit for bit those of computing them anew.
+
+use std::cell::RefCell;
+use std::sync::Arc;
+use thread_local::ThreadLocal;
+
+/// Per point at one error floor `eta`: `sigma_i = sqrt((eps_i^2 + eta^2) |h_i|^2)` and
+/// `1 / d_i = 1 / (2 sigma_i^2)` (as `1 / (2 (eps_i^2 + eta^2) |h_i|^2)`).
+#[derive(Debug)]
+pub(super) struct Scales {
+    pub(super) sd: Vec<f64>,
+    pub(super) inv_d: Vec<f64>,
+}
+
+impl Scales {
+    fn new(eta: f64, eps2: &[f64], abs2: &[f64]) -> Self {
+        let eta2 = eta * eta;
+        let sd = eps2
+            .iter()
+            .zip(abs2)
+            .map(|(e2, a2)| ((e2 + eta2) * a2).sqrt())
+            .collect();
+        let inv_d = eps2
+            .iter()
+            .zip(abs2)
+            .map(|(e2, a2)| 1.0 / (2.0 * (e2 + eta2) * a2))
+            .collect();
+        Scales { sd, inv_d }
+    }
+}
+
+/// The scales one thread keeps, with the bits of the error floor they are at.
+type Kept = Option<(u64, Arc<Scales>)>;
+
+/// Each thread's [`Scales`] at the last error floor it asked for. A clone starts empty.
+#[derive(Default)]
+pub(super) struct ScaleCache {
+    per_thread: ThreadLocal<RefCell<Kept>>,
+}
+
+impl Clone for ScaleCache {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+impl std::fmt::Debug for ScaleCache {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("ScaleCache")
+    }
+}
+
+impl ScaleCache {
+    /// The scales at `eta` of points with `eps2` and `abs2`, which must be the same
+    /// for every call on one cache (a posterior's own).
+    pub(super) fn at(&self, eta: f64, eps2: &[f64], abs2: &[f64]) -> Arc<Scales> {
+        let cell = self.per_thread.get_or_default();
+        if let Some((bits, s)) = cell.borrow().as_ref() {
+            if *bits == eta.to_bits() {
+                return s.clone();
+            }
+        }
+        let s = Arc::new(Scales::new(eta, eps2, abs2));
+        *cell.borrow_mut() = Some((eta.to_bits(), s.clone()));
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kept_scales_are_those_computed_anew_and_follow_the_floor() {
+        let eps2 = [1e-4, 4e-4, 0.0];
+        let abs2 = [2.0, 0.5, 3.0];
+        let cache = ScaleCache::default();
+        for eta in [0.01, 0.02, 0.01] {
+            let kept = cache.at(eta, &eps2, &abs2);
+            for i in 0..3 {
+                let sigma2 = (eps2[i] + eta * eta) * abs2[i];
+                assert_eq!(kept.sd[i].to_bits(), sigma2.sqrt().to_bits());
+                assert_eq!(kept.inv_d[i].to_bits(), (1.0 / (2.0 * sigma2)).to_bits());
+            }
+        }
+        let a = cache.at(0.03, &eps2, &abs2);
+        assert!(Arc::ptr_eq(&a, &cache.at(0.03, &eps2, &abs2)));
+    }
+}
