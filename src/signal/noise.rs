@@ -420,8 +420,13 @@ fn solve<const N: usize>(
         row[i] += ridge;
     }
     for c in 0..N {
-        let p = (c..N).max_by(|&i, &j| m[i][c].norm().total_cmp(&m[j][c].norm()))?;
-        if m[p][c].norm() == 0.0 {
+        // Each candidate's modulus once (the same pivot as comparing them afresh).
+        let mut norms = [0.0; N];
+        for (n, row) in norms.iter_mut().zip(&m).skip(c) {
+            *n = row[c].norm();
+        }
+        let p = (c..N).max_by(|&i, &j| norms[i].total_cmp(&norms[j]))?;
+        if norms[p] == 0.0 {
             return None;
         }
         m.swap(c, p);
