@@ -32,7 +32,7 @@
 //! - [`report`]: one self-contained `report.html` per study, from its Markdown and figures.
 //! - [`discrepancy`]: locating and explaining missing physics.
 //! - [`dist`]: runs spread over MPI ranks (task farm, collective gathers); one rank
-//!   without the `mpi` feature.
+//!   in the `frfbayes` binary (the MPI world: `frfbayes-mpi`, package `mpi/`).
 //! - [`uff`]: Universal File Format dataset 58 / 58b (measured FRFs in and out).
 
 pub mod bayes;

@@ -1,7 +1,8 @@
-//! The MPI world (cargo feature `mpi`, the `mpi` crate on the system's MPI library).
+//! The MPI world: `MPI_COMM_WORLD` (the `mpi` crate on the system's MPI library) as
+//! frfbayes' [`Comm`], installed before the command runs.
 
-use super::Comm;
-use crate::error::{Error, Result};
+use frfbayes::dist::{install, Comm};
+use frfbayes::{Error, Result};
 use mpi::datatype::PartitionMut;
 use mpi::environment::Universe;
 use mpi::topology::SimpleCommunicator;
@@ -74,7 +75,7 @@ pub fn launched() -> bool {
         .any(|v| std::env::var_os(v).is_some())
 }
 
-/// Initialises MPI and installs its world as [`super::world`] when this process was
+/// Initialises MPI and installs its world as [`frfbayes::dist::world`] when this process was
 /// started by an MPI launcher; `None` otherwise (the run is one process).
 pub fn init() -> Result<Option<Session>> {
     if !launched() {
@@ -82,7 +83,7 @@ pub fn init() -> Result<Option<Session>> {
     }
     let (universe, _level) = mpi::initialize_with_threading(mpi::Threading::Funneled)
         .ok_or_else(|| Error::Usage("MPI was already initialised".into()))?;
-    super::install(Box::new(MpiWorld {
+    install(Box::new(MpiWorld {
         comm: universe.world(),
     }))?;
     Ok(Some(Session {

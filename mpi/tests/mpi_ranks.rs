@@ -1,5 +1,5 @@
-//! `mpirun -n 2 frfbayes ...` gives the same results as one process (issue 15, item 1),
-//! on the built binary (cargo feature `mpi`):
+//! `mpirun -n 2 frfbayes-mpi ...` gives the same results as one process (issue 15, item 1),
+//! on the built binary (`frfbayes-mpi`, this package):
 //! - `sample`: one posterior whose walker evaluations are spread over the ranks;
 //! - `diagnose --quick`: the hypotheses' searches and evidence runs on different ranks;
 //! - `diagnose-benchmark --quick` on two cases: one case per rank, written by rank 0;
@@ -16,13 +16,14 @@
 //!
 //! Needs OpenMPI's `mpirun`; without it the tests print a skip message, unless
 //! `FRFBAYES_REQUIRE_EXTERNAL=1` (CI), which makes a missing tool a failure.
-#![cfg(feature = "mpi")]
-
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-const BIN: &str = env!("CARGO_BIN_EXE_frfbayes");
+const BIN: &str = env!("CARGO_BIN_EXE_frfbayes-mpi");
+
+/// The repository (this package is its `mpi/`).
+const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
 
 /// One test at a time: each runs two ranks, and the machine may have two cores.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -56,9 +57,10 @@ fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
     v
 }
 
-/// `frfbayes args` in one process (one thread, as each rank below).
+/// `frfbayes-mpi args` in one process (from the repository) (one thread, as each rank below).
 fn single(args: &[&str]) -> Output {
     let out = Command::new(BIN)
+        .current_dir(REPO)
         .arg("--threads")
         .arg("1")
         .args(args)
@@ -72,10 +74,11 @@ fn single(args: &[&str]) -> Output {
     out
 }
 
-/// `mpirun -n 2 frfbayes --threads 1 args` (on a 2-core machine shared with others:
+/// `mpirun -n 2 frfbayes-mpi --threads 1 args` (from the repository) (on a 2-core machine shared with others:
 /// oversubscription allowed; root allowed, as in CI).
 fn two_ranks(args: &[&str]) -> Output {
     Command::new("mpirun")
+        .current_dir(REPO)
         .args(["-n", "2", "--oversubscribe", "--bind-to", "none"])
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
@@ -264,7 +267,7 @@ fn sample_on_two_ranks_is_bit_identical() {
 /// diagnoses); the benchmark test below farms diagnoses over the ranks too:
 ///
 /// ```sh
-/// cargo test --release --features mpi --test mpi_ranks -- --ignored
+/// cargo test --release -p frfbayes-mpi --test mpi_ranks -- --ignored
 /// ```
 #[test]
 #[ignore]
@@ -277,7 +280,7 @@ fn diagnose_on_two_ranks_is_bit_identical() {
     let campaign = tmp.path().join("campaign");
     let model = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/experiments/models/discrepancy/secondary_oscillator-1.toml"
+        "/../experiments/models/discrepancy/secondary_oscillator-1.toml"
     );
     single(&["simulate", "--model", model, "--out", path_str(&campaign)]);
     let (a, b) = (tmp.path().join("one"), tmp.path().join("two"));
@@ -316,7 +319,7 @@ fn benchmark_on_two_ranks_is_bit_identical_and_a_failed_rank_is_named() {
     }
     let _serial = serial();
     let tmp = tempfile::tempdir().unwrap();
-    let cases = Path::new(env!("CARGO_MANIFEST_DIR")).join(CASES);
+    let cases = Path::new(REPO).join(CASES);
     let bench = |work: &Path| {
         [
             "diagnose-benchmark",
@@ -342,6 +345,7 @@ fn benchmark_on_two_ranks_is_bit_identical_and_a_failed_rank_is_named() {
     // rank 0's case is written and reused by the rerun.
     let t0 = std::time::Instant::now();
     let failed = Command::new("mpirun")
+        .current_dir(REPO)
         .args(["--oversubscribe", "--bind-to", "none"])
         .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
@@ -396,7 +400,7 @@ fn benchmark_on_two_ranks_is_bit_identical_and_a_failed_rank_is_named() {
 fn bridge_shared() -> Option<PathBuf> {
     let root = frfbayes::model::shared_root();
     let root = if root.is_relative() {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join(root)
+        Path::new(REPO).join(root)
     } else {
         root
     };

@@ -1,6 +1,7 @@
 //! Command implementations; each file parses nothing itself beyond its clap `Args` and
 //! calls the library.
 
+pub mod app;
 pub mod check;
 pub mod diagnose;
 pub mod frf;

@@ -1,4 +1,4 @@
-//! Runs spread over several processes (ranks), e.g. under `mpirun -n N frfbayes ...`.
+//! Runs spread over several processes (ranks), e.g. under `mpirun -n N frfbayes-mpi ...`.
 //!
 //! Every rank runs the same command with the same arguments (SPMD): the same seed gives
 //! the same proposals and the same task lists on every rank, and the ranks meet only in
@@ -10,9 +10,9 @@
 //!   rank, in task order; the results are the same whatever the number of ranks.
 //! - `crate::mcmc::Ranks`: one posterior's walker evaluations spread over the ranks.
 //!
-//! Without MPI (the default build, or a process not started by `mpirun`) the world is
-//! one rank ([`Single`]) and everything runs in this process. The binary installs the
-//! MPI world (cargo feature `mpi`, [`mpi::init`]) before any command runs.
+//! Without MPI (the `frfbayes` binary, or a process not started by `mpirun`) the world is
+//! one rank ([`Single`]) and everything runs in this process. The `frfbayes-mpi` binary
+//! (package `mpi/`) installs the MPI world ([`install`]) before any command runs.
 //!
 //! Collectives are only ever made from the thread that installed the world, and never
 //! inside a farmed task: there [`active`] is a single rank, so a task's own sampler or
@@ -25,8 +25,6 @@
 //! them cannot be waited for, and the binary aborts the whole run (no hang).
 
 mod farm;
-#[cfg(feature = "mpi")]
-pub mod mpi;
 
 pub use farm::{farm, gather_results};
 
