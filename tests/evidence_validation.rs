@@ -282,6 +282,7 @@ fn the_screen_chooses_its_estimator_by_rule_and_is_right() {
                 max_ln_likelihood: 0.0,
             },
             gain_bound_nats: gain_bound(p.gain, 0.0),
+            rival_floor_nats: f64::NEG_INFINITY,
         };
         let so_e = screen_options(seed + 1, ext.dim());
         let d_lap = x.delta_laplace(Some(lap_e.laplace.ln_z)).unwrap();

@@ -5,10 +5,12 @@
 use super::diagnose::{DiagnoseStage, ModelResult};
 use super::heldout::held_out;
 use super::hypothesis::Hypothesis;
+use super::model_evidence::{completion, laplace_u};
 use super::refine::refit_in_time_domain;
-use super::round_state::{BaseModel, RoundContext, Stopwatch, Timings};
+use super::round_state::{tag, BaseModel, RoundContext, Stopwatch, Timings};
 use super::verdict::{held_out_passes, is_decisive};
 use crate::error::Result;
+use crate::infer::screened::Estimator;
 use std::sync::Arc;
 
 /// Ranks `finalists` by log evidence, the largest first.
@@ -44,8 +46,17 @@ fn replay_gain_limit(f: &ModelResult) -> f64 {
     f.map.chi2_per_dof * f.map.n_points as f64
 }
 
+fn is_outranked(f: &ModelResult) -> bool {
+    f.evidence
+        .as_ref()
+        .is_some_and(|e| e.estimator == Estimator::Outranked)
+}
+
 /// Refits and held-out checks, in order of evidence, only where they can change the
-/// decision: a finalist must be decisive; an amplitude-dependent one is refitted by
+/// decision: an outranked finalist ([`Estimator::Outranked`]: its run deferred) is
+/// passed over when a finalist that passed is above its gain bound by the threshold,
+/// and otherwise gets its run ([`run_evidence`]) and is judged like the others; a
+/// finalist must be decisive; an amplitude-dependent one is refitted by
 /// replaying the tests in the time domain and judged on that fit, unless even the
 /// replay's largest gain ([`replay_gain_limit`]) left it a decisive factor below a
 /// finalist that already passed (it could then neither win nor tie, and neither its
@@ -57,6 +68,7 @@ pub(super) fn judge_finalists(
     base: &BaseModel,
     hypotheses: &[Arc<dyn Hypothesis>],
     finalists: &mut Vec<ModelResult>,
+    step: usize,
     (watch, timings): (&mut Stopwatch, &mut Timings),
     progress: &mut dyn FnMut(DiagnoseStage<'_>),
 ) -> Result<Vec<bool>> {
@@ -64,6 +76,17 @@ pub(super) fn judge_finalists(
     let mut best_passing = f64::NEG_INFINITY;
     let mut judged: Vec<(ModelResult, bool)> = Vec::with_capacity(finalists.len());
     for mut f in finalists.drain(..) {
+        if is_outranked(&f) {
+            // The highest ln Z it can have: the base's plus its gain bound.
+            let bound = f.evidence.as_ref().and_then(|e| e.gain_bound_nats);
+            let top =
+                base.result.ln_z().unwrap_or(f64::NEG_INFINITY) + bound.unwrap_or(f64::INFINITY);
+            if best_passing - top >= threshold {
+                judged.push((f, true));
+                continue;
+            }
+            run_evidence(ctx, &mut f, step, (watch, timings), progress)?;
+        }
         if !decisive(base, &f) {
             judged.push((f, false));
             continue;
@@ -175,5 +198,42 @@ fn check_held_out(
         Err(e) => return Err(e),
     }
     watch.mark(&format!("held-out {name}"), timings);
+    Ok(())
+}
+
+/// Replaces `f`'s evidence (Laplace's, or none yet: [`Estimator::Outranked`]) by a run's
+/// (importance sampling, the generalised stepping-stone, or the stepping-stone from the
+/// prior where there is no Laplace), keeping its gain bound, and its effect summaries
+/// by the run's draws. Round `step`'s stage `<name>-run`.
+pub(super) fn run_evidence(
+    ctx: &RoundContext<'_>,
+    f: &mut ModelResult,
+    step: usize,
+    (watch, timings): (&mut Stopwatch, &mut Timings),
+    progress: &mut dyn FnMut(DiagnoseStage<'_>),
+) -> Result<()> {
+    let name = format!("{}{}-run", tag(step), f.name);
+    let k = ctx.hypotheses.iter().position(|h| h.name() == f.name);
+    let index = (64 * step + 32 + k.unwrap_or(31)) as u64;
+    let lap = laplace_u(&f.posterior, &f.map.z);
+    let done = completion(
+        &name,
+        &f.posterior,
+        &f.map,
+        &lap,
+        None,
+        ctx.opts,
+        index,
+        ctx.stages,
+        progress,
+    )?;
+    let bound = f.evidence.as_ref().and_then(|e| e.gain_bound_nats);
+    let mut evidence = done.evidence;
+    evidence.gain_bound_nats = bound;
+    f.evidence = Some(evidence);
+    f.effect = done.effect;
+    f.plausible = done.plausible;
+    f.implausible_because = done.why;
+    watch.mark(&format!("evidence {name}"), timings);
     Ok(())
 }

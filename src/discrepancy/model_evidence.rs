@@ -20,7 +20,7 @@ use crate::infer::evidence::{EvidenceOptions, EvidenceProgress};
 use crate::infer::nested::gain_bound;
 use crate::infer::screened::IMPORTANCE_DRAWS;
 use crate::infer::screened::{
-    choose_estimator, laplace_of, screened_evidence, BaseEvidence, Estimator, Extension,
+    choose_for_extension, laplace_of, screened_evidence, BaseEvidence, Estimator, Extension,
     LaplaceInU, ScreenOptions, ScreenedEvidence, GSS_REPLICATES,
 };
 use crate::infer::unconstrained::LogitMap;
@@ -91,7 +91,8 @@ pub fn laplace_u(post: &ModelPosterior, z: &[f64]) -> LaplaceOutcome {
     laplace_of(post, &box_bounds(post), z).map_err(|e| e.to_string())
 }
 
-/// What an extension's screen needs of the nominal model.
+/// What an extension's screen needs of the nominal model (no rival known: the caller
+/// sets [`Extension::rival_floor_nats`]).
 pub fn extension_of(nominal: &ModelResult, lap0: Option<&LaplaceInU>, map: &MapFit) -> Extension {
     Extension {
         base: BaseEvidence {
@@ -100,6 +101,7 @@ pub fn extension_of(nominal: &ModelResult, lap0: Option<&LaplaceInU>, map: &MapF
             max_ln_likelihood: nominal.map.ln_likelihood,
         },
         gain_bound_nats: gain_bound(map.ln_likelihood, nominal.map.ln_likelihood),
+        rival_floor_nats: f64::NEG_INFINITY,
     }
 }
 
@@ -157,7 +159,7 @@ pub fn completion(
         let estimator = match extension {
             Some(x) => {
                 let delta = x.delta_laplace(lap.map(|l| l.laplace.ln_z));
-                choose_estimator(x.gain_bound_nats, delta, &screen)
+                choose_for_extension(x, delta, &screen)
             }
             None if lap.is_some() => Estimator::GeneralisedSteppingStone,
             None => Estimator::SteppingStone,

@@ -248,6 +248,9 @@ pub fn markdown(d: &Diagnosis, title: &str, figures: &[String]) -> Result<String
          Raftery's 'very strong'), with a gain bound (max ln L over the nominal model's, which \
          bounds delta ln Z) of ln 150 or more. Estimators: `gain bound` (no run: the bound \
          rules the hypothesis out; its ln Z is Laplace's capped at the bound, sd 0), \
+         `outranked` (no run: another hypothesis, whose Laplace delta ln Z less two \
+         allowances is above this one's bound by ln 150 or more, passed every test; ln Z \
+         as for the bound), \
          `laplace` (at the mode in logit coordinates, far below the threshold, or far above \
          it where no other passing hypothesis is within reach; its sd is a stated allowance \
          of {:.0} nats; a winner decided so gets a run, as it becomes the next round's base), \

@@ -5,6 +5,7 @@ use super::hypotheses::hypothesis_by_name;
 use super::verdict::{
     decisive_ln_bayes_factor, DiagnosisRecord, EffectRecord, HypothesisEvidence, NotFitted,
 };
+use crate::infer::screened::Estimator;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
@@ -148,11 +149,16 @@ pub fn explanation(d: &Diagnosis) -> String {
             );
             if let Some(r) = d.finalists.iter().enumerate().find(|(i, _)| *i != w) {
                 let dr = r.1.ln_z().unwrap_or(f64::NAN) - f.ln_z().unwrap_or(f64::NAN);
+                // A bound's ln Z is the most it can be.
+                let bounded = r.1.evidence.as_ref().is_some_and(|e| {
+                    matches!(e.estimator, Estimator::GainBound | Estimator::Outranked)
+                });
                 let _ = write!(
                     s,
-                    " The next best explanation, {} at {}, is {:.1} nats less likely.",
+                    " The next best explanation, {} at {}, is {}{:.1} nats less likely.",
                     r.1.name.replace('_', " "),
                     plain_location(&r.1.location, &d.data),
+                    if bounded { "at least " } else { "" },
                     -dr
                 );
             }

@@ -17,7 +17,7 @@ use super::data::DiagnosisData;
 use super::diagnose::{DiagnoseStage, ModelResult};
 use super::extension::WithEffects;
 use super::hypothesis::Hypothesis;
-use super::judge::{judge_finalists, rank_by_evidence, rank_with_flags};
+use super::judge::{judge_finalists, rank_by_evidence, rank_with_flags, run_evidence};
 use super::location::Location;
 use super::model_evidence::{
     completion, evidence_key, extension_of, laplace_u, model_result, LaplaceOutcome,
@@ -30,7 +30,7 @@ use super::search::{search, HypothesisSearch, SearchOptions};
 use super::verdict::{decide, decisive_ln_bayes_factor, Candidate, Decision};
 use crate::error::Result;
 use crate::infer::nested::gain_bound;
-use crate::infer::screened::{is_contested, laplace_reach, Estimator};
+use crate::infer::screened::{is_contested, laplace_reach, rival_floors, Estimator, Extension};
 use crate::io::stages::staged;
 use std::sync::Arc;
 
@@ -71,6 +71,7 @@ pub fn run_round(
         base,
         &hypotheses,
         &mut finalists,
+        step,
         (watch, timings),
         progress,
     )?;
@@ -195,6 +196,14 @@ fn best_laplace(
     Ok((posts, values))
 }
 
+/// A hypothesis picked for an evidence run: its best fit, posterior and Laplace.
+type Picked<'a> = (
+    &'a Arc<dyn Hypothesis>,
+    &'a super::search::LocationFit,
+    ModelPosterior,
+    LaplaceOutcome,
+);
+
 /// The screened evidence of every hypothesis' best location, the best fits first, up to
 /// `max_evidence_runs`, one farmed task each; ranked by log evidence.
 fn evidence_runs(
@@ -217,7 +226,7 @@ fn evidence_runs(
         .collect();
     order.sort_by(|&a, &b| best_ln_l(b).total_cmp(&best_ln_l(a)));
     order.truncate(ctx.opts.max_evidence_runs);
-    let picked: Vec<_> = order
+    let picked: Vec<Picked<'_>> = order
         .iter()
         .filter_map(|&i| {
             let b = searches[i].1.best()?;
@@ -226,13 +235,13 @@ fn evidence_runs(
         })
         .collect();
     let stage_name = |h: &Arc<dyn Hypothesis>| format!("{}{}", tag(step), h.name());
+    let extensions = extensions_of(base, &picked);
     let done = crate::dist::farm(
         picked.len(),
         |k| {
             let (h, best, post, lap) = &picked[k];
             // Contests between hypotheses are settled after they are judged
             // (decide_round): only passing ones can tie or outrank each other.
-            let x = extension_of(&base.result, base.laplace.as_ref().ok(), &best.map);
             let index = (64 * step + k + 1) as u64;
             let name = stage_name(h);
             completion(
@@ -240,7 +249,7 @@ fn evidence_runs(
                 post,
                 &best.map,
                 lap,
-                Some(&x),
+                Some(&extensions[k]),
                 ctx.opts,
                 index,
                 ctx.stages,
@@ -271,6 +280,33 @@ fn evidence_runs(
     Ok(finalists)
 }
 
+/// Each picked hypothesis' [`Extension`] of the base model, with the highest lower
+/// reach of a rival's Laplace `Delta ln Z` ([`rival_floors`]): a run whose gain bound
+/// that rival clears by the threshold is deferred ([`Estimator::Outranked`]) until the
+/// rival is judged ([`super::judge::judge_finalists`]).
+fn extensions_of(base: &BaseModel, picked: &[Picked<'_>]) -> Vec<Extension> {
+    let base_laplace = base.laplace.as_ref().ok();
+    let mut extensions: Vec<Extension> = picked
+        .iter()
+        .map(|(_, best, _, _)| extension_of(&base.result, base_laplace, &best.map))
+        .collect();
+    let lows: Vec<f64> = picked
+        .iter()
+        .zip(&extensions)
+        .map(|((_, _, _, lap), x)| {
+            let ln_z = lap.as_ref().ok().map(|l| l.laplace.ln_z);
+            match x.delta_laplace(ln_z) {
+                Some(d) => laplace_reach(x.gain_bound_nats, Some(d), LAPLACE_ALLOWANCE_NATS).0,
+                None => f64::NEG_INFINITY,
+            }
+        })
+        .collect();
+    for (x, floor) in extensions.iter_mut().zip(rival_floors(&lows)) {
+        x.rival_floor_nats = floor;
+    }
+    extensions
+}
+
 /// [`decide`] on the finalists against the base model, then again after runs where
 /// Laplace's value would decide more than it can ([`needing_runs`]). Returns the base's
 /// `ln Z`, its sd and the decision.
@@ -299,12 +335,7 @@ fn decide_round(
         return Ok((base_ln_z, base_ln_z_sd, decision));
     }
     for i in to_run {
-        let f = &mut finalists[i];
-        let name = format!("{}{}-run", tag(step), f.name);
-        let k = ctx.hypotheses.iter().position(|h| h.name() == f.name);
-        let index = (64 * step + 32 + k.unwrap_or(31)) as u64;
-        run_evidence(ctx, f, &name, index, progress)?;
-        watch.mark(&format!("evidence {name}"), timings);
+        run_evidence(ctx, &mut finalists[i], step, (watch, timings), progress)?;
     }
     let judged: Vec<(ModelResult, bool)> = finalists.drain(..).zip(skipped).collect();
     let skipped = rank_with_flags(finalists, judged);
@@ -354,38 +385,6 @@ fn needing_runs(finalists: &[ModelResult], decision: &Decision, base_ln_z: f64) 
         })
         .map(|(_, &i)| i)
         .collect()
-}
-
-/// Replaces `f`'s evidence (Laplace's) by a run's (importance sampling or the
-/// generalised stepping-stone), keeping its gain bound, and its effect summaries by
-/// the run's draws.
-fn run_evidence(
-    ctx: &RoundContext<'_>,
-    f: &mut ModelResult,
-    name: &str,
-    index: u64,
-    progress: &mut dyn FnMut(DiagnoseStage<'_>),
-) -> Result<()> {
-    let lap = laplace_u(&f.posterior, &f.map.z);
-    let done = completion(
-        name,
-        &f.posterior,
-        &f.map,
-        &lap,
-        None,
-        ctx.opts,
-        index,
-        ctx.stages,
-        progress,
-    )?;
-    let bound = f.evidence.as_ref().and_then(|e| e.gain_bound_nats);
-    let mut evidence = done.evidence;
-    evidence.gain_bound_nats = bound;
-    f.evidence = Some(evidence);
-    f.effect = done.effect;
-    f.plausible = done.plausible;
-    f.implausible_because = done.why;
-    Ok(())
 }
 
 /// What [`decide`] needs of one finalist.

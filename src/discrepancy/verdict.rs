@@ -28,6 +28,7 @@
 //!
 //! Otherwise the verdict is `none`.
 
+use crate::infer::screened::Estimator;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -83,10 +84,12 @@ pub struct HypothesisEvidence {
     pub delta_log_evidence: f64,
     /// Standard deviation of `delta_log_evidence` (hypothesis and nominal model), nats:
     /// replicates of a stepping-stone, the stated allowance of Laplace, or 0 for a
-    /// `gain_bound` (then `delta_log_evidence` is Laplace's value capped at the bound).
+    /// `gain_bound` or `outranked` (then `delta_log_evidence` is Laplace's value capped
+    /// at the bound, or the bound: an upper bound).
     #[serde(default)]
     pub delta_log_evidence_sd: Option<f64>,
-    /// `gain_bound`, `laplace`, `generalised_stepping_stone` or `stepping_stone`
+    /// `gain_bound`, `outranked`, `laplace`, `importance_sampling`,
+    /// `generalised_stepping_stone` or `stepping_stone`
     /// ([`crate::infer::screened::Estimator`]).
     #[serde(default)]
     pub estimator: String,
@@ -171,7 +174,9 @@ pub struct Candidate {
     pub heldout_n_ranked: usize,
     /// The time-domain refit and held-out check were skipped: they replay the tests
     /// (minutes) and a candidate decisively more likely had already passed every test,
-    /// beyond what the replay could add, so this one can neither win nor tie.
+    /// beyond what the replay could add, so this one can neither win nor tie. For an
+    /// `outranked` estimator: its evidence run and held-out check were skipped, as a
+    /// candidate that passed is above its gain bound by the threshold.
     pub heldout_skipped: bool,
 }
 
@@ -237,6 +242,13 @@ pub fn decide(nominal_log_evidence: f64, nominal_se: f64, candidates: &[Candidat
         let reason = if c.gain_bound < threshold {
             format!(
                 "cannot be decisive: its gain in max ln L, {:.1} nats, bounds delta ln Z below {threshold:.1}",
+                c.gain_bound
+            )
+        } else if c.heldout_skipped && c.estimator == Estimator::Outranked.label() {
+            format!(
+                "outranked: its gain in max ln L, {:.1} nats, bounds delta ln Z more than \
+                 {threshold:.1} below a hypothesis that passed every test; it can neither \
+                 win nor tie, and neither its evidence run nor its held-out check was run",
                 c.gain_bound
             )
         } else if !delta.is_finite() {
@@ -313,6 +325,18 @@ mod tests {
         let d = decide(0.0, 0.5, &c);
         assert_eq!(d.winner, Some(0));
         assert!(d.reasons[1].contains("was run"), "{}", d.reasons[1]);
+    }
+
+    #[test]
+    fn an_outranked_candidate_passed_over_is_named_neither_way() {
+        let mut c = vec![cand("a", 100.0), cand("b", 40.0)];
+        c[1].estimator = "outranked".into();
+        c[1].gain_bound = 40.0;
+        c[1].log_evidence_se = 0.0;
+        c[1].heldout_skipped = true;
+        let d = decide(0.0, 0.1, &c);
+        assert_eq!((d.winner, d.passing.clone()), (Some(0), vec![0]));
+        assert!(d.reasons[1].starts_with("outranked"), "{}", d.reasons[1]);
     }
 
     #[test]

@@ -47,8 +47,9 @@ pub use reference::{
 };
 pub use sample::{sample_to_targets, Sampled, Sampling, Targets};
 pub use screened::{
-    choose_estimator, laplace_of, screened_evidence, BaseEvidence, Estimator, Extension,
-    LaplaceInU, ScreenOptions, ScreenedEvidence, GSS_REPLICATES, IMPORTANCE_DRAWS,
+    choose_estimator, choose_for_extension, laplace_of, rival_floors, screened_evidence,
+    BaseEvidence, Estimator, Extension, LaplaceInU, ScreenOptions, ScreenedEvidence,
+    GSS_REPLICATES, IMPORTANCE_DRAWS,
 };
 pub use tempering::TemperingRun;
 pub use unconstrained::{sample_in_unconstrained, LogitMap, Unconstrained};
