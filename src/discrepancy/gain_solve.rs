@@ -2,11 +2,9 @@
 //! [`super::posterior::ModelPosterior`]: its basis on the flat layout and the small
 //! Woodbury solve `G = I + V^* D^-1 V` (see that module's docs).
 
+use super::per_thread::PerThread;
 use num_complex::Complex64;
-use std::cell::RefCell;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
-use thread_local::ThreadLocal;
 
 /// A segment's [`super::data::InputGainBasis`] on the flat layout.
 #[derive(Debug, Clone)]
@@ -164,13 +162,9 @@ pub(super) fn gain_apply(
 }
 
 /// What the factors of `G` were built for: the error floor (its bits) and the carrier
-/// (the measured ratios, fixed in a posterior, or a plug-in prediction, kept alive here
-/// so that its address cannot be reused by another while it is the key).
-struct Cached {
-    eta_bits: u64,
-    plug_in: Option<Arc<Vec<Complex64>>>,
-    factors: Vec<GainFactor>,
-}
+/// (the measured ratios, `None`, fixed in a posterior, or a plug-in prediction, kept
+/// alive here so that its address cannot be reused by another while it is the key).
+type GainKey = (u64, Option<Arc<Vec<Complex64>>>);
 
 /// Each thread's factors of `G` for every gain segment at the last error floor and
 /// carrier it evaluated. A least-squares fit holds `eta` fixed while it moves the
@@ -178,24 +172,8 @@ struct Cached {
 /// `O(M r^2)` assembly and the Cholesky drop out and `O(N + M r)` remain. Results are
 /// bit for bit those of factoring anew (the same arithmetic, done once). A clone starts
 /// empty.
-#[derive(Default)]
-pub(super) struct GainCache {
-    per_thread: ThreadLocal<RefCell<Option<Cached>>>,
-    /// Factor sets built so far (all threads).
-    builds: AtomicUsize,
-}
-
-impl Clone for GainCache {
-    fn clone(&self) -> Self {
-        Self::default()
-    }
-}
-
-impl std::fmt::Debug for GainCache {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("GainCache")
-    }
-}
+#[derive(Default, Clone, Debug)]
+pub(super) struct GainCache(PerThread<GainKey, Vec<GainFactor>>);
 
 impl GainCache {
     /// `apply(factors)` with this thread's factors at (`eta`, `plug_in`; `None`: the
@@ -208,31 +186,22 @@ impl GainCache {
         build: impl FnOnce() -> Vec<GainFactor>,
         apply: impl FnOnce(&[GainFactor]) -> R,
     ) -> R {
-        let cell = self.per_thread.get_or_default();
-        let hit = cell.borrow().as_ref().is_some_and(|c| {
-            c.eta_bits == eta.to_bits()
-                && match (&c.plug_in, plug_in) {
+        let bits = eta.to_bits();
+        let is_key = |(kept_bits, kept_plug_in): &GainKey| {
+            *kept_bits == bits
+                && match (kept_plug_in, plug_in) {
                     (None, None) => true,
                     (Some(a), Some(b)) => Arc::ptr_eq(a, b),
                     _ => false,
                 }
-        });
-        if !hit {
-            self.builds.fetch_add(1, Ordering::Relaxed);
-            let factors = build();
-            *cell.borrow_mut() = Some(Cached {
-                eta_bits: eta.to_bits(),
-                plug_in: plug_in.cloned(),
-                factors,
-            });
-        }
-        let cached = cell.borrow();
-        apply(&cached.as_ref().expect("filled above").factors)
+        };
+        self.0
+            .with(is_key, || (bits, plug_in.cloned()), build, |f| apply(f))
     }
 
     /// Factor sets built so far, over all threads.
     #[cfg(test)]
     pub(super) fn builds(&self) -> usize {
-        self.builds.load(Ordering::Relaxed)
+        self.0.builds()
     }
 }

@@ -34,6 +34,7 @@ pub mod location;
 pub mod model_evidence;
 mod nominal_system;
 pub mod output;
+mod per_thread;
 pub mod posterior;
 pub mod reduction;
 pub mod refine;

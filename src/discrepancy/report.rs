@@ -215,14 +215,16 @@ pub fn explanation(d: &Diagnosis) -> String {
                 before.chi2_per_point, before.fdac_mean
             );
             if !blocked.is_empty() {
-                let _ = write!(
-                    s,
-                    " Decisive but not named: {}. The misfit is real but unexplained: check \
-                     the located channels and bands for physics outside the six hypotheses, or \
-                     a hypothesis whose model is too crude (its parameter then runs to the end \
-                     of its physical range).",
-                    blocked.join("; ")
-                );
+                let _ = write!(s, " Decisive but not named: {}.", blocked.join("; "));
+                s.push_str(if d.adequacy.adequate {
+                    " The nominal model nonetheless explains the recordings within their \
+                     error (below): without a plausible size and a better prediction of \
+                     held-out recordings, a gain in evidence is not taken for missing physics."
+                } else {
+                    " The misfit is real but unexplained: check the located channels and \
+                     bands for physics outside the six hypotheses, or a hypothesis whose model \
+                     is too crude (its parameter then runs to the end of its physical range)."
+                });
             }
         }
     }

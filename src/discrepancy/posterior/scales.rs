@@ -4,9 +4,8 @@
 //! quotient per point again. Kept values are computed by the same expressions as
 //! before, so results are bit for bit those of computing them anew.
 
-use std::cell::RefCell;
+use super::super::per_thread::PerThread;
 use std::sync::Arc;
-use thread_local::ThreadLocal;
 
 /// Per point at one error floor `eta`: `sigma_i = sqrt((eps_i^2 + eta^2) |h_i|^2)` and
 /// `1 / d_i = 1 / (2 sigma_i^2)` (as `1 / (2 (eps_i^2 + eta^2) |h_i|^2)`).
@@ -33,40 +32,22 @@ impl Scales {
     }
 }
 
-/// The scales one thread keeps, with the bits of the error floor they are at.
-type Kept = Option<(u64, Arc<Scales>)>;
-
-/// Each thread's [`Scales`] at the last error floor it asked for. A clone starts empty.
-#[derive(Default)]
-pub(super) struct ScaleCache {
-    per_thread: ThreadLocal<RefCell<Kept>>,
-}
-
-impl Clone for ScaleCache {
-    fn clone(&self) -> Self {
-        Self::default()
-    }
-}
-
-impl std::fmt::Debug for ScaleCache {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("ScaleCache")
-    }
-}
+/// Each thread's [`Scales`] at the last error floor (its bits) it asked for. A clone
+/// starts empty.
+#[derive(Default, Clone, Debug)]
+pub(super) struct ScaleCache(PerThread<u64, Arc<Scales>>);
 
 impl ScaleCache {
     /// The scales at `eta` of points with `eps2` and `abs2`, which must be the same
     /// for every call on one cache (a posterior's own).
     pub(super) fn at(&self, eta: f64, eps2: &[f64], abs2: &[f64]) -> Arc<Scales> {
-        let cell = self.per_thread.get_or_default();
-        if let Some((bits, s)) = cell.borrow().as_ref() {
-            if *bits == eta.to_bits() {
-                return s.clone();
-            }
-        }
-        let s = Arc::new(Scales::new(eta, eps2, abs2));
-        *cell.borrow_mut() = Some((eta.to_bits(), s.clone()));
-        s
+        let bits = eta.to_bits();
+        self.0.with(
+            |&kept| kept == bits,
+            || bits,
+            || Arc::new(Scales::new(eta, eps2, abs2)),
+            Arc::clone,
+        )
     }
 }
 
