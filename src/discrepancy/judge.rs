@@ -54,8 +54,9 @@ fn is_outranked(f: &ModelResult) -> bool {
 
 /// Refits and held-out checks, in order of evidence, only where they can change the
 /// decision: an outranked finalist ([`Estimator::Outranked`]: its run deferred) is
-/// passed over when a finalist that passed is above its gain bound by the threshold,
-/// and otherwise gets its run ([`run_evidence`]) and is judged like the others; a
+/// passed over when a finalist that passed is above its gain bound (plus the replay's
+/// largest gain, [`replay_gain_limit`], if amplitude-dependent) by the threshold, and
+/// otherwise gets its run ([`run_evidence`]) and is judged like the others; a
 /// finalist must be decisive; an amplitude-dependent one is refitted by
 /// replaying the tests in the time domain and judged on that fit, unless even the
 /// replay's largest gain ([`replay_gain_limit`]) left it a decisive factor below a
@@ -77,10 +78,17 @@ pub(super) fn judge_finalists(
     let mut judged: Vec<(ModelResult, bool)> = Vec::with_capacity(finalists.len());
     for mut f in finalists.drain(..) {
         if is_outranked(&f) {
-            // The highest ln Z it can have: the base's plus its gain bound.
+            // The highest ln Z it can have: the base's plus its gain bound, plus what a
+            // time-domain replay could add to an amplitude-dependent one's.
             let bound = f.evidence.as_ref().and_then(|e| e.gain_bound_nats);
-            let top =
-                base.result.ln_z().unwrap_or(f64::NEG_INFINITY) + bound.unwrap_or(f64::INFINITY);
+            let replay = if is_amplitude_dependent(hypotheses, &f.name) {
+                replay_gain_limit(&f)
+            } else {
+                0.0
+            };
+            let top = base.result.ln_z().unwrap_or(f64::NEG_INFINITY)
+                + bound.unwrap_or(f64::INFINITY)
+                + replay;
             if best_passing - top >= threshold {
                 judged.push((f, true));
                 continue;
