@@ -15,7 +15,7 @@ struct MpiWorld {
 }
 
 // SAFETY: the handle is only used for collectives from the thread that installed it
-// (see `super::active`); MPI is initialised with `MPI_THREAD_FUNNELED`, which allows
+// (see `frfbayes::dist`); MPI is initialised with `MPI_THREAD_FUNNELED`, which allows
 // exactly that, and `rank`/`size` are read once.
 unsafe impl Send for MpiWorld {}
 // SAFETY: as above.

@@ -86,7 +86,8 @@ mod tests {
             .unwrap();
         let got: Vec<Vec<u64>> = pool.install(|| (0..8).into_par_iter().map(|_| get(5)).collect());
         assert!(got.iter().all(|v| v == &vec![5; 3]));
-        assert!(kept.builds() <= 3 + 3, "at most one build per thread");
+        // At most one build on each of the pool's two threads.
+        assert!(kept.builds() <= 3 + 2, "{}", kept.builds());
         assert_eq!(kept.clone().builds(), 0);
     }
 }

@@ -148,11 +148,18 @@ pub fn explanation(d: &Diagnosis) -> String {
                 d.fit_after.fdac_mean
             );
             if let Some(r) = d.finalists.iter().enumerate().find(|(i, _)| *i != w) {
-                let dr = r.1.ln_z().unwrap_or(f64::NAN) - f.ln_z().unwrap_or(f64::NAN);
-                // A bound's ln Z is the most it can be.
-                let bounded = r.1.evidence.as_ref().is_some_and(|e| {
+                // Without a run (a bound), the most its ln Z can be: the nominal
+                // model's plus its gain bound.
+                let bound = r.1.evidence.as_ref().and_then(|e| {
                     matches!(e.estimator, Estimator::GainBound | Estimator::Outranked)
+                        .then_some(e.gain_bound_nats?)
                 });
+                let bounded = bound.is_some();
+                let top = match bound {
+                    Some(b) => d.nominal.ln_z().unwrap_or(f64::NAN) + b,
+                    None => r.1.ln_z().unwrap_or(f64::NAN),
+                };
+                let dr = top - f.ln_z().unwrap_or(f64::NAN);
                 let _ = write!(
                     s,
                     " The next best explanation, {} at {}, is {}{:.1} nats less likely.",
